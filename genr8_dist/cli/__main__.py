@@ -1,0 +1,5 @@
+import sys
+
+from genr8_dist.cli import main
+
+sys.exit(main())
