@@ -19,8 +19,8 @@ from __future__ import annotations
 
 __all__ = [
     "ConfigError",
-    "Genr8Error",
     "GenomeError",
+    "Genr8Error",
     "GrowthError",
     "InversionError",
     "ParseError",
@@ -76,7 +76,7 @@ class RunError(Genr8Error):
 
 
 def located(message: str, source: str, line: int = 0, column: int = 0) -> str:
-    """Prefix ``message`` with ``source:line:column`` the way compilers do (parts that are 0 are left out)."""
+    """Prefix ``message`` with ``source:line:column`` as compilers do (zero parts are left out)."""
     where = source
     if line:
         where += f":{line}"

@@ -12,7 +12,7 @@ import hashlib
 
 import numpy as np
 
-__all__ = ["stream", "seed_sequence"]
+__all__ = ["seed_sequence", "stream"]
 
 
 def _key_words(key: int | str) -> list[int]:
