@@ -1,0 +1,360 @@
+"""Boundaries (thesis 2.7.3): planes, boxes, spheres and any triangle mesh trimesh reads.
+
+Every boundary splits space into an *inside* (the solid: behind a plane's normal, within a box or a
+sphere, enclosed by a mesh) and an *outside*. One of the two is the **allowed side**: the one given by
+``inside = true/false``, or, when ``inside`` is left out, the side the seed starts on (the seed's
+centre, i.e. the start position or the centre of a user seed polygon; exactly on the surface counts
+as outside). A vertex on the other side *violates* the boundary.
+
+What happens when a derivation step would move a vertex from ``p`` to a violating ``q`` depends on
+the boundary's **behaviour**:
+
+- ``slide`` (Genr8's default): the vertex goes to the point of the boundary closest to ``q``, just on
+  the allowed side, so the part of the move along the wall is kept and the part into it is lost
+  (the surface slides along the wall, as it drapes a sphere under gravity).
+- ``cut-off``: the vertex stops dead where the segment ``p -> q`` meets the boundary and never moves
+  again for the rest of the growth.
+- ``reflect``: the vertex is mirrored back through the wall: ``q' = 2 c - q`` with ``c`` the boundary
+  point closest to ``q`` (the penetration depth becomes a distance back into the allowed side); if
+  the mirror image still violates (corners, strong curvature) it slides instead.
+- ``soft``: the vertex passes through; ``Environment.count_soft_violations`` counts the vertices on
+  the wrong side, and the fitness's soft-boundary criterion penalises them.
+"""
+
+from __future__ import annotations
+
+import abc
+import copy
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from genr8_dist.environment._fields import (
+    fail,
+    read_choice,
+    read_float,
+    read_optional_bool,
+    read_vec3,
+    reject_unknown,
+)
+from genr8_dist.environment._meshgeom import closest_on_triangles, winding_numbers
+from genr8_dist.errors import ConfigError, GrowthError
+
+__all__ = [
+    "BEHAVIOURS",
+    "Boundary",
+    "BoxBoundary",
+    "MeshBoundary",
+    "PlaneBoundary",
+    "SphereBoundary",
+    "boundary_from_dict",
+]
+
+BEHAVIOURS = ("slide", "cut-off", "reflect", "soft")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Boundary(abc.ABC):
+    """Common part of every boundary: its behaviour and which side is allowed.
+
+    Subclasses give ``outside_distance`` (signed: > 0 outside the solid, < 0 inside) and
+    ``closest_points`` (the nearest point of the boundary's surface).
+    """
+
+    kind: ClassVar[str] = ""
+    behaviour: str = "slide"
+    inside: bool | None = None
+    #: the allowed side once resolved against the seed's centre (set by the Environment)
+    allowed_inside: bool | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        read_choice(self.behaviour, self._where(), "behaviour", BEHAVIOURS)
+        read_optional_bool(self.inside, self._where(), "inside")
+        if self.allowed_inside is None and self.inside is not None:
+            object.__setattr__(self, "allowed_inside", self.inside)
+
+    def _where(self) -> str:
+        return f"{self.kind} boundary"
+
+    # -- geometry, per subclass ------------------------------------------------------------------------
+    @abc.abstractmethod
+    def outside_distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance of each point to the boundary's surface: > 0 outside the solid, < 0 inside."""
+
+    @abc.abstractmethod
+    def closest_points(self, points: np.ndarray) -> np.ndarray:
+        """The point of the boundary's surface nearest each point."""
+
+    # -- shared ----------------------------------------------------------------------------------------
+    def resolved(self, seed_centre: tuple[float, float, float]) -> Boundary:
+        """A copy whose allowed side is fixed: ``inside`` if given, else the side ``seed_centre`` is on."""
+        if self.inside is not None:
+            allowed = self.inside
+        else:
+            allowed = bool(self.outside_distance(np.asarray([seed_centre], dtype=np.float64))[0] < 0.0)
+        resolved = copy.copy(self)  # shallow: a mesh's loaded triangles are shared, not re-read
+        object.__setattr__(resolved, "allowed_inside", allowed)
+        return resolved
+
+    @property
+    def _allowed(self) -> bool:
+        if self.allowed_inside is None:
+            raise ConfigError(f"{self._where()}: allowed side unknown (set 'inside' or use an Environment)")
+        return self.allowed_inside
+
+    def violation(self, points: np.ndarray) -> np.ndarray:
+        """How far each point is on the wrong side (> 0 violates; <= 0 is allowed)."""
+        d = self.outside_distance(points)
+        return d if self._allowed else -d
+
+    def project(self, points: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """Move violating points onto the boundary, a hair (1e-9 x ``scale``) on the allowed side."""
+        points = np.asarray(points, dtype=np.float64)
+        closest = self.closest_points(points)
+        away = closest - points
+        norm = np.linalg.norm(away, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            unit = np.where(norm > 0, away / np.where(norm > 0, norm, 1.0), 0.0)
+        return closest + unit * (1e-9 * max(scale, 1.0))
+
+    def first_contact(self, start: np.ndarray, end: np.ndarray, iterations: int = 40) -> np.ndarray:
+        """Where each segment start -> end (start allowed, end violating) first reaches the boundary.
+
+        Bisection on the violation along the segment; the returned point is on the allowed side.
+        """
+        lo = np.zeros(len(start))
+        hi = np.ones(len(start))
+        delta = end - start
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            bad = self.violation(start + mid[:, None] * delta) > 0.0
+            hi = np.where(bad, mid, hi)
+            lo = np.where(bad, lo, mid)
+        return start + lo[:, None] * delta
+
+    def to_dict(self) -> dict[str, Any]:
+        """The TOML table of this boundary (``kind`` first; ``inside`` only when given)."""
+        out: dict[str, Any] = {"kind": self.kind}
+        for f in dataclasses.fields(self):
+            if f.name in ("allowed_inside",) or f.name.startswith("_"):
+                continue
+            value = getattr(self, f.name)
+            if value is None:
+                continue
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlaneBoundary(Boundary):
+    """An infinite plane through ``point`` with unit ``normal``; its inside is behind the normal."""
+
+    kind: ClassVar[str] = "plane"
+    point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = self._where()
+        object.__setattr__(self, "point", read_vec3(self.point, where, "point"))
+        normal = np.asarray(read_vec3(self.normal, where, "normal"))
+        length = float(np.linalg.norm(normal))
+        if length == 0.0:
+            raise fail(where, "normal", "must not be the zero vector")
+        object.__setattr__(self, "normal", tuple(float(v) for v in normal / length))
+
+    def outside_distance(self, points: np.ndarray) -> np.ndarray:
+        return (np.asarray(points, dtype=np.float64) - np.asarray(self.point)) @ np.asarray(self.normal)
+
+    def closest_points(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64)
+        return points - self.outside_distance(points)[:, None] * np.asarray(self.normal)
+
+
+@dataclass(frozen=True, kw_only=True)
+class BoxBoundary(Boundary):
+    """An axis-aligned box from corner ``min`` to corner ``max``."""
+
+    kind: ClassVar[str] = "box"
+    min: tuple[float, float, float] = (-1.0, -1.0, -1.0)
+    max: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = self._where()
+        lo = read_vec3(self.min, where, "min")
+        hi = read_vec3(self.max, where, "max")
+        if any(h <= low for low, h in zip(lo, hi, strict=True)):
+            raise fail(where, "max", f"must exceed 'min' on every axis, got min {list(lo)} max {list(hi)}")
+        object.__setattr__(self, "min", lo)
+        object.__setattr__(self, "max", hi)
+
+    def outside_distance(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64)
+        lo = np.asarray(self.min)
+        hi = np.asarray(self.max)
+        centre = 0.5 * (lo + hi)
+        half = 0.5 * (hi - lo)
+        q = np.abs(points - centre) - half
+        outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
+        inside = np.minimum(np.max(q, axis=1), 0.0)
+        return outside + inside
+
+    def closest_points(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64)
+        lo = np.asarray(self.min)
+        hi = np.asarray(self.max)
+        out = np.clip(points, lo, hi)
+        inner = np.all((points > lo) & (points < hi), axis=1)
+        if np.any(inner):
+            p = points[inner]
+            gaps = np.concatenate([p - lo, hi - p], axis=1)  # distances to the six faces
+            face = np.argmin(gaps, axis=1)
+            axis = face % 3
+            value = np.where(face < 3, lo[axis], hi[axis])
+            snapped = p.copy()
+            snapped[np.arange(len(p)), axis] = value
+            out[inner] = snapped
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class SphereBoundary(Boundary):
+    """A sphere of ``radius`` around ``centre``."""
+
+    kind: ClassVar[str] = "sphere"
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = self._where()
+        object.__setattr__(self, "centre", read_vec3(self.centre, where, "centre"))
+        object.__setattr__(self, "radius", read_float(self.radius, where, "radius", minimum=0.0,
+                                                      strict_minimum=True))
+
+    def outside_distance(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64)
+        return np.linalg.norm(points - np.asarray(self.centre), axis=1) - self.radius
+
+    def closest_points(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64)
+        centre = np.asarray(self.centre)
+        r = points - centre
+        norm = np.linalg.norm(r, axis=1, keepdims=True)
+        up = np.array([0.0, 0.0, 1.0])
+        unit = np.where(norm > 0, r / np.where(norm > 0, norm, 1.0), up)
+        return centre + self.radius * unit
+
+
+@dataclass(frozen=True, kw_only=True)
+class MeshBoundary(Boundary):
+    """A triangle mesh read by trimesh from ``path`` (OBJ, STL, PLY, GLB, OFF...), scaled then translated.
+
+    A watertight mesh has an inside (decided by its winding number, whatever its face orientation);
+    an open mesh (a terrain, a wall) has the side its face normals point to as the outside.
+    """
+
+    kind: ClassVar[str] = "mesh"
+    path: str = ""
+    scale: float = 1.0
+    translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    _triangles: np.ndarray | None = field(default=None, init=False, compare=False, repr=False)
+    _normals: np.ndarray | None = field(default=None, init=False, compare=False, repr=False)
+    _watertight: bool = field(default=False, init=False, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        where = self._where()
+        if not isinstance(self.path, (str, Path)) or not str(self.path):
+            raise fail(where, "path", f"must be the file name of a mesh, got {self.path!r}")
+        object.__setattr__(self, "path", str(self.path))
+        object.__setattr__(self, "scale", read_float(self.scale, where, "scale", minimum=0.0,
+                                                     strict_minimum=True))
+        object.__setattr__(self, "translate", read_vec3(self.translate, where, "translate"))
+        self._load()
+
+    def _load(self) -> None:
+        import trimesh
+
+        path = Path(self.path)
+        if not path.is_file():
+            raise GrowthError(f"{self.path}: boundary mesh file not found")
+        try:
+            mesh = trimesh.load(str(path), force="mesh")
+        except Exception as exc:  # trimesh raises many kinds for unreadable files
+            raise GrowthError(f"{self.path}: cannot read boundary mesh: {exc}") from None
+        faces = getattr(mesh, "faces", None)
+        if faces is None or len(faces) == 0:
+            raise GrowthError(f"{self.path}: boundary mesh has no triangles")
+        triangles = np.asarray(mesh.triangles, dtype=np.float64) * self.scale + np.asarray(self.translate)
+        edge1 = triangles[:, 1] - triangles[:, 0]
+        edge2 = triangles[:, 2] - triangles[:, 0]
+        normals = np.cross(edge1, edge2)
+        area = np.linalg.norm(normals, axis=1)
+        keep = area > 1e-14 * max(1.0, float(np.max(area)))
+        triangles = triangles[keep]
+        normals = normals[keep] / area[keep, None]
+        object.__setattr__(self, "_triangles", triangles)
+        object.__setattr__(self, "_normals", normals)
+        object.__setattr__(self, "_watertight", bool(mesh.is_watertight))
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """The mesh's triangles (T, 3, 3) in scene coordinates."""
+        assert self._triangles is not None
+        return self._triangles
+
+    @property
+    def watertight(self) -> bool:
+        """True when the mesh is closed (it then has an inside)."""
+        return self._watertight
+
+    def outside_distance(self, points: np.ndarray) -> np.ndarray:
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        closest, distance, index = closest_on_triangles(points, self.triangles)
+        if self._watertight:
+            inside = np.abs(winding_numbers(points, self.triangles)) > 0.5
+        else:
+            inside = np.einsum("ij,ij->i", points - closest, self._normals[index]) < 0.0
+        return np.where(inside, -distance, distance)
+
+    def closest_points(self, points: np.ndarray) -> np.ndarray:
+        return closest_on_triangles(np.asarray(points, dtype=np.float64).reshape(-1, 3), self.triangles)[0]
+
+
+_KINDS: dict[str, type[Boundary]] = {
+    cls.kind: cls for cls in (PlaneBoundary, BoxBoundary, SphereBoundary, MeshBoundary)
+}
+
+
+def boundary_from_dict(data: Any, source: str, where: str, base_dir: Path | None = None) -> Boundary:
+    """Build a boundary from its TOML table; ``where`` names it in messages (e.g. ``boundaries[1]``).
+
+    A relative mesh ``path`` is taken relative to ``base_dir`` (the environment file's folder).
+    """
+    if not isinstance(data, dict):
+        raise fail(source, where, f"must be a table, got {data!r}")
+    kind = data.get("kind")
+    if kind is None:
+        raise fail(source, f"{where}.kind", f"missing (one of {', '.join(repr(k) for k in _KINDS)})")
+    read_choice(kind, source, f"{where}.kind", tuple(_KINDS))
+    cls = _KINDS[kind]
+    known = [f.name for f in dataclasses.fields(cls) if f.init and f.name != "allowed_inside"]
+    reject_unknown(data, ["kind", *known], source, where)
+    kwargs = {k: v for k, v in data.items() if k != "kind"}
+    if cls is MeshBoundary and isinstance(kwargs.get("path"), str) and base_dir is not None:
+        path = Path(kwargs["path"]).expanduser()
+        kwargs["path"] = str(path if path.is_absolute() else (base_dir / path))
+    try:
+        return cls(**kwargs)
+    except ConfigError as exc:
+        # re-word "sphere boundary: field 'radius'" as "source: field 'boundaries[0].radius'"
+        message = str(exc)
+        prefix = f"{cls.kind} boundary: field '"
+        if message.startswith(prefix):
+            message = f"{source}: field '{where}." + message[len(prefix):]
+        raise ConfigError(message) from None

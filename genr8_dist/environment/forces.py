@@ -1,0 +1,155 @@
+"""External forces (thesis 2.7.1) and the repelling-points internal force (2.7.2), vectorised over vertices.
+
+Each law returns a *displacement* per derivation step (Genr8's forces act directly on positions, as
+journal section 4.7 has it: the force vector is added to the growth displacement).
+
+Attractors and repellers are point charges with a constant ``c >= 0`` and an exponent ``e >= 0``;
+for a vertex of mass ``m`` at distance ``d`` the displacement's magnitude is
+
+- ``law = "inverse"`` (Genr8's default): ``f = c · d^-e / m``, singular at ``d = 0``; with the
+  default ``e = 2`` it is the inverse-square law of the journal;
+- ``law = "bounded"`` (the thesis's variant without the singularity): ``f = c · d^-e / m`` for
+  ``d > 1`` and ``f = c · d / m`` for ``d <= 1``, so it rises linearly from 0 at the charge to
+  ``c / m`` at distance 1 and is continuous there.
+
+An attractor moves the vertex towards itself, a repeller away from itself. Gravity is a uniform
+displacement vector, the same for every vertex whatever its mass or position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from genr8_dist.environment._fields import fail, read_choice, read_float, read_vec3, reject_unknown
+
+__all__ = ["LAWS", "PointForce", "point_force_displacement", "repelling_displacement"]
+
+LAWS = ("inverse", "bounded")
+
+
+@dataclass(frozen=True)
+class PointForce:
+    """An attractor or a repeller: ``position``, ``constant`` c, ``exponent`` e, and the ``law``."""
+
+    position: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    constant: float = 1.0
+    exponent: float = 2.0
+    law: str = "inverse"
+
+    def __post_init__(self) -> None:
+        where = "point force"
+        object.__setattr__(self, "position", read_vec3(self.position, where, "position"))
+        object.__setattr__(self, "constant", read_float(self.constant, where, "constant", minimum=0.0))
+        object.__setattr__(self, "exponent", read_float(self.exponent, where, "exponent", minimum=0.0))
+        read_choice(self.law, where, "law", LAWS)
+
+    def magnitude(self, distance: np.ndarray, mass: np.ndarray) -> np.ndarray:
+        """``f(d, m)`` of this charge's law (see the module docstring), elementwise."""
+        d = np.asarray(distance, dtype=np.float64)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            far = self.constant * np.power(d, -self.exponent) / mass
+            if self.law == "bounded":
+                return np.where(d > 1.0, far, self.constant * d / mass)
+            return np.where(d > 0.0, far, 0.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The TOML table of this charge."""
+        return {"position": list(self.position), "constant": self.constant, "exponent": self.exponent,
+                "law": self.law}
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str, where: str) -> PointForce:
+        """Build from a TOML table; messages name ``source`` and ``where`` (e.g. ``repellers[0]``)."""
+        if not isinstance(data, dict):
+            raise fail(source, where, f"must be a table, got {data!r}")
+        reject_unknown(data, [f.name for f in dataclasses.fields(cls)], source, where)
+        checked: dict[str, Any] = {}
+        if "position" in data:
+            checked["position"] = read_vec3(data["position"], source, f"{where}.position")
+        if "constant" in data:
+            checked["constant"] = read_float(data["constant"], source, f"{where}.constant", minimum=0.0)
+        if "exponent" in data:
+            checked["exponent"] = read_float(data["exponent"], source, f"{where}.exponent", minimum=0.0)
+        if "law" in data:
+            checked["law"] = read_choice(data["law"], source, f"{where}.law", LAWS)
+        return cls(**checked)
+
+
+def point_force_displacement(points: np.ndarray, masses: np.ndarray, force: PointForce,
+                             sign: float) -> np.ndarray:
+    """The displacement (V, 3) of each vertex from one charge; ``sign`` +1 attracts, -1 repels."""
+    towards = np.asarray(force.position) - points
+    distance = np.linalg.norm(towards, axis=1)
+    magnitude = force.magnitude(distance, masses)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = np.where(distance[:, None] > 0, towards / np.where(distance > 0, distance, 1.0)[:, None], 0.0)
+    out = sign * magnitude[:, None] * unit
+    return np.where(np.isfinite(out), out, 0.0)
+
+
+def _pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i < j) of points closer than ``radius``, found through a uniform grid of cells."""
+    n = len(points)
+    empty = np.zeros(0, dtype=np.int64)
+    if n < 2 or radius <= 0.0:
+        return empty, empty
+    cells = np.floor((points - points.min(axis=0)) / radius).astype(np.int64) + 1
+    dims = cells.max(axis=0) + 2
+    if float(dims[0]) * float(dims[1]) * float(dims[2]) > 2.0**62:
+        raise ValueError("repelling radius too small for the surface's extent")
+    key = (cells[:, 0] * dims[1] + cells[:, 1]) * dims[2] + cells[:, 2]
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    first: list[np.ndarray] = []
+    second: list[np.ndarray] = []
+    index = np.arange(n)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                neighbour = key + (dx * dims[1] + dy) * dims[2] + dz
+                lo = np.searchsorted(sorted_key, neighbour, "left")
+                hi = np.searchsorted(sorted_key, neighbour, "right")
+                counts = hi - lo
+                total = int(counts.sum())
+                if total == 0:
+                    continue
+                i = np.repeat(index, counts)
+                starts = np.repeat(lo, counts)
+                within = np.arange(total) - np.repeat(np.cumsum(counts) - counts, counts)
+                j = order[starts + within]
+                keep = i < j
+                first.append(i[keep])
+                second.append(j[keep])
+    if not first:
+        return empty, empty
+    i = np.concatenate(first)
+    j = np.concatenate(second)
+    close = np.sum((points[i] - points[j]) ** 2, axis=1) < radius * radius
+    return i[close], j[close]
+
+
+def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: float, radius: float,
+                           length: float) -> np.ndarray:
+    """Repelling points: every pair of vertices closer than ``radius`` pushes apart.
+
+    The displacement of vertex i is ``strength · length · Σ_j (1 - d_ij / radius) · û_ij / m_i`` over
+    the vertices j within ``radius`` (û_ij the unit vector from j to i): a short-range, linear
+    soft-contact push, local so it costs about O(V).
+    """
+    out = np.zeros_like(points)
+    i, j = _pairs_within(points, radius)
+    if len(i) == 0:
+        return out
+    delta = points[i] - points[j]
+    d = np.linalg.norm(delta, axis=1)
+    ok = d > 0
+    i, j, delta, d = i[ok], j[ok], delta[ok], d[ok]
+    push = (strength * length * (1.0 - d / radius) / d)[:, None] * delta
+    for axis in range(3):
+        out[:, axis] += np.bincount(i, weights=push[:, axis], minlength=len(points))
+        out[:, axis] -= np.bincount(j, weights=push[:, axis], minlength=len(points))
+    return out / masses[:, None]

@@ -1,0 +1,158 @@
+"""Part 1 of a derivation step (journal 4.3, step 1): increase size, forces, internal forces, boundaries.
+
+For vertex i at ``p_i`` with mass ``m_i``, the surface centre ``c`` (mean of all vertex positions) and
+the per-axis scale ``s``, in this order:
+
+1. growth: ``r_i = (p_i - c) * (s - 1)`` (per axis; s < 1 shrinks);
+2. external forces: ``f_i`` = Σ attractors/repellers (``c·d^-e/m`` or the bounded law, measured at
+   ``p_i``) + gravity (the same vector for every vertex);
+3. repelling points (if on): a short-range push between vertices closer than ``repelling_radius``
+   mean edge lengths;
+4. position noise (if on): a normal draw per axis, standard deviation ``position_noise`` x the mean
+   edge length, from the growth's random generator;
+5. constraints: cut-off (stopped) vertices do not move at all; with ``fixed_perimeter`` neither do
+   perimeter vertices; with ``fixed_centre`` the mean displacement is taken back from the moving
+   vertices, so the centre of the surface stays where it was and forces stretch it instead of moving it;
+6. uniform cells (if on): the perimeter is held and each interior vertex is relaxed
+   ``uniform_iterations`` times halfway towards the mean of its edge neighbours, evening out the cells;
+7. boundaries, in the order listed, resolve the move ``p_i -> q_i`` (see environment.boundaries);
+   a final pass puts any vertex still on the wrong side of a hard boundary back at ``p_i`` (when
+   ``p_i`` was allowed), so hard boundaries are never crossed.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from genr8_dist.errors import GrowthError
+
+if TYPE_CHECKING:
+    from genr8_dist.environment.model import Environment, SizeIncrease
+
+__all__ = ["increase_size", "mean_edge_length", "neighbour_average"]
+
+
+def mean_edge_length(positions: np.ndarray, edges: np.ndarray, fallback: float) -> float:
+    """Mean length of the edges (``fallback`` when there are none or all have length 0)."""
+    if len(edges) == 0:
+        return fallback
+    lengths = np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)
+    mean = float(lengths.mean())
+    return mean if mean > 0.0 and np.isfinite(mean) else fallback
+
+
+def neighbour_average(positions: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean position of each vertex's edge neighbours, and how many neighbours it has."""
+    n = len(positions)
+    a, b = edges[:, 0], edges[:, 1]
+    degree = np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
+    total = np.empty_like(positions)
+    for axis in range(3):
+        total[:, axis] = (np.bincount(a, weights=positions[b, axis], minlength=n)
+                          + np.bincount(b, weights=positions[a, axis], minlength=n))
+    safe = np.maximum(degree, 1)[:, None]
+    return total / safe, degree
+
+
+def _check(name: str, array: np.ndarray, shape: tuple[int, ...]) -> None:
+    if array.shape != shape:
+        raise GrowthError(f"increase_size: '{name}' has shape {array.shape}, expected {shape}")
+
+
+def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses: np.ndarray,
+                  stopped: np.ndarray, perimeter: np.ndarray, edges: np.ndarray,
+                  rng: np.random.Generator) -> SizeIncrease:
+    """Move every vertex for derivation step ``step``; returns new positions and the cumulative stop mask.
+
+    Inputs are not modified. ``positions`` (V, 3), ``masses`` (V,), ``stopped`` and ``perimeter``
+    bool (V,), ``edges`` (E, 2) vertex indices.
+    """
+    from genr8_dist.environment.model import SizeIncrease
+
+    p = np.asarray(positions, dtype=np.float64)
+    n = len(p)
+    _check("positions", p, (n, 3))
+    masses = np.asarray(masses, dtype=np.float64)
+    stopped = np.asarray(stopped, dtype=bool)
+    perimeter = np.asarray(perimeter, dtype=bool)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    _check("masses", masses, (n,))
+    _check("stopped", stopped, (n,))
+    _check("perimeter", perimeter, (n,))
+    if n == 0:
+        return SizeIncrease(p.copy(), stopped.copy())
+
+    centre = p.mean(axis=0)
+    move = (p - centre) * (np.asarray(env.scale) - 1.0)
+    length = 0.0
+    if env.repelling_points > 0.0 or env.position_noise > 0.0:
+        length = mean_edge_length(p, edges, env.characteristic_length(max(step - 1, 0)))
+    move += env.total_force(p, masses)
+    if env.repelling_points > 0.0:
+        move += env.repelling(p, masses, length)
+    if env.position_noise > 0.0:
+        move += rng.normal(0.0, env.position_noise * length, size=p.shape)
+
+    frozen = stopped.copy()
+    if env.fixed_perimeter:
+        frozen |= perimeter
+    move[frozen] = 0.0
+    if env.fixed_centre:
+        moving = ~frozen
+        count = int(moving.sum())
+        if count:
+            move[moving] -= move.sum(axis=0) / count
+    q = p + move
+
+    if env.uniform_cells and len(edges):
+        free = ~(frozen | perimeter)
+        for _ in range(env.uniform_iterations):
+            average, degree = neighbour_average(q, edges)
+            relax = free & (degree > 0)
+            q[relax] += 0.5 * (average[relax] - q[relax])
+
+    new_stopped = stopped.copy()
+    if env.boundaries:
+        q, new_stopped = _apply_boundaries(env, p, q, new_stopped)
+    q[stopped] = p[stopped]
+    return SizeIncrease(q, new_stopped)
+
+
+def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Resolve each vertex's move p -> q against the boundaries (slide, cut-off, reflect; soft passes)."""
+    extent = float(np.max(np.abs(q))) if len(q) else 1.0
+    hard = [b for b in env.boundaries if b.behaviour != "soft"]
+    for b in hard:
+        bad = np.flatnonzero(b.violation(q) > 0.0)
+        if len(bad) == 0:
+            continue
+        target = q[bad]
+        if b.behaviour == "slide":
+            q[bad] = b.project(target, extent)
+        elif b.behaviour == "cut-off":
+            start = p[bad]
+            start_ok = b.violation(start) <= 0.0
+            hit = np.where(start_ok[:, None], b.first_contact(start, target), b.project(target, extent))
+            q[bad] = hit
+            stopped[bad] = True
+        else:  # reflect
+            mirrored = 2.0 * b.closest_points(target) - target
+            still = b.violation(mirrored) > 0.0
+            if np.any(still):
+                mirrored[still] = b.project(mirrored[still], extent)
+            q[bad] = mirrored
+    if hard:
+        # A later boundary may have pushed a vertex across an earlier one: put it back where it was.
+        wrong = np.zeros(len(q), dtype=bool)
+        for b in hard:
+            wrong |= b.violation(q) > 0.0
+        if np.any(wrong):
+            idx = np.flatnonzero(wrong)
+            start_ok = np.ones(len(idx), dtype=bool)
+            for b in hard:
+                start_ok &= b.violation(p[idx]) <= 0.0
+            q[idx[start_ok]] = p[idx[start_ok]]
+    return q, stopped
