@@ -1,0 +1,342 @@
+"""The run configuration: one TOML file that says everything a run needs.
+
+::
+
+    universe = "default"          # the BNF the genomes are mapped with
+    seed = 1                      # the run seed every random draw derives from
+
+    [genome]                      # length, codon_max, max_depth, max_wraps
+    [ea]                          # population, generations, tournament, elites, crossover_rate, mutation_rate
+    [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
+    [environment]                 # inline (genr8_dist.environment's format), or
+    # environment = "env.toml"    # a path, resolved relative to this file
+    [islands]                     # count, migration_interval, migrants, topology
+
+Every section is a frozen dataclass validated when it is built; a section or key left out takes its
+default; an unknown key, a wrong type, an out-of-range value, an unknown universe or a missing
+environment file is a ``ConfigError`` naming the file and the field. ``docs/run-config.md`` lists every
+field with its default and meaning.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from genr8_dist.errors import ConfigError, Genr8Error
+from genr8_dist.fitness import FitnessSpec
+
+__all__ = [
+    "TOPOLOGIES",
+    "EASettings",
+    "GenomeSettings",
+    "IslandSettings",
+    "RunConfig",
+    "load_config",
+]
+
+TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
+
+
+def _fail(path: str, message: str) -> ConfigError:
+    return ConfigError(f"field '{path}': {message}")
+
+
+def _int(value: Any, path: str, minimum: int | None = None, maximum: int | None = None) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        try:
+            import numpy as np
+
+            if isinstance(value, np.integer):
+                value = int(value)
+        except ImportError:  # pragma: no cover - numpy is a hard dependency
+            pass
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise _fail(path, f"must be an integer, got {value!r}")
+    if minimum is not None and value < minimum:
+        raise _fail(path, f"must be >= {minimum}, got {value}")
+    if maximum is not None and value > maximum:
+        raise _fail(path, f"must be <= {maximum}, got {value}")
+    return int(value)
+
+
+def _rate(value: Any, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
+    value = float(value)
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
+    return value
+
+
+def _set(obj: Any, name: str, value: Any) -> None:
+    object.__setattr__(obj, name, value)
+
+
+@dataclass(frozen=True, slots=True)
+class GenomeSettings:
+    """The integer genomes: how many codons, their range, and how the GE mapper may read them."""
+
+    length: int = 100       # codons in a random genome
+    codon_max: int = 255    # codons are drawn from 0..codon_max
+    max_depth: int = 5      # the deepest the derivation tree may grow (DESIGN: default 5)
+    max_wraps: int = 2      # times the mapper may wrap round the genome before it is invalid
+
+    def __post_init__(self) -> None:
+        _set(self, "length", _int(self.length, "genome.length", 1, 100_000))
+        _set(self, "codon_max", _int(self.codon_max, "genome.codon_max", 1, 2**31 - 1))
+        _set(self, "max_depth", _int(self.max_depth, "genome.max_depth", 1, 1000))
+        _set(self, "max_wraps", _int(self.max_wraps, "genome.max_wraps", 0, 1000))
+
+
+@dataclass(frozen=True, slots=True)
+class EASettings:
+    """The evolutionary algorithm of one island: generational, tournament selection, elitism,
+    one-point crossover and int-flip mutation."""
+
+    population: int = 30        # individuals per island per generation
+    generations: int = 20       # generations a run goes to (generation 0 is the random one)
+    tournament: int = 3         # contestants per tournament
+    elites: int = 1             # best individuals copied unchanged into the next generation
+    crossover_rate: float = 0.9  # probability a pair of parents is crossed over
+    mutation_rate: float = 0.02  # probability each codon of a child is redrawn (int-flip)
+
+    def __post_init__(self) -> None:
+        _set(self, "population", _int(self.population, "ea.population", 2, 1_000_000))
+        _set(self, "generations", _int(self.generations, "ea.generations", 0))
+        _set(self, "tournament", _int(self.tournament, "ea.tournament", 1, self.population))
+        _set(self, "elites", _int(self.elites, "ea.elites", 0, self.population - 1))
+        _set(self, "crossover_rate", _rate(self.crossover_rate, "ea.crossover_rate"))
+        _set(self, "mutation_rate", _rate(self.mutation_rate, "ea.mutation_rate"))
+
+
+@dataclass(frozen=True, slots=True)
+class IslandSettings:
+    """How many islands, and how individuals migrate between them."""
+
+    count: int = 1               # islands (each one a Ray actor in a distributed run)
+    migration_interval: int = 5  # generations between migrations (an epoch)
+    migrants: int = 2            # individuals each island sends at a migration (its best)
+    topology: str = "ring"       # ring: to the next island; full: to every other; random: to one drawn
+
+    def __post_init__(self) -> None:
+        _set(self, "count", _int(self.count, "islands.count", 1, 10_000))
+        _set(self, "migration_interval", _int(self.migration_interval, "islands.migration_interval", 1))
+        _set(self, "migrants", _int(self.migrants, "islands.migrants", 0))
+        if not isinstance(self.topology, str) or self.topology not in TOPOLOGIES:
+            allowed = ", ".join(repr(t) for t in TOPOLOGIES)
+            raise _fail("islands.topology", f"must be one of {allowed}, got {self.topology!r}")
+
+
+_SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings}
+_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands")
+
+
+def _section(cls: type, data: Any, name: str) -> Any:
+    """Build section ``cls`` from the table ``data``; unknown keys are errors."""
+    if isinstance(data, cls):
+        return data
+    if not isinstance(data, Mapping):
+        raise _fail(name, f"must be a table, got {data!r}")
+    allowed = [f.name for f in fields(cls)]
+    for key in data:
+        if key not in allowed:
+            raise _fail(f"{name}.{key}", f"unknown key; allowed: {', '.join(allowed)}")
+    return cls(**data)
+
+
+def _default_environment() -> Any:
+    from genr8_dist.environment import Environment
+
+    return Environment()
+
+
+def _known_universes() -> list[str] | None:
+    try:
+        from genr8_dist import grammar
+    except ImportError:  # pragma: no cover - the grammar package is part of genr8_dist
+        return None
+    lister = getattr(grammar, "available_universes", None) or getattr(grammar, "list_universes", None)
+    if lister is None:
+        return None
+    return sorted(lister())
+
+
+def _check_universe(name: Any) -> str:
+    if not isinstance(name, str) or not name:
+        raise _fail("universe", f"must be a universe name, got {name!r}")
+    from genr8_dist.grammar import load_universe
+
+    try:
+        load_universe(name)
+    except Genr8Error as exc:
+        known = _known_universes()
+        hint = f"; known: {', '.join(known)}" if known else ""
+        raise _fail("universe", f"unknown universe {name!r}{hint} ({exc})") from None
+    return name
+
+
+@dataclass(frozen=True, slots=True)
+class RunConfig:
+    """Everything a run needs: universe, genome, EA, fitness, environment, islands and seed."""
+
+    universe: str = "default"
+    seed: int = 0
+    genome: GenomeSettings = field(default_factory=GenomeSettings)
+    ea: EASettings = field(default_factory=EASettings)
+    fitness: FitnessSpec = field(default_factory=FitnessSpec)
+    environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
+    islands: IslandSettings = field(default_factory=IslandSettings)
+
+    def __post_init__(self) -> None:
+        _set(self, "universe", _check_universe(self.universe))
+        _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
+        for name, cls in _SECTIONS.items():
+            _set(self, name, _section(cls, getattr(self, name), name))
+        if isinstance(self.fitness, Mapping):
+            _set(self, "fitness", FitnessSpec.from_dict(self.fitness))
+        elif not isinstance(self.fitness, FitnessSpec):
+            raise _fail("fitness", f"must be a table, got {self.fitness!r}")
+        if self.environment is None:
+            _set(self, "environment", _default_environment())
+        elif isinstance(self.environment, Mapping):
+            from genr8_dist.environment import Environment
+
+            _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
+        elif not hasattr(self.environment, "to_dict"):
+            raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
+        if self.islands.migrants >= self.ea.population:
+            raise _fail(
+                "islands.migrants",
+                f"must be < ea.population ({self.ea.population}), got {self.islands.migrants}",
+            )
+
+    # -- reading ---------------------------------------------------------------------------------
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, source: str = "<config>",
+                  base_dir: str | Path | None = None) -> RunConfig:
+        """Build and validate from a parsed TOML table. ``environment`` may be a table or a path
+        (resolved against ``base_dir``, default the current directory). Errors name ``source`` and the
+        field."""
+        try:
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd())
+        except ConfigError as exc:
+            message = str(exc)
+            if message.startswith(source):
+                raise
+            raise ConfigError(f"{source}: {message}") from None
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path) -> RunConfig:
+        if not isinstance(data, Mapping):
+            raise ConfigError(f"the configuration must be a table, got {data!r}")
+        for key in data:
+            if key not in _TOP_KEYS:
+                raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
+        kwargs: dict[str, Any] = {k: data[k] for k in ("universe", "seed") if k in data}
+        for name, section in _SECTIONS.items():
+            if name in data:
+                kwargs[name] = _section(section, data[name], name)
+        if "fitness" in data:
+            kwargs["fitness"] = FitnessSpec.from_dict(data["fitness"])
+        if "environment" in data:
+            kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
+        return cls(**kwargs)
+
+    # -- writing ---------------------------------------------------------------------------------
+
+    def to_dict(self) -> dict[str, Any]:
+        """A TOML-ready table (the environment always inline), such that ``from_dict(to_dict())`` is
+        equal to this configuration."""
+        out: dict[str, Any] = {"universe": self.universe, "seed": self.seed}
+        for name in _SECTIONS:
+            section = getattr(self, name)
+            out[name] = {f.name: getattr(section, f.name) for f in fields(section)}
+        out["fitness"] = self.fitness.to_dict()
+        out["environment"] = _drop_none(self.environment.to_dict())
+        return out
+
+    def to_toml(self) -> str:
+        """The configuration as TOML text that ``load_config`` reads back to an equal configuration."""
+        import tomli_w
+
+        return tomli_w.dumps(self.to_dict())
+
+    def replace(self, **changes: Any) -> RunConfig:
+        """A validated copy with ``changes`` merged in: top-level values (``seed=3``), or per section a
+        table merged into it (``ea={"mutation_rate": 0.05}``, ``fitness={"size": {"weight": 2}}``), or a
+        whole section object (``environment=env``). Used for interventions between generations."""
+        for key in changes:
+            if key not in _TOP_KEYS:
+                raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
+        kwargs: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        for key, value in changes.items():
+            current = kwargs[key]
+            if key in _SECTIONS and isinstance(value, Mapping):
+                merged = {f.name: getattr(current, f.name) for f in fields(current)} | dict(value)
+                kwargs[key] = _section(_SECTIONS[key], merged, key)
+            elif key == "fitness" and isinstance(value, Mapping):
+                kwargs[key] = current.replace(value)
+            elif key == "environment" and isinstance(value, Mapping):
+                from genr8_dist.environment import Environment
+
+                merged = _deep_merge(current.to_dict(), value)
+                kwargs[key] = Environment.from_dict(merged, source="[environment]")
+            else:
+                kwargs[key] = value
+        return RunConfig(**kwargs)
+
+
+def _deep_merge(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in changes.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = _deep_merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _drop_none(value: Any) -> Any:
+    """TOML has no null: drop keys whose value is None (readers take the default for a missing key)."""
+    if isinstance(value, Mapping):
+        return {k: _drop_none(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (list, tuple)):
+        return [_drop_none(v) for v in value]
+    return value
+
+
+def _read_environment(value: Any, source: str, base_dir: Path) -> Any:
+    from genr8_dist.environment import Environment, load_environment
+
+    if isinstance(value, str):
+        path = Path(value)
+        if not path.is_absolute():
+            path = base_dir / path
+        if not path.is_file():
+            raise _fail("environment", f"environment file not found: {path}")
+        return load_environment(path)
+    if isinstance(value, Mapping):
+        return Environment.from_dict(dict(value), source=f"{source} [environment]", base_dir=base_dir)
+    raise _fail("environment", f"must be a table or a file name, got {value!r}")
+
+
+def load_config(path: str | Path) -> RunConfig:
+    """Read and validate the run configuration in the TOML file ``path``."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: configuration file not found") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the configuration: {exc.strerror or exc}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    return RunConfig.from_dict(data, source=str(path), base_dir=path.parent)
