@@ -104,7 +104,7 @@ class Environment:
     fixed_perimeter: bool = False
     fixed_centre: bool = False
     uniform_cells: bool = False
-    uniform_iterations: int = 10
+    uniform_iterations: int = 20
     repelling_points: float = 0.0
     repelling_radius: float = 1.0
     gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
