@@ -1,0 +1,181 @@
+"""File access for a run directory on a local disk or any pyarrow filesystem.
+
+On a local disk (``LocalFileSystem``, or a ``SubTreeFileSystem`` over one) a file is written to a
+temporary name in the same folder, fsynced, then renamed into place, and the folder is fsynced: a
+crash leaves the old file or the new one, never half of one. Manifests are *linked* into place, which
+fails if the name exists, so two writers cannot both commit the same version. On other filesystems
+(object stores) a write is one PUT, which is atomic there; readers never trust a file the manifest
+does not name, and a torn manifest fails its checksum and is skipped.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import posixpath
+import secrets
+from typing import TYPE_CHECKING
+
+from genr8_dist.errors import StoreError
+
+if TYPE_CHECKING:
+    import pyarrow.fs as pafs
+
+__all__ = ["RunFS", "resolve"]
+
+TMP_PREFIX = ".tmp-"
+
+
+def resolve(path_or_uri: str | os.PathLike[str], filesystem: pafs.FileSystem | None = None) -> RunFS:
+    """The filesystem and root of a run given as a local path, a URI (``file://``, ``s3://``...), or a
+    path inside ``filesystem``."""
+    import pyarrow.fs as pafs
+
+    text = os.fspath(path_or_uri)
+    if not text:
+        raise StoreError("a run directory path is empty")
+    if filesystem is not None:
+        return RunFS(filesystem, text.rstrip("/") or "/", text)
+    if "://" in text:
+        try:
+            fs, root = pafs.FileSystem.from_uri(text)
+        except (ValueError, OSError) as exc:
+            raise StoreError(f"{text}: cannot open this URI: {exc}") from None
+        return RunFS(fs, root.rstrip("/") or "/", text)
+    return RunFS(pafs.LocalFileSystem(), os.path.abspath(text), text)
+
+
+class RunFS:
+    """A run's root on a filesystem; every path given to its methods is relative to the root."""
+
+    def __init__(self, fs: pafs.FileSystem, root: str, display: str) -> None:
+        import pyarrow.fs as pafs
+
+        self.fs = fs
+        self.root = root
+        self.display = display
+        self.local_root: str | None = None
+        if isinstance(fs, pafs.LocalFileSystem):
+            self.local_root = root
+        elif isinstance(fs, pafs.SubTreeFileSystem) and isinstance(fs.base_fs, pafs.LocalFileSystem):
+            self.local_root = os.path.join(fs.base_path, root.lstrip("/"))
+
+    # --- names -------------------------------------------------------------------------------
+    def full(self, rel: str) -> str:
+        """The path of ``rel`` inside the filesystem (what pyarrow readers take)."""
+        return posixpath.join(self.root, rel) if rel else self.root
+
+    def show(self, rel: str = "") -> str:
+        """``rel`` as a user would name it in a message."""
+        base = self.display.rstrip("/")
+        return f"{base}/{rel}" if rel else self.display
+
+    def _local(self, rel: str) -> str:
+        assert self.local_root is not None
+        return os.path.join(self.local_root, *rel.split("/")) if rel else self.local_root
+
+    # --- queries -----------------------------------------------------------------------------
+    def kind(self, rel: str = "") -> str:
+        """``"file"``, ``"dir"`` or ``"missing"``."""
+        import pyarrow.fs as pafs
+
+        info = self.fs.get_file_info(self.full(rel))
+        if info.type == pafs.FileType.File:
+            return "file"
+        if info.type == pafs.FileType.Directory:
+            return "dir"
+        return "missing"
+
+    def size(self, rel: str) -> int | None:
+        import pyarrow.fs as pafs
+
+        info = self.fs.get_file_info(self.full(rel))
+        return info.size if info.type == pafs.FileType.File else None
+
+    def listdir(self, rel: str = "") -> list[str]:
+        """Names directly inside ``rel`` (empty when it does not exist)."""
+        import pyarrow.fs as pafs
+
+        if self.kind(rel) != "dir":
+            return []
+        infos = self.fs.get_file_info(pafs.FileSelector(self.full(rel), allow_not_found=True))
+        return sorted(posixpath.basename(i.path.rstrip("/")) for i in infos)
+
+    def read_bytes(self, rel: str) -> bytes:
+        if self.local_root is not None:
+            with open(self._local(rel), "rb") as fh:
+                return fh.read()
+        with self.fs.open_input_stream(self.full(rel)) as fh:
+            return fh.read()
+
+    # --- writes ------------------------------------------------------------------------------
+    def makedirs(self, rel: str = "") -> None:
+        if self.local_root is not None:
+            os.makedirs(self._local(rel), exist_ok=True)
+        else:
+            self.fs.create_dir(self.full(rel), recursive=True)
+
+    def write_atomic(self, rel: str, data: bytes | memoryview) -> None:
+        """Put ``data`` at ``rel``, replacing what is there; readers see the old bytes or the new."""
+        if self.local_root is None:
+            with self.fs.open_output_stream(self.full(rel)) as fh:
+                fh.write(data)
+            return
+        tmp = self._write_temp(rel, data)
+        os.replace(tmp, self._local(rel))
+        self._sync_dir(rel)
+
+    def write_exclusive(self, rel: str, data: bytes | memoryview) -> None:
+        """Put ``data`` at ``rel``, which must not exist; ``FileExistsError`` if it does."""
+        if self.local_root is None:
+            if self.kind(rel) != "missing":
+                raise FileExistsError(self.show(rel))
+            with self.fs.open_output_stream(self.full(rel)) as fh:
+                fh.write(data)
+            return
+        tmp = self._write_temp(rel, data)
+        try:
+            os.link(tmp, self._local(rel))
+        finally:
+            os.unlink(tmp)
+        self._sync_dir(rel)
+
+    def delete(self, rel: str) -> None:
+        with contextlib.suppress(FileNotFoundError):
+            if self.local_root is not None:
+                os.unlink(self._local(rel))
+            else:
+                self.fs.delete_file(self.full(rel))
+
+    def _write_temp(self, rel: str, data: bytes | memoryview) -> str:
+        folder, name = posixpath.split(rel)
+        tmp_rel = posixpath.join(folder, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
+        tmp = self._local(tmp_rel)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        done = False
+        try:
+            view = memoryview(data)
+            while view:
+                written = os.write(fd, view)
+                view = view[written:]
+            os.fsync(fd)
+            done = True
+        finally:
+            os.close(fd)
+            if not done:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+        return tmp
+
+    def _sync_dir(self, rel: str) -> None:
+        folder = self._local(posixpath.dirname(rel))
+        try:
+            fd = os.open(folder, os.O_RDONLY)
+        except OSError:
+            return
+        try:
+            os.fsync(fd)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
