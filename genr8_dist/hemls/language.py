@@ -1,0 +1,577 @@
+"""The HEMLS language: rewrite systems as immutable values, read from text and printed back.
+
+``parse(text)`` reads the full language of grammars/hemls.lark (journal Fig. 4, thesis 2.5, Genr8's
+manual): an axiom, rewrite rules with left/right context, timed edges and conditions, several
+weighted successors (on one line or as continuation lines beginning with ``->``), ``Angle``,
+``BranchAngle`` and ``Sync``. The result is a ``RewriteSystem``; ``system.to_text()`` prints its
+canonical text and ``parse(system.to_text()) == system``. docs/hemls.md is the user's reference.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lark import Lark, Token, Transformer, Tree, v_args
+from lark.exceptions import (
+    UnexpectedCharacters,
+    UnexpectedEOF,
+    UnexpectedInput,
+    UnexpectedToken,
+    VisitError,
+)
+
+from genr8_dist.errors import ParseError
+from genr8_dist.resources import grammars_dir, systems_dir
+
+__all__ = [
+    "OPERATORS",
+    "PREDEFINED",
+    "AxiomEdge",
+    "Branch",
+    "Condition",
+    "RewriteSystem",
+    "Rule",
+    "Segment",
+    "Successor",
+    "load_system",
+    "parse",
+]
+
+#: The predefined rewrite systems shipped in grammars/systems (Genr8's four and the journal's square).
+PREDEFINED: tuple[str, ...] = (
+    "three_sided_tiles", "four_sided_tiles", "koch", "quadratic_koch", "square",
+)
+
+#: Turtle operators: turn left/right, pitch down/up, roll left/right, reverse the next edge.
+OPERATORS: tuple[str, ...] = ("+", "-", "&", "^", "/", "\\", "~")
+
+DEFAULT_ANGLE = 90.0
+DEFAULT_BRANCH_ANGLE = 30.0
+
+_EDGE_RE = re.compile(r"^(?:Edge(?P<num>[0-9]+)|(?P<letter>[A-Z]))(?:_i(?P<off>[+-][0-9]+)?(?P<timed>))?$")
+
+
+@dataclass(frozen=True)
+class Segment:
+    """An edge symbol: ``Edge3``, the journal's ``A``, or a timed ``Edge3_i`` / ``Edge3_i+1``.
+
+    ``age`` is None for a plain segment (a new edge starts at age 0); otherwise the offset k of
+    ``_i+k``: the new edge's age is the rewritten edge's age plus k (never below 0).
+    """
+
+    name: str
+    age: int | None = None
+
+    def __str__(self) -> str:
+        if self.age is None:
+            return self.name
+        if self.age == 0:
+            return f"{self.name}_i"
+        return f"{self.name}_i{self.age:+d}"
+
+    @property
+    def number(self) -> int | None:
+        """N for ``EdgeN``; None for a letter label."""
+        return int(self.name[4:]) if self.name.startswith("Edge") else None
+
+
+@dataclass(frozen=True)
+class Branch:
+    """Symbols between ``[`` and ``]``; the first segment inside is the branch, drawn from the vertex
+    where the bracket opened."""
+
+    symbols: tuple[Symbol, ...]
+
+    def __str__(self) -> str:
+        inner = " ".join(str(s) for s in self.symbols)
+        return f"[ {inner} ]" if inner else "[ ]"
+
+
+Symbol = Segment | Branch | str
+
+
+@dataclass(frozen=True)
+class Successor:
+    """One successor of a rule: turtle symbols and an optional ``Weight`` (default 1 in draws)."""
+
+    symbols: tuple[Symbol, ...]
+    weight: float | None = None
+
+    def __str__(self) -> str:
+        text = " ".join(str(s) for s in self.symbols)
+        if self.weight is not None:
+            text += f" Weight {_number(self.weight)}"
+        return text
+
+    @property
+    def main_segments(self) -> tuple[Segment, ...]:
+        """The segments outside brackets: the main line that replaces the predecessor."""
+        return tuple(s for s in self.symbols if isinstance(s, Segment))
+
+
+@dataclass(frozen=True)
+class Condition:
+    """``If i < c`` (also ``>``, ``=``, ``<=``, ``>=``, ``!=``): a test on the rewritten edge's age."""
+
+    op: str
+    value: int
+
+    def __str__(self) -> str:
+        return f"If i {self.op} {self.value}"
+
+    def holds(self, age):  # works on ints and numpy arrays alike
+        """Whether the condition holds for ``age`` (an int or an int array)."""
+        v = self.value
+        if self.op == "<":
+            return age < v
+        if self.op == ">":
+            return age > v
+        if self.op in ("=", "=="):
+            return age == v
+        if self.op == "<=":
+            return age <= v
+        if self.op == ">=":
+            return age >= v
+        return age != v
+
+
+@dataclass(frozen=True)
+class Rule:
+    """``left < predecessor > right -> successor [Weight w] {-> successor [Weight w]} [If i op c]``."""
+
+    predecessor: Segment
+    successors: tuple[Successor, ...]
+    left: Segment | None = None
+    right: Segment | None = None
+    condition: Condition | None = None
+    line: int = field(default=0, compare=False)
+
+    def __str__(self) -> str:
+        pred = str(self.predecessor)
+        if self.left is not None:
+            pred = f"{self.left} < {pred}"
+        if self.right is not None:
+            pred = f"{pred} > {self.right}"
+        text = pred + "".join(f" -> {s}" for s in self.successors)
+        if self.condition is not None:
+            text += f" {self.condition}"
+        return text
+
+    @property
+    def weights(self) -> tuple[float, ...]:
+        """The successors' weights, 1 where none was written."""
+        return tuple(1.0 if s.weight is None else s.weight for s in self.successors)
+
+
+@dataclass(frozen=True)
+class AxiomEdge:
+    """One side of the seed polygon; ``reversed`` when written with ``~``."""
+
+    segment: Segment
+    reversed: bool = False
+
+    def __str__(self) -> str:
+        return f"~ {self.segment}" if self.reversed else str(self.segment)
+
+
+@dataclass(frozen=True)
+class RewriteSystem:
+    """A HEMLS rewrite system (journal Definition 4): axiom, rewrite rules, turn angle, branch angle, sync.
+
+    ``angle`` and ``branch_angle`` are None when the text did not give them; growth then uses 90 and
+    30 degrees (``turn_angle``, ``cone_angle``). ``name`` is where it came from and is not part of
+    equality.
+    """
+
+    axiom: tuple[AxiomEdge, ...]
+    rules: tuple[Rule, ...] = ()
+    angle: float | None = None
+    branch_angle: float | None = None
+    sync: bool = False
+    name: str = field(default="", compare=False)
+
+    @property
+    def turn_angle(self) -> float:
+        """Degrees of every turn, pitch and roll in successors (``Angle``, default 90)."""
+        return DEFAULT_ANGLE if self.angle is None else self.angle
+
+    @property
+    def cone_angle(self) -> float:
+        """Half-angle in degrees of the cone in which a branch looks for its partner (default 30)."""
+        return DEFAULT_BRANCH_ANGLE if self.branch_angle is None else self.branch_angle
+
+    def to_text(self) -> str:
+        """The canonical text: axiom, one rule per line, then Angle, Sync, BranchAngle (Fig. 4)."""
+        lines = [" + ".join(str(e) for e in self.axiom)]
+        lines += [str(r) for r in self.rules]
+        if self.angle is not None:
+            lines.append(f"Angle {_number(self.angle)}")
+        if self.sync:
+            lines.append("Sync")
+        if self.branch_angle is not None:
+            lines.append(f"BranchAngle {_number(self.branch_angle)}")
+        return "\n".join(lines) + "\n"
+
+    def __str__(self) -> str:
+        return self.to_text()
+
+    def segment_names(self) -> tuple[str, ...]:
+        """Every label name used, in order of first appearance."""
+        seen: dict[str, None] = {}
+
+        def visit(symbols):
+            for s in symbols:
+                if isinstance(s, Segment):
+                    seen.setdefault(s.name)
+                elif isinstance(s, Branch):
+                    visit(s.symbols)
+
+        for e in self.axiom:
+            seen.setdefault(e.segment.name)
+        for r in self.rules:
+            for s in (r.left, r.predecessor, r.right):
+                if s is not None:
+                    seen.setdefault(s.name)
+            for succ in r.successors:
+                visit(succ.symbols)
+        return tuple(seen)
+
+    def label_ids(self) -> dict[str, int]:
+        """Label number of each name: N for ``EdgeN``; letters get the numbers after the largest N."""
+        names = self.segment_names()
+        numbers = [int(n[4:]) for n in names if n.startswith("Edge")]
+        nxt = max(numbers) + 1 if numbers else 0
+        out: dict[str, int] = {}
+        for n in names:
+            if n.startswith("Edge"):
+                out[n] = int(n[4:])
+            else:
+                out[n] = nxt
+                nxt += 1
+        return out
+
+
+def _number(x: float) -> str:
+    """Integral values without a decimal point; others in Python's shortest round-trip form."""
+    if float(x).is_integer():
+        return str(int(x))
+    return repr(float(x))
+
+
+# -- parsing ---------------------------------------------------------------------------------------
+
+@functools.lru_cache(maxsize=1)
+def _parser() -> Lark:
+    path = grammars_dir() / "hemls.lark"
+    return Lark(path.read_text(encoding="utf-8"), parser="lalr", lexer="contextual",
+                propagate_positions=True, maybe_placeholders=False)
+
+
+_TERMINAL_WORDS = {
+    "EDGE": "an edge (EdgeN)", "OPERATOR": "a turtle operator", "REVERSE": "'~'",
+    "PLUS": "'+'", "_SEP": "end of statement", "NUMBER": "a number", "INT": "an integer",
+    "COMPARISON": "'<', '>' or '='", "LESSTHAN": "'<'", "MORETHAN": "'>'", "__ANON_0": "'->'",
+    "LSQB": "'['", "RSQB": "']'", "WEIGHT": "'Weight'", "IF": "'If'", "I": "'i'", "ANGLE": "'Angle'",
+    "BRANCHANGLE": "'BranchAngle'", "SYNC": "'Sync'", "$END": "end of text",
+}
+
+
+def _word(name: str) -> str:
+    if name in _TERMINAL_WORDS:
+        return _TERMINAL_WORDS[name]
+    try:
+        pattern = _parser().get_terminal(name).pattern
+        if pattern.type == "str":
+            return repr(pattern.value)
+    except KeyError:
+        pass
+    return name
+
+
+def _expected(names) -> str:
+    words = sorted({_word(n) for n in names})
+    return ", ".join(words) if words else "nothing"
+
+
+def _token_text(tok) -> str:
+    if tok is None or getattr(tok, "type", "") == "$END":
+        return "end of text"
+    value = str(tok)
+    if value in ("\n", ""):
+        return "end of line"
+    return repr(value)
+
+
+def _located_error(message: str, source: str, line: int, column: int, text: str) -> ParseError:
+    lines = text.splitlines()
+    context = ""
+    if 1 <= line <= len(lines):
+        context = lines[line - 1] + "\n" + " " * max(column - 1, 0) + "^"
+    return ParseError(message, source=source, line=line, column=column, context=context)
+
+
+def _error_at(message: str, meta_or_token, source: str, text: str) -> ParseError:
+    line = getattr(meta_or_token, "line", 0) or 0
+    column = getattr(meta_or_token, "column", 0) or 0
+    return _located_error(message, source, line, column, text)
+
+
+class _Build(Transformer):
+    """Turns the parse tree into RewriteSystem parts; semantic checks raise ParseError with positions."""
+
+    def __init__(self, source: str, text: str) -> None:
+        super().__init__()
+        self.source = source
+        self.text = text
+
+    def _fail(self, message: str, where) -> ParseError:
+        return _error_at(message, where, self.source, self.text)
+
+    def segment(self, children):
+        tok: Token = children[0]
+        m = _EDGE_RE.match(str(tok))
+        if m is None:  # the terminal's pattern and this one agree; kept as a guard for edits
+            raise self._fail(f"malformed edge {str(tok)!r}", tok)
+        age = None
+        if m.group("timed") is not None:
+            age = int(m.group("off")) if m.group("off") else 0
+        name = f"Edge{int(m.group('num'))}" if m.group("num") is not None else m.group("letter")
+        seg = Segment(name, age)
+        return _Pos(seg, tok)
+
+    def axiom_edge(self, children):
+        rev = len(children) == 2
+        return (children[-1], rev)
+
+    def axiom_turn(self, children):
+        tok = children[-1]
+        if str(tok) != "+":
+            raise self._fail(f"the axiom joins its edges with '+' only, got {str(tok)!r}", tok)
+        return len(children) == 2
+
+    @v_args(meta=True)
+    def axiom(self, meta, children):
+        edges: list[AxiomEdge] = []
+        pending_rev = False
+        for child in children:
+            if isinstance(child, bool):
+                pending_rev = child
+                continue
+            pos, rev = child
+            if pos.value.age is not None:
+                raise self._fail(f"axiom edge {pos.value} cannot be timed (write {pos.value.name})",
+                                 pos.token)
+            edges.append(AxiomEdge(pos.value, reversed=rev != pending_rev))
+            pending_rev = False
+        if len(edges) < 3:
+            raise self._fail(f"the axiom needs at least 3 edges (a polygon), got {len(edges)}", meta)
+        return ("axiom", tuple(edges))
+
+    def _predecessor(self, pos, what: str):
+        seg = pos.value
+        if seg.age not in (None, 0):
+            raise self._fail(f"{what} {seg} may only be timed as {seg.name}_i", pos.token)
+        return seg
+
+    def context_free(self, c):
+        return (None, self._predecessor(c[0], "predecessor"), None)
+
+    def left_context(self, c):
+        return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"), None)
+
+    def right_context(self, c):
+        return (None, self._predecessor(c[0], "predecessor"), self._predecessor(c[1], "right context"))
+
+    def both_contexts(self, c):
+        return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"),
+                self._predecessor(c[2], "right context"))
+
+    def predecessor(self, c):  # pragma: no cover - every alternative is aliased
+        return c[0]
+
+    def _symbols(self, children):
+        out: list[Symbol] = []
+        for ch in children:
+            if isinstance(ch, _Pos):
+                out.append(ch.value)
+            elif isinstance(ch, Token):
+                out.append(str(ch))
+            else:
+                out.append(ch)
+        return tuple(out)
+
+    def branch(self, children):
+        return Branch(self._symbols(children))
+
+    @v_args(meta=True)
+    def successor(self, meta, children):
+        symbols = self._symbols(children)
+        if not any(isinstance(s, Segment) for s in symbols):
+            raise self._fail("a successor needs at least one edge outside brackets (its main line)",
+                             meta)
+        return symbols
+
+    def weight(self, children):
+        tok = children[0]
+        value = float(tok)
+        if not math.isfinite(value) or value < 0:
+            raise self._fail(f"Weight must be a number >= 0, got {tok}", tok)
+        return _Weight(value)
+
+    @v_args(meta=True)
+    def alternative(self, meta, children):
+        symbols = children[0]
+        weight = children[1].value if len(children) > 1 else None
+        return Successor(symbols, weight)
+
+    def condition(self, children):
+        op, value = children
+        return Condition(str(op), int(value))
+
+    @v_args(meta=True)
+    def rule(self, meta, children):
+        left, pred, right = children[0]
+        succs = tuple(c for c in children[1:] if isinstance(c, Successor))
+        cond = next((c for c in children[1:] if isinstance(c, Condition)), None)
+        return ("rule", Rule(pred, succs, left, right, cond, line=meta.line), meta)
+
+    @v_args(meta=True)
+    def continuation(self, meta, children):
+        succs = tuple(c for c in children if isinstance(c, Successor))
+        cond = next((c for c in children if isinstance(c, Condition)), None)
+        return ("continuation", (succs, cond), meta)
+
+    def _setting(self, name: str, tok: Token, low: float, high: float):
+        value = float(tok)
+        if not (low <= value <= high):
+            raise self._fail(f"{name} must be between {low:g} and {high:g} degrees, got {tok}", tok)
+        return value
+
+    @v_args(meta=True)
+    def angle(self, meta, children):
+        return ("Angle", self._setting("Angle", children[0], 0.0, 360.0), meta)
+
+    @v_args(meta=True)
+    def branch_angle(self, meta, children):
+        return ("BranchAngle", self._setting("BranchAngle", children[0], 0.0, 90.0), meta)
+
+    @v_args(meta=True)
+    def sync(self, meta, children):
+        return ("Sync", True, meta)
+
+    def start(self, children):
+        axiom = children[0][1]
+        rules: list[Rule] = []
+        settings: dict[str, tuple[object, int]] = {}
+        for kind, value, meta in children[1:]:
+            if kind == "rule":
+                rules.append(value)
+            elif kind == "continuation":
+                if not rules or rules[-1].condition is not None:
+                    why = ("a continuation line (beginning with '->') must follow a rewrite rule"
+                           if not rules else
+                           "a rule with an If condition cannot be continued; put the condition last")
+                    raise self._fail(why, meta)
+                succs, cond = value
+                last = rules[-1]
+                rules[-1] = Rule(last.predecessor, last.successors + succs, last.left, last.right,
+                                 cond, line=last.line)
+            else:
+                if kind in settings:
+                    raise self._fail(f"{kind} given twice (first on line {settings[kind][1]})", meta)
+                settings[kind] = (value, meta.line)
+        for r in rules:
+            if sum(r.weights) <= 0:
+                raise _located_error(f"the weights of the rule for {r.predecessor} add up to 0",
+                                     self.source, r.line, 1, self.text)
+        return RewriteSystem(
+            axiom=axiom,
+            rules=tuple(rules),
+            angle=settings["Angle"][0] if "Angle" in settings else None,
+            branch_angle=settings["BranchAngle"][0] if "BranchAngle" in settings else None,
+            sync="Sync" in settings,
+        )
+
+
+@dataclass(frozen=True)
+class _Pos:
+    value: Segment
+    token: Token
+
+
+@dataclass(frozen=True)
+class _Weight:
+    value: float
+
+
+def parse(text: str, source: str = "<text>", *, name: str = "") -> RewriteSystem:
+    """Read a rewrite system; malformed text raises ParseError naming line, column and what was expected."""
+    if not isinstance(text, str):
+        raise TypeError(f"parse() needs a str, got {type(text).__name__}")
+    if not text.strip():
+        raise ParseError("empty rewrite system (the first statement must be the axiom)", source=source)
+    try:
+        tree = _parser().parse(text)
+    except UnexpectedCharacters as exc:
+        ch = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
+        raise _located_error(f"unexpected character {ch!r}; expected {_expected(exc.allowed or ())}",
+                             source, exc.line, exc.column, text) from None
+    except UnexpectedToken as exc:
+        tok = exc.token
+        line = getattr(tok, "line", None) or exc.line
+        column = getattr(tok, "column", None) or exc.column
+        if getattr(tok, "type", "") == "$END":
+            line, column = _end_position(text)
+        raise _located_error(f"unexpected {_token_text(tok)}; expected {_expected(exc.expected)}",
+                             source, line, column, text) from None
+    except UnexpectedEOF as exc:
+        line, column = _end_position(text)
+        raise _located_error(f"unexpected end of text; expected {_expected(exc.expected)}",
+                             source, line, column, text) from None
+    except UnexpectedInput as exc:  # pragma: no cover - the three above are all LALR raises
+        raise _located_error(str(exc).splitlines()[0], source, getattr(exc, "line", 0),
+                             getattr(exc, "column", 0), text) from None
+    try:
+        system = _Build(source, text).transform(tree)
+    except VisitError as exc:
+        if isinstance(exc.orig_exc, ParseError):
+            raise exc.orig_exc from None
+        raise
+    if not isinstance(system, RewriteSystem):  # pragma: no cover - start always builds one
+        raise ParseError("not a rewrite system", source=source)
+    return RewriteSystem(system.axiom, system.rules, system.angle, system.branch_angle, system.sync,
+                         name=name or source)
+
+
+def _end_position(text: str) -> tuple[int, int]:
+    lines = text.rstrip("\n").split("\n")
+    return len(lines), len(lines[-1]) + 1
+
+
+def _tree_text(tree: Tree) -> str:  # pragma: no cover - debugging aid
+    return tree.pretty()
+
+
+def load_system(name_or_path: str | Path) -> RewriteSystem:
+    """A predefined system by name (``PREDEFINED``; '-' and '_' alike), a file path, or '-' for stdin."""
+    raw = str(name_or_path)
+    if raw == "-":
+        return parse(sys.stdin.read(), source="<stdin>", name="stdin")
+    key = raw.replace("-", "_").lower()
+    if key in PREDEFINED and not Path(raw).is_file():
+        path = systems_dir() / f"{key}.hemls"
+        return parse(path.read_text(encoding="utf-8"), source=str(path), name=key)
+    path = Path(raw)
+    if not path.is_file():
+        raise ParseError("no such rewrite system: not a file, and not one of the predefined names "
+                         f"({', '.join(PREDEFINED)})", source=raw)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParseError(f"cannot read the rewrite system: {exc}", source=raw) from None
+    return parse(text, source=str(path), name=path.stem)
