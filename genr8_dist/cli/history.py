@@ -1,0 +1,249 @@
+"""``genr8 history / top / lineage / show / query / gallery / report``: look into a run from its files.
+
+Genr8's output window, for runs of any size: the fitness curves, the population ranked with each
+individual's criteria and rewrite system, where an individual came from, re-growing one to export it,
+SQL over everything, a contact sheet of the best surfaces, and one HTML page that holds it all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+__all__ = ["register"]
+
+
+def _run_arg(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", metavar="RUN", help="the run directory (or a URI pyarrow understands)")
+
+
+def _generation(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a generation number: {text!r}") from None
+
+
+def register(subparsers: Any) -> None:
+    """Add the history commands to ``genr8``."""
+    p = subparsers.add_parser(
+        "history", help="fitness per generation and island (best, median, worst, criteria)",
+        description="Per generation and island: best, median and worst total fitness of the valid "
+                    "individuals and each criterion's value closest to its target.")
+    _run_arg(p)
+    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--png", metavar="OUT.png", help="also draw the fitness curves to this PNG")
+    p.add_argument("--csv", metavar="OUT.csv", help="write the table as CSV instead of printing it")
+    p.set_defaults(handler=_history)
+
+    p = subparsers.add_parser(
+        "top", help="the best individuals, with their criteria (and rewrite systems)",
+        description="The k best valid individuals of the run, a generation or an island.")
+    _run_arg(p)
+    p.add_argument("-k", type=int, default=10, help="how many (default 10)")
+    p.add_argument("--generation", type=_generation, help="only this generation (-1: the last)")
+    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
+    p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
+    p.set_defaults(handler=_top)
+
+    p = subparsers.add_parser(
+        "lineage", help="the ancestry of an individual back to the first generation",
+        description="Every ancestor of an individual, how each was made (crossover, mutation, elite, "
+                    "migrant, injected) and from whom; '*' marks the line of first parents.")
+    _run_arg(p)
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
+    p.add_argument("--depth", type=int, help="only this many generations back")
+    p.add_argument("--png", metavar="OUT.png", help="also draw the ancestry to this PNG")
+    p.set_defaults(handler=_lineage)
+
+    p = subparsers.add_parser(
+        "show", help="regrow one individual, check it is bit-identical, export it",
+        description="Regrow an individual from its row and the configuration version it was evaluated "
+                    "under, check the surface against the recorded digest, and export it.")
+    _run_arg(p)
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index")
+    p.add_argument("-o", "--output", action="append", default=[], metavar="OUT",
+                   help="export the surface: .obj .ply .stl .glb (trimesh) or .3dm (Rhino); repeatable")
+    p.add_argument("--png", metavar="OUT.png", help="a picture of the surface")
+    p.add_argument("--grammar", metavar="OUT.txt", help="save its rewrite system")
+    p.add_argument("--genome", metavar="OUT.txt", help="save its genome (codons, one line)")
+    p.set_defaults(handler=_show)
+
+    p = subparsers.add_parser(
+        "query", help="SQL over the run (tables individuals, events, configs)",
+        description="Run an SQL statement (DuckDB) over the views individuals, events and configs. "
+                    "docs/history.md lists their columns.")
+    _run_arg(p)
+    p.add_argument("sql", metavar="SQL", help='e.g. "select generation, min(fitness) from individuals '
+                                              'group by 1 order by 1"')
+    out = p.add_mutually_exclusive_group()
+    out.add_argument("--csv", metavar="OUT.csv", help="write the result as CSV")
+    out.add_argument("--parquet", metavar="OUT.parquet", help="write the result as Parquet")
+    p.add_argument("--max-rows", type=int, default=100, help="rows printed at most (default 100)")
+    p.set_defaults(handler=_query)
+
+    p = subparsers.add_parser(
+        "gallery", help="a contact sheet of the best surfaces of a generation",
+        description="Regrow the k best individuals of a generation (or of each island) and draw them "
+                    "side by side, each tile labelled with its id and fitness.")
+    _run_arg(p)
+    p.add_argument("--generation", type=_generation, default=-1, help="the generation (default -1: the last)")
+    p.add_argument("-k", type=int, default=12,
+                   help="how many surfaces (default 12; per island with --per-island)")
+    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
+    p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG to write")
+    p.set_defaults(handler=_gallery)
+
+    p = subparsers.add_parser(
+        "report", help="one self-contained HTML page: curves, gallery, top individuals, interventions",
+        description="Write one HTML file with the fitness curves, a gallery of the best surfaces, the "
+                    "top individuals with their rewrite systems and criteria, and the interventions. "
+                    "Images are embedded; it needs no network to view.")
+    _run_arg(p)
+    p.add_argument("-o", "--output", required=True, metavar="OUT.html", help="the HTML file to write")
+    p.add_argument("-k", type=int, default=10, help="individuals in the table (default 10)")
+    p.add_argument("--gallery", type=int, default=12, metavar="K",
+                   help="surfaces in the gallery (default 12)")
+    p.set_defaults(handler=_report)
+
+
+def _print(text: str) -> None:
+    sys.stdout.write(text + "\n")
+
+
+def _history(args: argparse.Namespace) -> int:
+    from genr8_dist import history
+    from genr8_dist.history import _text
+
+    store = history.open_run(args.run)
+    table = history.per_generation(store, island=args.island)
+    if args.csv:
+        history.write_table(table, args.csv)
+        _print(f"wrote {table.num_rows} rows to {args.csv}")
+    else:
+        crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
+        headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
+        headings.update({f"best_{c}": _text.short_criterion(c) for c in crits})
+        columns = ["generation", "island", "n", "n_valid", "best", "median", "worst", "best_id"]
+        _print(_text.format_table(table, columns + [f"best_{c}" for c in crits], headings=headings))
+    if args.png:
+        from genr8_dist.history import pictures
+
+        pictures.curves_png(store, args.png, table=table)
+        _print(f"wrote {args.png}")
+    return 0
+
+
+def _top(args: argparse.Namespace) -> int:
+    from genr8_dist import history
+    from genr8_dist.history import _text
+
+    table = history.top(args.run, args.k, generation=args.generation, island=args.island,
+                        criterion=args.criterion, systems=args.systems)
+    crits = [c[5:] for c in table.column_names if c.startswith("crit_")]
+    columns = ["rank", "id", "generation", "island", "fitness"]
+    if args.criterion:
+        columns.append("deviation")
+    columns += [f"crit_{c}" for c in crits] + ["origin"]
+    headings = {"generation": "gen", "island": "isl"}
+    headings.update({f"crit_{c}": _text.short_criterion(c) for c in crits})
+    if not args.systems:
+        _print(_text.format_table(table, columns, headings=headings))
+        return 0
+    lines = _text.format_table(table, columns, headings=headings).splitlines()
+    _print(lines[0])
+    for row, line in enumerate(lines[1:]):
+        _print(line)
+        text = table["text"][row].as_py() or ""
+        for statement in text.splitlines():
+            _print(f"      {statement}")
+    return 0
+
+
+def _lineage(args: argparse.Namespace) -> int:
+    from genr8_dist import history
+    from genr8_dist.history import _text
+
+    store = history.open_run(args.run)
+    table = history.lineage(store, args.id, depth=args.depth)
+    _print(_text.lineage_text(table, args.id))
+    if args.png:
+        from genr8_dist.history import pictures
+
+        pictures.lineage_png(table, args.id, args.png)
+        _print(f"wrote {args.png}")
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    from genr8_dist.history import _text, regrow
+
+    result = regrow.regrow(args.run, args.id)
+    row = result.row
+    crits = {k[5:]: v for k, v in row.items() if k.startswith("crit_")}
+    _print(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
+           f"{row['origin']}, configuration version {row['config_version']}")
+    if row["valid"]:
+        _print(f"fitness {_text.format_value(row['fitness'])}  " + "  ".join(
+            f"{k} {_text.format_value(v)}" for k, v in crits.items()))
+    else:
+        _print(f"invalid at {row['stage']}: {row['error']}")
+    _print("rewrite system:")
+    for statement in (row["text"] or "(none: the genome did not map)").splitlines():
+        _print(f"    {statement}")
+    if result.surface is not None:
+        s = result.surface
+        _print(f"regrown: {len(s.vertices)} vertices, {len(s.edges)} edges, {len(s.regions)} regions "
+               f"after {result.steps} derivation steps; digest {result.digest} matches the recorded one")
+    for path in args.output:
+        regrow.export(result, path)
+        _print(f"wrote {path}")
+    if args.png:
+        regrow.picture(result, args.png)
+        _print(f"wrote {args.png}")
+    if args.grammar:
+        regrow.save_text(row["text"] or "", args.grammar, what="rewrite system", id=row["id"])
+        _print(f"wrote {args.grammar}")
+    if args.genome:
+        regrow.save_text(" ".join(str(c) for c in row["genome"]) + "\n", args.genome, what="genome",
+                         id=row["id"])
+        _print(f"wrote {args.genome}")
+    return 0
+
+
+def _query(args: argparse.Namespace) -> int:
+    from genr8_dist import history
+    from genr8_dist.history import _text
+
+    table = history.query(args.run, args.sql)
+    target = args.csv or args.parquet
+    if target:
+        history.write_table(table, target, format="csv" if args.csv else "parquet")
+        _print(f"wrote {table.num_rows} rows to {target}")
+        return 0
+    if table.num_columns == 0:
+        _print("(no result)")
+        return 0
+    _print(_text.format_table(table, max_rows=args.max_rows))
+    _print(f"({table.num_rows} row{'s' if table.num_rows != 1 else ''})")
+    return 0
+
+
+def _gallery(args: argparse.Namespace) -> int:
+    from genr8_dist.history import pictures
+
+    info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
+                                island=args.island, per_island=args.per_island)
+    _print(f"wrote {args.output}: {info}")
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from genr8_dist.history import report
+
+    report.write_report(args.run, args.output, k=args.k, gallery_k=args.gallery)
+    _print(f"wrote {args.output}")
+    return 0

@@ -1,0 +1,33 @@
+"""Query a run's history, look at it, and take designs out of it (Genr8's output window, from the files).
+
+Every function takes a run directory (or an open ``RunStore``) and returns Arrow tables, so a notebook
+gets the same data the ``genr8 history / top / lineage / query`` commands print.
+"""
+
+from __future__ import annotations
+
+from genr8_dist.history._run import HistoryError, open_run, write_table
+from genr8_dist.history._tables import (
+    configs,
+    events,
+    individual,
+    interventions,
+    lineage,
+    per_generation,
+    query,
+    top,
+)
+
+__all__ = [
+    "HistoryError",
+    "configs",
+    "events",
+    "individual",
+    "interventions",
+    "lineage",
+    "open_run",
+    "per_generation",
+    "query",
+    "top",
+    "write_table",
+]

@@ -1,0 +1,158 @@
+"""Opening a run for reading, and the small facts every history query needs (criteria, targets)."""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.dataset as pads
+
+from genr8_dist.errors import Genr8Error, StoreError
+
+__all__ = [
+    "HistoryError",
+    "RunLike",
+    "atomic_write",
+    "criteria_of",
+    "open_run",
+    "parse_id",
+    "targets_by_version",
+    "write_table",
+]
+
+RunLike = Any  # a run directory (str / PathLike / URI) or an open ``RunStore``
+
+
+class HistoryError(Genr8Error, ValueError):
+    """A history request names something the run does not hold (an id, a criterion, a generation) or is
+    malformed (an SQL statement); the message names the value at fault."""
+
+
+def _label(run: RunLike) -> str:
+    for attr in ("path", "root", "uri"):
+        value = getattr(run, attr, None)
+        if value is not None:
+            return str(value)
+    return str(run)
+
+
+def open_run(run: RunLike) -> Any:
+    """The ``RunStore`` for ``run`` (a directory, a URI, or an already open store, returned as is).
+
+    A local directory that does not exist is a ``StoreError`` naming it, before the store is asked.
+    """
+    if not isinstance(run, (str, os.PathLike)):
+        return run
+    text = os.fspath(run)
+    if "://" not in text and not Path(text).is_dir():
+        raise StoreError(f"{text}: no such run directory")
+    from genr8_dist.store import RunStore
+
+    return RunStore.open(text)
+
+
+def dataset(store: Any) -> pads.Dataset:
+    """The committed individuals of ``store`` as a dataset; a run with none is a ``StoreError``."""
+    data = store.dataset()
+    if next(iter(data.get_fragments()), None) is None:
+        raise StoreError(f"{_label(store)}: the run has no committed generation yet")
+    return data
+
+
+def run_label(store: Any) -> str:
+    """A short name for ``store`` in messages (its path)."""
+    return _label(store)
+
+
+def criteria_of(schema: pa.Schema) -> list[str]:
+    """The criterion names a run records, in column order (``crit_size`` -> ``size``)."""
+    return [name[5:] for name in schema.names if name.startswith("crit_")]
+
+
+def parse_id(text: str) -> tuple[int, int, int] | None:
+    """``"I-G-N"`` -> ``(island, generation, index)``; ``None`` when ``text`` is not of that form."""
+    parts = str(text).split("-")
+    if len(parts) != 3 or not all(p.isdigit() for p in parts):
+        return None
+    return int(parts[0]), int(parts[1]), int(parts[2])
+
+
+def targets_by_version(store: Any, criteria: list[str]) -> dict[int, dict[str, tuple[float, float]]]:
+    """For every configuration version: ``{criterion: (target, unit)}``, the deviation a criterion's
+    raw value is judged by (``|raw - target| / unit``, the fitness's own normalisation, unweighted)."""
+    from genr8_dist.fitness import CRITERIA, FitnessSpec
+
+    known = [name for name in criteria if name in CRITERIA]
+    out: dict[int, dict[str, tuple[float, float]]] = {}
+    for version in store.configs():
+        data = tomllib.loads(version.toml)
+        spec = FitnessSpec.from_dict(data.get("fitness"), source=f"configuration version {version.version}")
+        out[int(version.version)] = {
+            name: (spec[name].target, spec[name].unit) for name in known}
+    return out
+
+
+def deviation(values: np.ndarray, versions: np.ndarray, criterion: str,
+              targets: dict[int, dict[str, tuple[float, float]]]) -> np.ndarray:
+    """``|raw - target| / unit`` per row, the target taken from each row's configuration version; NaN
+    raw values (and versions without the criterion) give ``inf`` so they never rank first."""
+    target = np.full(len(values), math.nan)
+    unit = np.ones(len(values))
+    for version, table in targets.items():
+        if criterion not in table:
+            continue
+        rows = versions == version
+        target[rows], unit[rows] = table[criterion]
+    dev = np.abs(values - target) / unit
+    dev[~np.isfinite(dev)] = np.inf
+    return dev
+
+
+def as_numpy(column: pa.ChunkedArray | pa.Array, fill: float = math.nan) -> np.ndarray:
+    """A numeric Arrow column as a numpy array, nulls replaced by ``fill``."""
+    if column.null_count:
+        column = pc.fill_null(column, fill)
+    return column.to_numpy()
+
+
+def atomic_write(path: str | os.PathLike, write: Any) -> None:
+    """Call ``write(tmp_path)`` then rename the temporary file onto ``path``: a reader never sees half
+    a file, and a failure leaves ``path`` as it was. The folder must exist."""
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise FileNotFoundError(2, "no such directory", str(folder))
+    tmp = folder / f".{target.name}.tmp-{os.getpid()}"
+    try:
+        write(str(tmp))
+        os.replace(tmp, target)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = None) -> None:
+    """Write ``table`` as CSV or Parquet (``format``, else from the suffix; CSV by default)."""
+    fmt = format or ("parquet" if str(path).endswith((".parquet", ".pq")) else "csv")
+    if fmt == "parquet":
+        import pyarrow.parquet as pq
+
+        atomic_write(path, lambda tmp: pq.write_table(table, tmp))
+    elif fmt == "csv":
+        import pyarrow.csv as pcsv
+
+        flat = table
+        for n, field in enumerate(table.schema):
+            if pa.types.is_list(field.type) or pa.types.is_large_list(field.type):
+                values = [None if v is None else " ".join(str(x) for x in v)
+                          for v in table.column(n).to_pylist()]
+                flat = flat.set_column(n, field.name, pa.array(values, pa.string()))
+        atomic_write(path, lambda tmp: pcsv.write_csv(flat, tmp))
+    else:
+        raise HistoryError(f"format {fmt!r}: write csv or parquet")

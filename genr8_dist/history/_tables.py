@@ -1,0 +1,364 @@
+"""The history of a run as Arrow tables: fitness per generation and island, the best individuals, one
+individual's row, its ancestry, the events, and SQL over all of it.
+
+Everything reads the committed Parquet files alone, through column projection and filters pushed
+down to the files, so a history of a million individuals answers in well under a second; genomes
+and rewrite-system texts are read only for the rows that are shown.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    as_numpy,
+    criteria_of,
+    dataset,
+    deviation,
+    open_run,
+    parse_id,
+    run_label,
+    targets_by_version,
+)
+
+__all__ = [
+    "configs",
+    "events",
+    "individual",
+    "interventions",
+    "lineage",
+    "per_generation",
+    "query",
+    "top",
+]
+
+# Columns shown for a ranked individual (genome never; text only when asked).
+_SUMMARY = ("id", "generation", "island", "index", "fitness")
+_AFTER = ("origin", "parents", "n_vertices", "n_edges", "n_regions", "steps_done", "capped",
+          "config_version")
+
+
+def _groups(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start offsets and sizes of the runs of equal values in the sorted ``key``."""
+    if not len(key):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    counts = np.diff(np.r_[starts, len(key)])
+    return starts, counts
+
+
+def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
+    """Per generation and island: how many individuals (``n``, ``n_valid``), the best, median, worst
+    and mean total fitness of the valid ones, the best individual's id, and for every criterion the
+    raw value closest to its target under the configuration version then in force (``best_<name>``).
+
+    Rows are sorted by generation, then island; a group without a valid individual has nulls.
+    """
+    store = open_run(run)
+    data = dataset(store)
+    crits = criteria_of(data.schema)
+    columns = ["generation", "island", "index", "fitness", "valid", "config_version"]
+    columns += [f"crit_{c}" for c in crits]
+    filt = None if island is None else pc.field("island") == int(island)
+    table = data.to_table(columns=columns, filter=filt)
+    if table.num_rows == 0:
+        raise HistoryError(f"{run_label(store)}: no island {island} in this run")
+
+    gen = as_numpy(table["generation"], -1).astype(np.int64)
+    isl = as_numpy(table["island"], -1).astype(np.int64)
+    fit = as_numpy(table["fitness"], math.inf).astype(np.float64)
+    valid = pc.fill_null(table["valid"], False).to_numpy(zero_copy_only=False)
+    fit = np.where(valid & np.isfinite(fit), fit, np.inf)
+
+    key = gen * (int(isl.max()) + 1) + isl
+    order = pc.sort_indices(pa.table({"k": key, "f": fit}),
+                            sort_keys=[("k", "ascending"), ("f", "ascending")]).to_numpy()
+    starts, counts = _groups(key[order])
+    fs = fit[order]
+    n_valid = np.add.reduceat(np.isfinite(fs).astype(np.int64), starts)
+    has = n_valid > 0
+    last = starts + np.maximum(n_valid, 1) - 1
+    lo = starts + np.maximum(n_valid - 1, 0) // 2
+    hi = starts + n_valid // 2
+    hi = np.where(has, hi, starts)
+    sums = np.add.reduceat(np.where(np.isfinite(fs), fs, 0.0), starts)
+    first_rows = order[starts]
+
+    def masked(values: np.ndarray) -> pa.Array:
+        return pa.array(values, type=pa.float64(), mask=~has)
+
+    index = as_numpy(table["index"], -1).astype(np.int64)
+    best_ids = [f"{i}-{g}-{n}" if ok else None
+                for i, g, n, ok in zip(isl[first_rows], gen[first_rows], index[first_rows], has,
+                                       strict=True)]
+    out: dict[str, Any] = {
+        "generation": pa.array(gen[first_rows], pa.int32()),
+        "island": pa.array(isl[first_rows], pa.int32()),
+        "n": pa.array(counts, pa.int64()),
+        "n_valid": pa.array(n_valid, pa.int64()),
+        "best": masked(fs[starts]),
+        "median": masked((fs[lo] + fs[hi]) / 2.0),
+        "worst": masked(fs[last]),
+        "mean": masked(sums / np.maximum(n_valid, 1)),
+        "best_id": pa.array(best_ids, pa.string()),
+    }
+    if crits:
+        targets = targets_by_version(store, crits)
+        versions = as_numpy(table["config_version"], -1).astype(np.int64)[order]
+        for name in crits:
+            raw = as_numpy(table[f"crit_{name}"], math.nan).astype(np.float64)[order]
+            dev = deviation(raw, versions, name, targets)
+            mins = np.minimum.reduceat(dev, starts)
+            hit = np.flatnonzero(dev == np.repeat(mins, counts))
+            first = hit[np.searchsorted(hit, starts)]
+            out[f"best_{name}"] = pa.array(raw[first], pa.float64(), mask=~np.isfinite(mins))
+    return pa.table(out)
+
+
+def _last_generation(data: Any) -> int:
+    return int(pc.max(data.to_table(columns=["generation"])["generation"]).as_py())
+
+
+def _resolve_generation(data: Any, generation: int | None) -> int | None:
+    """``None`` stays ``None``; a negative generation counts back from the last (-1 is the last)."""
+    if generation is None or generation >= 0:
+        return generation
+    last = _last_generation(data)
+    resolved = last + 1 + int(generation)
+    if resolved < 0:
+        raise HistoryError(f"generation {generation}: the run has only {last + 1} generations")
+    return resolved
+
+
+def _rows_by_ids(data: Any, ids: list[str], columns: list[str]) -> pa.Table:
+    """The rows with these ids, in the order given, reading only the generations they name."""
+    parsed = [parse_id(i) for i in ids]
+    gens = sorted({p[1] for p in parsed if p is not None})
+    filt = pc.field("id").isin(ids)
+    if gens and all(p is not None for p in parsed):
+        filt = pc.field("generation").isin(gens) & filt
+    found = data.to_table(columns=columns, filter=filt)
+    position = {value: n for n, value in enumerate(found["id"].to_pylist())}
+    take = [position[i] for i in ids if i in position]
+    return found.take(pa.array(take, pa.int64()))
+
+
+def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int | None = None,
+        criterion: str | None = None, systems: bool = False) -> pa.Table:
+    """The ``k`` best valid individuals (lowest total fitness, or with ``criterion`` the raw value
+    closest to that criterion's target), optionally only of one ``generation`` (negative counts back
+    from the last) and ``island``. Ties are broken by generation, island and index.
+
+    Columns: ``rank``, the id and position, ``fitness``, every ``crit_<name>``, how it was made and
+    its growth statistics; ``deviation`` when ranking by a criterion; ``text`` (its rewrite system)
+    when ``systems``.
+    """
+    if k < 1:
+        raise HistoryError(f"k: must be at least 1, got {k}")
+    store = open_run(run)
+    data = dataset(store)
+    crits = criteria_of(data.schema)
+    if criterion is not None and criterion not in crits:
+        raise HistoryError(f"criterion {criterion!r}: unknown; the run records {', '.join(crits)}")
+    generation = _resolve_generation(data, generation)
+
+    filt = pc.field("valid") == True  # noqa: E712  (an Arrow expression, not a Python test)
+    if generation is not None:
+        filt &= pc.field("generation") == int(generation)
+    if island is not None:
+        filt &= pc.field("island") == int(island)
+    rank_cols = ["generation", "island", "index", "fitness", "config_version"]
+    if criterion is not None:
+        rank_cols.append(f"crit_{criterion}")
+    table = data.to_table(columns=rank_cols, filter=filt)
+    if table.num_rows == 0:
+        where = []
+        if generation is not None:
+            where.append(f"generation {generation}")
+        if island is not None:
+            where.append(f"island {island}")
+        scope = " of " + ", ".join(where) if where else ""
+        raise HistoryError(f"{run_label(store)}: no valid individual{scope}")
+
+    if criterion is None:
+        score = as_numpy(table["fitness"], math.inf).astype(np.float64)
+    else:
+        targets = targets_by_version(store, crits)
+        score = deviation(as_numpy(table[f"crit_{criterion}"], math.nan).astype(np.float64),
+                          as_numpy(table["config_version"], -1).astype(np.int64), criterion, targets)
+    score = np.where(np.isnan(score), np.inf, score)
+    if len(score) > k:
+        threshold = np.partition(score, k - 1)[k - 1]
+        candidates = np.flatnonzero(score <= threshold)
+    else:
+        candidates = np.arange(len(score))
+    gen = as_numpy(table["generation"], -1)[candidates]
+    isl = as_numpy(table["island"], -1)[candidates]
+    idx = as_numpy(table["index"], -1)[candidates]
+    chosen = np.lexsort((idx, isl, gen, score[candidates]))[:k]
+    ids = [f"{i}-{g}-{n}" for i, g, n in zip(isl[chosen], gen[chosen], idx[chosen], strict=True)]
+
+    names = data.schema.names
+    columns = [c for c in _SUMMARY if c in names] + [f"crit_{c}" for c in crits]
+    columns += [c for c in _AFTER if c in names]
+    if systems:
+        columns.append("text")
+    rows = _rows_by_ids(data, ids, columns)
+    rows = rows.add_column(0, "rank", pa.array(np.arange(1, rows.num_rows + 1), pa.int32()))
+    if criterion is not None:
+        rows = rows.append_column("deviation", pa.array(score[candidates][chosen], pa.float64()))
+    return rows
+
+
+def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Table:
+    """The row of individual ``id`` (all columns, or ``columns``) as a one-row table."""
+    store = open_run(run)
+    data = dataset(store)
+    if columns is not None and "id" not in columns:
+        columns = ["id", *columns]
+    rows = _rows_by_ids(data, [str(id)], columns or data.schema.names)
+    if rows.num_rows == 0:
+        raise HistoryError(f"{run_label(store)}: no individual with id {id!r} in this run")
+    return rows.slice(0, 1)
+
+
+def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
+    """The ancestry of individual ``id``: itself and every ancestor back to the first generation (or
+    ``depth`` generations back), with how each was made (``origin``) and from whom (``parents``).
+
+    ``main_line`` marks the chain that follows each individual's first parent (the one its genome
+    starts from); ``missing`` lists parent ids the run does not hold (e.g. injected from another
+    run). Rows are sorted by generation (latest first), then island and index.
+    """
+    store = open_run(run)
+    data = dataset(store)
+    start = individual(store, id, ["generation"])
+    g0 = int(start["generation"][0].as_py())
+    lowest = 0 if depth is None else max(0, g0 - int(depth))
+    columns = ["id", "generation", "island", "index", "origin", "parents", "fitness", "valid"]
+    filt = (pc.field("generation") <= g0) & (pc.field("generation") >= lowest)
+    table = data.to_table(columns=columns, filter=filt)
+    table = table.take(pc.sort_indices(table["generation"]))
+    gens = as_numpy(table["generation"], -1).astype(np.int64)
+    starts, counts = _groups(gens)
+    bounds = {int(gens[s]): (int(s), int(s + c)) for s, c in zip(starts, counts, strict=True)}
+
+    pending: dict[int, set[str]] = {g0: {str(id)}}
+    heap = [-g0]
+    found: list[int] = []
+    seen: set[str] = set()
+    missing: list[str] = []
+    while heap:
+        g = -heapq.heappop(heap)
+        wanted = pending.pop(g, set()) - seen
+        if not wanted:
+            continue
+        seen |= wanted
+        lo, hi = bounds.get(g, (0, 0))
+        part = table.slice(lo, hi - lo)
+        hits = np.flatnonzero(pc.is_in(part["id"], value_set=pa.array(sorted(wanted))).to_numpy(
+            zero_copy_only=False))
+        got = set(part["id"].take(pa.array(hits, pa.int64())).to_pylist())
+        missing.extend(sorted(wanted - got))
+        found.extend(int(lo + h) for h in hits)
+        for parents in part["parents"].take(pa.array(hits, pa.int64())).to_pylist():
+            for parent in parents or ():
+                where = parse_id(parent)
+                pg = where[1] if where is not None else -1
+                if where is None or pg < lowest or pg > g0:
+                    if where is None or pg > g0:
+                        missing.append(parent)
+                    continue
+                if parent in seen:
+                    continue
+                if pg not in pending:
+                    heapq.heappush(heap, -pg)
+                pending.setdefault(pg, set()).add(parent)
+
+    result = table.take(pa.array(sorted(found), pa.int64()))
+    order = pc.sort_indices(result, sort_keys=[("generation", "descending"), ("island", "ascending"),
+                                               ("index", "ascending")])
+    result = result.take(order)
+
+    line: set[str] = set()
+    parents_of = dict(zip(result["id"].to_pylist(), result["parents"].to_pylist(), strict=True))
+    current: str | None = str(id)
+    while current is not None and current in parents_of and current not in line:
+        line.add(current)
+        first = parents_of[current] or []
+        current = first[0] if first else None
+    result = result.append_column(
+        "main_line", pa.array([i in line for i in result["id"].to_pylist()], pa.bool_()))
+    absent = set(missing)
+    result = result.append_column("missing", pa.array(
+        [[p for p in (ps or []) if p in absent] for ps in result["parents"].to_pylist()],
+        pa.list_(pa.string())))
+    return result
+
+
+def events(run: RunLike, kind: str | None = None) -> pa.Table:
+    """The run's events (start, migration, intervention, interrupt, resume, recovery), or one kind."""
+    store = open_run(run)
+    table = store.events()
+    if kind is not None:
+        table = table.filter(pc.equal(table["kind"], kind))
+    return table
+
+
+def interventions(run: RunLike) -> pa.Table:
+    """The interventions: each edit of the run with the generation it took effect and its detail."""
+    return events(run, "intervention")
+
+
+def configs(run: RunLike) -> pa.Table:
+    """The configuration versions: ``version``, ``effective_generation``, ``toml``, ``created``."""
+    store = open_run(run)
+    rows = list(store.configs())
+    return pa.table({
+        "version": pa.array([int(c.version) for c in rows], pa.int32()),
+        "effective_generation": pa.array([int(c.effective_generation) for c in rows], pa.int32()),
+        "toml": pa.array([c.toml for c in rows], pa.string()),
+        "created": pa.array([str(c.created) for c in rows], pa.string()),
+    })
+
+
+def _one_line(message: str) -> str:
+    lines = [line.strip() for line in str(message).splitlines() if line.strip()]
+    if not lines:
+        return "error"
+    head, rest = lines[0], [line for line in lines[1:] if not set(line) <= {"^", " "}]
+    return head + (f" ({'; '.join(rest)})" if rest else "")
+
+
+def query(run: RunLike, sql: str) -> pa.Table:
+    """The result of ``sql`` (DuckDB's dialect) over the views ``individuals``, ``events`` and
+    ``configs`` of the run. A malformed statement is a ``HistoryError`` with DuckDB's one-line reason.
+    Needs the ``sql`` extra (``pip install 'genr8-dist[sql]'``)."""
+    try:
+        import duckdb
+    except ImportError:
+        raise HistoryError("query needs DuckDB: pip install 'genr8-dist[sql]'") from None
+    store = open_run(run)
+    data = dataset(store)
+    con = duckdb.connect(":memory:")
+    try:
+        con.register("individuals", data)
+        con.register("events", store.events())
+        con.register("configs", configs(store))
+        try:
+            relation = con.sql(sql)
+            if relation is None:
+                return pa.table({})
+            return relation.to_arrow_table()
+        except duckdb.Error as exc:
+            raise HistoryError(f"query: {_one_line(str(exc))}") from None
+    finally:
+        con.close()

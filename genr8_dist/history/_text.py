@@ -1,0 +1,130 @@
+"""Plain-text renderings of history tables: aligned columns a person can read in a terminal or a log."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import pyarrow as pa
+
+__all__ = ["format_table", "format_value", "lineage_text", "short_criterion"]
+
+_SHORT = {
+    "size": "size",
+    "smoothness": "smooth",
+    "undulation": "undul",
+    "subdivisions": "subdiv",
+    "symmetry": "symm",
+    "soft_boundary": "soft",
+}
+
+
+def short_criterion(name: str) -> str:
+    """A column heading for criterion ``name`` (``smoothness`` -> ``smooth``)."""
+    return _SHORT.get(name, name)
+
+
+def format_value(value: Any, width: int | None = None) -> str:
+    """``value`` as a short string: floats to 5 significant digits, lists joined by commas, nulls as
+    ``-``; cut to ``width`` characters with an ellipsis."""
+    if value is None:
+        text = "-"
+    elif isinstance(value, bool):
+        text = "yes" if value else "no"
+    elif isinstance(value, float):
+        if math.isnan(value):
+            text = "nan"
+        elif math.isinf(value):
+            text = "inf" if value > 0 else "-inf"
+        else:
+            text = f"{value:.5g}"
+    elif isinstance(value, (list, tuple)):
+        text = ",".join(format_value(v) for v in value) or "-"
+    else:
+        text = str(value).replace("\n", " | ")
+    if width is not None and len(text) > width:
+        text = text[: max(1, width - 1)] + "…"
+    return text
+
+
+def format_table(table: pa.Table, columns: Sequence[str] | None = None, *,
+                 headings: dict[str, str] | None = None, max_width: int = 48,
+                 max_rows: int | None = None) -> str:
+    """``table`` as aligned text columns, numbers right-aligned; ``max_rows`` rows at most, with a
+    closing line saying how many were left out."""
+    columns = list(columns or table.column_names)
+    headings = headings or {}
+    shown = table if max_rows is None else table.slice(0, max_rows)
+    cells = {name: [format_value(v, max_width) for v in shown[name].to_pylist()] for name in columns}
+    numeric = {name: pa.types.is_integer(table.schema.field(name).type)
+               or pa.types.is_floating(table.schema.field(name).type) for name in columns}
+    widths = {name: max([len(headings.get(name, name))] + [len(c) for c in cells[name]])
+              for name in columns}
+
+    def cell(name: str, text: str) -> str:
+        return text.rjust(widths[name]) if numeric[name] else text.ljust(widths[name])
+
+    lines = ["  ".join(cell(n, headings.get(n, n)) for n in columns).rstrip()]
+    for row in range(shown.num_rows):
+        lines.append("  ".join(cell(n, cells[n][row]) for n in columns).rstrip())
+    if max_rows is not None and table.num_rows > max_rows:
+        lines.append(f"... {table.num_rows - max_rows} more rows (of {table.num_rows})")
+    return "\n".join(lines)
+
+
+def _how(origin: str, parents: list[str], island: int) -> str:
+    """How an individual was made, in words."""
+    from genr8_dist.history._run import parse_id
+
+    parents = list(parents or [])
+    if origin == "random":
+        return "random (founder)" if not parents else "random"
+    if origin == "migrant" and parents:
+        where = parse_id(parents[0])
+        source = f"island {where[0]}" if where else "another island"
+        return f"migrant from {source} ({parents[0]})"
+    if origin == "injected":
+        return f"injected (copy of {', '.join(parents)})" if parents else "injected by the user"
+    if origin == "elite" and parents:
+        return f"elite copy of {parents[0]}"
+    if parents:
+        return f"{origin} of {' x '.join(parents)}"
+    return origin
+
+
+def lineage_text(table: pa.Table, id: str) -> str:
+    """The ancestry table from ``history.lineage`` as text: a summary, the main line, then every
+    ancestor by generation (``*`` marks the main line)."""
+    rows = table.to_pylist()
+    if not rows:
+        return f"no ancestry for {id}"
+    me = next(r for r in rows if r["id"] == id)
+    origins: dict[str, int] = {}
+    for r in rows:
+        origins[r["origin"]] = origins.get(r["origin"], 0) + 1
+    gens = sorted({r["generation"] for r in rows})
+    founders = sum(1 for r in rows if r["generation"] == 0)
+    missing = sorted({p for r in rows for p in r["missing"]})
+    summary = (f"ancestry of {id} (generation {me['generation']}, island {me['island']}, fitness "
+               f"{format_value(me['fitness'])}): {len(rows) - 1} ancestors over {len(gens)} generations; "
+               f"{origins.get('migrant', 0)} migrants, {origins.get('injected', 0)} injected, "
+               f"{founders} in generation 0")
+    lines = [summary]
+    if missing:
+        lines.append(f"parents not in this run: {', '.join(missing)}")
+    chain = [r for r in rows if r["main_line"]]
+    chain.sort(key=lambda r: -r["generation"])
+    lines.append("main line (first parents): " + " <- ".join(
+        f"{r['id']} ({r['origin']}, {format_value(r['fitness'])})" for r in chain))
+    width = max(len(r["id"]) for r in rows)
+    current = None
+    for r in rows:
+        if r["generation"] != current:
+            current = r["generation"]
+            lines.append(f"generation {current}")
+        mark = "*" if r["main_line"] else " "
+        fitness = format_value(r["fitness"]) if r["valid"] else "invalid"
+        lines.append(f" {mark} {r['id'].ljust(width)}  fitness {fitness:>9}  "
+                     f"{_how(r['origin'], r['parents'], r['island'])}")
+    return "\n".join(lines)

@@ -1,0 +1,364 @@
+"""Pictures of a run for a person to look at: fitness curves, an ancestry, a gallery of surfaces.
+
+Drawn with matplotlib (the ``viz`` extra) on the non-interactive Agg backend, written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+
+from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+
+__all__ = ["curves_figure", "curves_png", "draw_surface", "gallery_png", "lineage_png"]
+
+# Colours for how an individual was made (lineage) and the palette for islands.
+ORIGIN_COLOURS = {
+    "random": "#9e9e9e",
+    "elite": "#1f77b4",
+    "crossover": "#2ca02c",
+    "mutation": "#ff7f0e",
+    "crossover+mutation": "#9467bd",
+    "migrant": "#d62728",
+    "injected": "#e377c2",
+}
+_EVENT_STYLE = {
+    "intervention": ("#c0392b", "--", "intervention"),
+    "resume": ("#7f8c8d", ":", "resumed"),
+    "recovery": ("#e67e22", ":", "recovery"),
+}
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+    except ImportError:
+        raise HistoryError("pictures need matplotlib: pip install 'genr8-dist[viz]'") from None
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: str | os.PathLike, dpi: int = 110) -> None:
+    plt = _pyplot()
+    suffix = os.path.splitext(os.fspath(path))[1] or ".png"
+
+    def write(tmp: str) -> None:
+        fig.savefig(tmp, dpi=dpi, format=suffix.lstrip(".") or "png", facecolor=fig.get_facecolor())
+
+    try:
+        atomic_write(path, write)
+    finally:
+        plt.close(fig)
+
+
+def _island_colours(n: int) -> list[Any]:
+    plt = _pyplot()
+    cmap = plt.get_cmap("tab10" if n <= 10 else "tab20")
+    return [cmap(i % cmap.N) for i in range(n)]
+
+
+def _short_detail(detail: str, limit: int = 38) -> str:
+    """An intervention's detail as a short label (``fitness.size.weight=2``)."""
+    try:
+        data = json.loads(detail) if detail else {}
+    except ValueError:
+        data = {}
+    parts: list[str] = []
+
+    def walk(prefix: str, value: Any) -> None:
+        if isinstance(value, dict):
+            for k, v in value.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), v)
+        else:
+            parts.append(f"{prefix}={value}")
+
+    if isinstance(data, dict):
+        for key in ("changes", "edit", "set"):
+            if key in data:
+                walk("", data[key])
+                break
+        else:
+            walk("", {k: v for k, v in data.items() if k not in ("version", "config_version")})
+    text = ", ".join(parts)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
+    """The fitness-curve figure: best (solid) and median (dashed) total fitness per island over the
+    generations, migrations as ticks along the bottom, interventions and resumptions as vertical lines;
+    below, each criterion's value closest to its target per island, the target dashed."""
+    from genr8_dist.history._run import criteria_of, targets_by_version
+    from genr8_dist.history._tables import events as run_events
+    from genr8_dist.history._tables import per_generation
+
+    plt = _pyplot()
+    store = open_run(store)
+    if table is None:
+        table = per_generation(store)
+    crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
+    ev = run_events(store)
+    islands = sorted(set(table["island"].to_pylist()))
+    colours = dict(zip(islands, _island_colours(max(islands) + 1 if islands else 1), strict=False))
+    ncols = 3
+    nrows = math.ceil(len(crits) / ncols) if crits else 0
+    fig = plt.figure(figsize=(13, 5.2 + 2.6 * nrows), facecolor="white")
+    grid = fig.add_gridspec(1 + nrows, ncols, height_ratios=[2.4] + [1] * nrows, hspace=0.45,
+                            wspace=0.25, left=0.07, right=0.98, top=0.95, bottom=0.07)
+    ax = fig.add_subplot(grid[0, :])
+    gen = np.asarray(table["generation"].to_pylist())
+    isl = np.asarray(table["island"].to_pylist())
+
+    def column(name: str) -> np.ndarray:
+        return np.asarray([math.nan if v is None else v for v in table[name].to_pylist()], float)
+
+    best, median = column("best"), column("median")
+    for i in islands:
+        rows = isl == i
+        ax.plot(gen[rows], best[rows], color=colours[i], lw=2.0, label=f"island {i} best")
+        ax.plot(gen[rows], median[rows], color=colours[i], lw=1.0, ls="--", alpha=0.6)
+    finite = best[np.isfinite(best)]
+    if finite.size and finite.min() > 0 and finite.max() / finite.min() > 50:
+        ax.set_yscale("log")
+    last = int(gen.max()) if gen.size else 0
+    ax.set_xlim(-0.5, last + 0.5)
+    ax.set_xlabel("generation")
+    ax.set_ylabel("total fitness (lower is better)")
+    ax.grid(True, color="#e5e5e5", lw=0.8)
+    ax.set_axisbelow(True)
+    for side in ("top", "right"):
+        ax.spines[side].set_visible(False)
+    title = f"{getattr(store, 'run_id', run_label(store))}: fitness per generation"
+    ax.set_title(title + "  (solid: best, dashed: median)", loc="left", fontsize=13,
+                 fontweight="bold")
+
+    kinds = ev["kind"].to_pylist() if ev.num_rows else []
+    gens_ev = ev["generation"].to_pylist() if ev.num_rows else []
+    details = ev["detail"].to_pylist() if ev.num_rows else []
+    migrations = sorted({g for k, g in zip(kinds, gens_ev, strict=True) if k == "migration"})
+    if migrations:
+        ax.plot(migrations, [0.0] * len(migrations), transform=ax.get_xaxis_transform(),
+                marker="^", ls="none", ms=7, color="#555555", alpha=0.8, label="migration",
+                clip_on=False)
+    drawn: set[str] = set()
+    for kind, g, detail in zip(kinds, gens_ev, details, strict=True):
+        if kind not in _EVENT_STYLE:
+            continue
+        colour, style, label = _EVENT_STYLE[kind]
+        ax.axvline(g, color=colour, ls=style, lw=1.4, label=None if label in drawn else label)
+        drawn.add(label)
+        if kind == "intervention":
+            ax.annotate(_short_detail(detail), xy=(g, 1.0), xycoords=("data", "axes fraction"),
+                        xytext=(4, -4), textcoords="offset points", rotation=90, va="top",
+                        fontsize=8, color=colour)
+    ax.legend(loc="upper right", fontsize=8, ncols=2 if len(islands) > 4 else 1, frameon=False)
+
+    targets = targets_by_version(store, criteria_of(pa.schema([(f"crit_{c}", pa.float64())
+                                                                for c in crits]))) if crits else {}
+    configs = {int(c.version): int(c.effective_generation) for c in store.configs()}
+    for n, name in enumerate(crits):
+        cax = fig.add_subplot(grid[1 + n // ncols, n % ncols])
+        values = column(f"best_{name}")
+        for i in islands:
+            rows = isl == i
+            cax.plot(gen[rows], values[rows], color=colours[i], lw=1.2)
+        steps = sorted((g, targets[v][name][0]) for v, g in configs.items()
+                       if v in targets and name in targets[v])
+        if steps:
+            xs = [g for g, _ in steps] + [last]
+            ys = [t for _, t in steps] + [steps[-1][1]]
+            cax.step(xs, ys, where="post", color="black", ls="--", lw=1.0, label="target")
+        cax.set_title(name.replace("_", " "), loc="left", fontsize=10)
+        cax.grid(True, color="#eeeeee", lw=0.6)
+        cax.tick_params(labelsize=8)
+        for side in ("top", "right"):
+            cax.spines[side].set_visible(False)
+        if n == 0 and steps:
+            cax.legend(fontsize=7, frameon=False, loc="best")
+    if crits:
+        fig.text(0.01, 0.005, "criteria: per island, the value closest to its target in each "
+                 "generation", fontsize=8, color="#555555")
+    return fig
+
+
+def curves_png(store: RunLike, path: str | os.PathLike, *, table: pa.Table | None = None) -> None:
+    """Write the fitness curves of ``store`` (see ``curves_figure``) to the PNG ``path``."""
+    _save(curves_figure(store, table), path)
+
+
+def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
+    """Draw an ancestry (``history.lineage``'s table): generations left to right, each island a band,
+    individuals coloured by how they were made, parent-to-child links, the main line in black."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+
+    plt = _pyplot()
+    rows = table.to_pylist()
+    if not rows:
+        raise HistoryError(f"no ancestry to draw for {id}")
+    islands = sorted({r["island"] for r in rows})
+    band = {i: n for n, i in enumerate(islands)}
+    width = max(r["index"] for r in rows) + 1
+    pos = {r["id"]: (r["generation"], band[r["island"]] + (r["index"] + 0.5) / width * 0.8 + 0.1)
+           for r in rows}
+    links, main = [], []
+    line = {r["id"] for r in rows if r["main_line"]}
+    for r in rows:
+        for parent in r["parents"] or ():
+            if parent in pos:
+                segment = [pos[parent], pos[r["id"]]]
+                (main if parent in line and r["id"] in line else links).append(segment)
+    gens = [r["generation"] for r in rows]
+    span = max(gens) - min(gens) + 1
+    fig, ax = plt.subplots(figsize=(min(22, 4 + 0.28 * span), 2.0 + 1.6 * len(islands)),
+                           facecolor="white")
+    ax.add_collection(LineCollection(links, colors="#b0b0b0", linewidths=0.5, alpha=0.6, zorder=1))
+    ax.add_collection(LineCollection(main, colors="black", linewidths=2.2, zorder=3))
+    xs = np.array([pos[r["id"]][0] for r in rows], float)
+    ys = np.array([pos[r["id"]][1] for r in rows], float)
+    colours = [ORIGIN_COLOURS.get(r["origin"], "#333333") for r in rows]
+    sizes = np.where([r["main_line"] for r in rows], 46, 18)
+    ax.scatter(xs, ys, c=colours, s=sizes, edgecolors="white", linewidths=0.4, zorder=2)
+    me = pos[id]
+    ax.scatter([me[0]], [me[1]], s=180, facecolors="none", edgecolors="black", linewidths=1.8,
+               zorder=4)
+    ax.annotate(id, me, xytext=(8, 6), textcoords="offset points", fontsize=10, fontweight="bold")
+    for n in range(1, len(islands)):
+        ax.axhline(n, color="#dddddd", lw=0.8, zorder=0)
+    ax.set_yticks([n + 0.5 for n in range(len(islands))], [f"island {i}" for i in islands])
+    ax.set_ylim(0, len(islands))
+    ax.set_xlim(min(gens) - 0.8, max(gens) + 0.8 + 0.08 * span)
+    ax.set_xlabel("generation")
+    ax.invert_yaxis()
+    for side in ("top", "right"):
+        ax.spines[side].set_visible(False)
+    present = [o for o in ORIGIN_COLOURS if any(r["origin"] == o for r in rows)]
+    handles = [Line2D([], [], marker="o", ls="none", color=ORIGIN_COLOURS[o], label=o) for o in present]
+    handles.append(Line2D([], [], color="black", lw=2.2, label="main line (first parents)"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    ax.set_title(f"ancestry of {id}: {len(rows) - 1} ancestors", loc="left", fontsize=12,
+                 fontweight="bold")
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
+    """Draw ``surface`` on the 3D axes ``ax``: its regions shaded by height and lit from above-left,
+    its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    plt = _pyplot()
+    v = np.asarray(surface.vertices, dtype=np.float64)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    polygons = [v[np.asarray(cycle, dtype=np.int64)] for cycle in surface.regions if len(cycle) >= 3]
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre = (lo + hi) / 2.0
+    radius = max(float((hi - lo).max()) / 2.0, 1e-9)
+    if polygons:
+        z = np.array([p[:, 2].mean() for p in polygons])
+        zn = (z - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else np.full(len(z), 0.55)
+        base = plt.get_cmap("viridis")(0.15 + 0.7 * zn)
+        light = np.array([-0.4, -0.5, 0.77])
+        light /= np.linalg.norm(light)
+        shade = []
+        for p in polygons:
+            normal = np.cross(p[1] - p[0], p[2] - p[0]) if len(p) >= 3 else np.zeros(3)
+            if len(p) > 3:  # Newell's normal, robust for any simple polygon
+                q = np.roll(p, -1, axis=0)
+                normal = np.array([((p[:, 1] - q[:, 1]) * (p[:, 2] + q[:, 2])).sum(),
+                                   ((p[:, 2] - q[:, 2]) * (p[:, 0] + q[:, 0])).sum(),
+                                   ((p[:, 0] - q[:, 0]) * (p[:, 1] + q[:, 1])).sum()])
+            norm = np.linalg.norm(normal)
+            shade.append(0.55 + 0.45 * abs(float(normal @ light)) / norm if norm > 0 else 0.8)
+        colours = base.copy()
+        colours[:, :3] *= np.asarray(shade)[:, None]
+        ax.add_collection3d(Poly3DCollection(polygons, facecolors=colours, edgecolors="none",
+                                             alpha=0.95))
+    if len(edges):
+        ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
+                                             alpha=0.85))
+    ax.set_xlim(centre[0] - radius, centre[0] + radius)
+    ax.set_ylim(centre[1] - radius, centre[1] + radius)
+    ax.set_zlim(centre[2] - radius, centre[2] + radius)
+    ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=elev, azim=azim)
+    ax.set_axis_off()
+
+
+def _tile_grid(n: int, columns: int | None = None) -> tuple[int, int]:
+    cols = columns or min(max(n, 1), 4 if n <= 8 else 5 if n <= 15 else 6)
+    return math.ceil(n / cols), cols
+
+
+def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int | None = None,
+                   row_labels: Sequence[str] | None = None) -> Any:
+    """A contact sheet: one 3D tile per ``(label, surface)``; ``None`` surfaces show their label only."""
+    plt = _pyplot()
+    rows, cols = _tile_grid(len(tiles), columns)
+    fig = plt.figure(figsize=(3.1 * cols, 3.2 * rows + 0.7), facecolor="white")
+    for n, (label, surface) in enumerate(tiles):
+        ax = fig.add_subplot(rows, cols, n + 1, projection="3d")
+        ax.set_facecolor("white")
+        if surface is not None and len(surface.vertices):
+            draw_surface(ax, surface)
+        else:
+            ax.set_axis_off()
+            ax.text2D(0.5, 0.5, "no surface", ha="center", va="center", transform=ax.transAxes,
+                      color="#999999")
+        ax.set_title(label, fontsize=9, pad=-2)
+        if row_labels and n % cols == 0:
+            ax.text2D(-0.02, 0.5, row_labels[n // cols], rotation=90, ha="right", va="center",
+                      transform=ax.transAxes, fontsize=10, fontweight="bold")
+    fig.suptitle(title, x=0.01, ha="left", fontsize=13, fontweight="bold")
+    fig.subplots_adjust(left=0.03, right=0.99, top=1 - 0.7 / (3.2 * rows + 0.7), bottom=0.01,
+                        wspace=0.02, hspace=0.12)
+    return fig
+
+
+def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
+                island: int | None = None, per_island: bool = False) -> str:
+    """Regrow the ``k`` best valid individuals of ``generation`` (negative counts back from the last;
+    ``None``: the whole run) — of one ``island``, or the best ``k`` of each island with
+    ``per_island`` — and write their contact sheet to ``path``. Returns a one-line description."""
+    from genr8_dist.history._run import dataset
+    from genr8_dist.history._tables import _resolve_generation, top
+    from genr8_dist.history.regrow import regrow
+
+    store = open_run(run)
+    generation = _resolve_generation(dataset(store), generation)
+    if per_island:
+        islands = [island] if island is not None else sorted(
+            int(i) for i in store.committed_generations())
+        groups = [top(store, k, generation=generation, island=i) for i in islands]
+        groups = [g for g in groups if g.num_rows]
+        row_labels = [f"island {g['island'][0].as_py()}" for g in groups]
+        ids = []
+        for g in groups:
+            ids.extend(g["id"].to_pylist() + [None] * (k - g.num_rows))
+        columns = k
+    else:
+        ids = top(store, k, generation=generation, island=island)["id"].to_pylist()
+        row_labels, columns = None, None
+    tiles = []
+    fitness_of = {}
+    for ident in ids:
+        if ident is None:
+            tiles.append(("", None))
+            continue
+        result = regrow(store, ident)
+        fitness_of[ident] = result.row["fitness"]
+        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result.surface))
+    where = "the whole run" if generation is None else f"generation {generation}"
+    if island is not None:
+        where += f", island {island}"
+    title = (f"{getattr(store, 'run_id', run_label(store))}: best {k} of {where}"
+             + (" per island" if per_island else ""))
+    _save(gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels), path, dpi=100)
+    return f"{len(fitness_of)} surfaces of {where}"
