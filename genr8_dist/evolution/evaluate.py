@@ -1,0 +1,218 @@
+"""Evaluate one genome: map it with the universe, parse the rewrite system, grow it, score the surface.
+
+Failure is data: whatever goes wrong (the genome wraps too often, the text does not parse, growth raises
+or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
+``stage`` that failed, the ``error`` and the worst fitness (``inf``); nothing raises for an int genome.
+
+An ``Evaluator`` keeps two caches for one configuration: genome -> evaluation, and rewrite-system text
+-> grown and scored surface (many genomes map to the same text, since GE genomes carry unread codons).
+Evaluation is a pure function of (genome, configuration), so the caches change timings, never results.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import OrderedDict
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
+from typing import Any
+
+from genr8_dist.errors import GenomeError, Genr8Error
+from genr8_dist.fitness import CRITERIA, score_surface
+
+__all__ = ["Evaluation", "Evaluator", "evaluate_genome", "evaluate_text", "universe_for"]
+
+
+@dataclass(frozen=True, slots=True)
+class Evaluation:
+    """The evaluated fields of an ``Individual`` (same names), for one genome or text."""
+
+    text: str | None = None
+    valid: bool = False
+    stage: str | None = None
+    error: str | None = None
+    fitness: float = math.inf
+    criteria: dict[str, float] = field(default_factory=dict)
+    codons_used: int = 0
+    wraps: int = 0
+    n_vertices: int = 0
+    n_edges: int = 0
+    n_regions: int = 0
+    steps_done: int = 0
+    capped: str | None = None
+    surface_digest: str | None = None
+    eval_seconds: float = 0.0
+    map_seconds: float = 0.0
+    grow_seconds: float = 0.0
+    score_seconds: float = 0.0
+
+    def as_fields(self) -> dict[str, Any]:
+        """The fields as keyword arguments for ``Individual``."""
+        return {name: getattr(self, name) for name in self.__dataclass_fields__}
+
+    def untimed(self) -> Evaluation:
+        """This evaluation with every timing set to 0 (a cache hit costs nothing)."""
+        return replace(self, eval_seconds=0.0, map_seconds=0.0, grow_seconds=0.0, score_seconds=0.0)
+
+
+@lru_cache(maxsize=16)
+def universe_for(name: str) -> Any:
+    """The loaded universe ``name`` (loaded once per process)."""
+    from genr8_dist.grammar import load_universe
+
+    return load_universe(name)
+
+
+def _describe(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _check_genome(genome: Sequence[int]) -> tuple[int, ...]:
+    try:
+        values = tuple(int(c) for c in genome)
+    except (TypeError, ValueError):
+        raise GenomeError(f"a genome is a sequence of non-negative integers, got {genome!r}") from None
+    if not values:
+        raise GenomeError("a genome needs at least one codon")
+    if any(c < 0 for c in values):
+        raise GenomeError(f"codons must be non-negative, got {min(values)}")
+    return values
+
+
+def _grow_and_score(text: str, config: Any) -> Evaluation:
+    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set)."""
+    from genr8_dist.hemls import grow, parse
+
+    try:
+        system = parse(text)
+    except Exception as exc:  # failure is data: a text that does not parse is an invalid individual
+        return Evaluation(text=text, stage="parse", error=_describe(exc))
+    t0 = time.perf_counter()
+    try:
+        result = grow(system, config.environment)
+    except Exception as exc:  # failure is data, whatever growth raised
+        return Evaluation(text=text, stage="grow", error=_describe(exc),
+                          grow_seconds=time.perf_counter() - t0)
+    grow_seconds = time.perf_counter() - t0
+    surface = result.surface
+    capped = result.capped
+    capped = (capped if isinstance(capped, str) else "cap") if capped else None
+    grown = {
+        "text": text,
+        "n_vertices": len(surface.vertices),
+        "n_edges": len(surface.edges),
+        "n_regions": len(surface.regions),
+        "steps_done": int(result.steps),
+        "capped": capped,
+        "grow_seconds": grow_seconds,
+    }
+    t1 = time.perf_counter()
+    try:
+        grown["surface_digest"] = surface.digest()
+        criteria = score_surface(surface, config.environment)
+    except Exception as exc:  # failure is data
+        return Evaluation(stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1,
+                          **grown)
+    grown["score_seconds"] = time.perf_counter() - t1
+    grown["criteria"] = criteria
+    if capped:
+        error = f"growth capped ({capped}) after {result.steps} derivation steps"
+        return Evaluation(stage="grow", error=error, **grown)
+    if not grown["n_vertices"] or not grown["n_edges"]:
+        return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
+    bad = [name for name in CRITERIA if not math.isfinite(criteria[name])]
+    if bad:
+        return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
+    fitness = config.fitness.evaluate(criteria)
+    if not math.isfinite(fitness):
+        return Evaluation(stage="score", error="fitness is not finite", **grown)
+    return Evaluation(valid=True, fitness=fitness, **grown)
+
+
+class Evaluator:
+    """Evaluates genomes for one configuration, each distinct genome and each distinct text once
+    (bounded caches of ``cache_size`` entries, least recently used dropped first)."""
+
+    def __init__(self, config: Any, *, cache_size: int = 4096) -> None:
+        self.config = config
+        self.universe = universe_for(config.universe)
+        self.cache_size = cache_size
+        self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
+        self._texts: OrderedDict[str, Evaluation] = OrderedDict()
+        self.evaluations = 0     # genomes actually mapped
+        self.growths = 0         # texts actually grown
+        self.cache_hits = 0
+
+    def _remember(self, cache: OrderedDict, key: Any, value: Evaluation) -> None:
+        cache[key] = value
+        if len(cache) > self.cache_size:
+            cache.popitem(last=False)
+
+    def evaluate(self, genome: Sequence[int]) -> Evaluation:
+        """The evaluation of ``genome``; a repeat of a cached genome comes back with zero timings."""
+        key = _check_genome(genome)
+        hit = self._genomes.get(key)
+        if hit is not None:
+            self._genomes.move_to_end(key)
+            self.cache_hits += 1
+            return hit.untimed()
+        self.evaluations += 1
+        start = time.perf_counter()
+        genome_settings = self.config.genome
+        try:
+            mapped = self.universe.map(list(key), max_depth=genome_settings.max_depth,
+                                       max_wraps=genome_settings.max_wraps)
+        except Exception as exc:  # the mapper should not raise for int genomes; if it does, it is data
+            result = Evaluation(stage="map", error=_describe(exc), map_seconds=time.perf_counter() - start)
+            result = replace(result, eval_seconds=result.map_seconds)
+            self._remember(self._genomes, key, result)
+            return result
+        map_seconds = time.perf_counter() - start
+        mapping = {"codons_used": int(mapped.codons_used), "wraps": int(mapped.wraps),
+                   "map_seconds": map_seconds}
+        if not mapped.valid:
+            result = Evaluation(text=mapped.text or None, stage="map",
+                                error=str(mapped.reason or "mapping failed"), **mapping)
+        else:
+            grown = self._texts.get(mapped.text)
+            if grown is not None:
+                self._texts.move_to_end(mapped.text)
+                grown = grown.untimed()
+            else:
+                self.growths += 1
+                grown = _grow_and_score(mapped.text, self.config)
+                self._remember(self._texts, mapped.text, grown)
+            result = replace(grown, **mapping)
+        result = replace(result, eval_seconds=time.perf_counter() - start)
+        self._remember(self._genomes, key, result)
+        return result
+
+    def evaluate_text(self, text: str) -> Evaluation:
+        """Grow and score a rewrite system written by hand (no mapping: codons_used and wraps are 0)."""
+        cached = self._texts.get(text)
+        if cached is not None:
+            self.cache_hits += 1
+            return cached.untimed()
+        start = time.perf_counter()
+        self.growths += 1
+        result = _grow_and_score(text, self.config)
+        self._remember(self._texts, text, result)
+        return replace(result, eval_seconds=time.perf_counter() - start)
+
+
+def evaluate_genome(genome: Sequence[int], config: Any, *, evaluator: Evaluator | None = None) -> Evaluation:
+    """Map, parse, grow and score one genome under ``config`` (a ``RunConfig``); never raises for a
+    sequence of non-negative ints (``GenomeError`` otherwise). Pass an ``Evaluator`` to share caches."""
+    if evaluator is None or evaluator.config is not config:
+        evaluator = Evaluator(config, cache_size=1)
+    return evaluator.evaluate(genome)
+
+
+def evaluate_text(text: str, config: Any) -> Evaluation:
+    """Grow and score a hand-written rewrite system under ``config`` (what ``genr8 score`` does)."""
+    if not isinstance(text, str):
+        raise Genr8Error(f"a rewrite system is text, got {type(text).__name__}")
+    return Evaluator(config, cache_size=1).evaluate_text(text)
