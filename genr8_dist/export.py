@@ -1,0 +1,335 @@
+"""Surfaces out of genr8_dist: triangle meshes and scaffolds through trimesh, and PNG previews.
+
+All three work on any value with the ``Surface`` contract (docs/ARCHITECTURE.md): ``vertices``
+(V, 3) float64, ``edges`` (E, 2) int64, ``labels`` (E,), ``regions`` (vertex cycles) and
+``triangles()`` (T, 3). Files are written atomically: to a temporary file beside the target, then
+renamed, so a crash or a bad argument never leaves half a file.
+
+- ``export_mesh``: the regions, triangulated, as OBJ, PLY, STL or GLB (chosen by the suffix). Every
+  vertex is written, in the surface's order, so vertex i of the file is vertex i of the map.
+- ``export_scaffold``: the map's edges as polylines (Genr8's "scaffold"): OBJ ``l`` lines (grouped
+  by edge label), PLY with an ``edge`` element, or DXF LINE entities (one layer per edge label).
+- ``render_png``: a shaded picture of the surface with its edges, axes and a title, drawn headless
+  with matplotlib (the ``viz`` extra); with ``env`` it also shows the environment's boundaries,
+  attractors, repellers and gravity.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Protocol
+
+import numpy as np
+
+from genr8_dist.errors import ConfigError
+
+if TYPE_CHECKING:
+    from genr8_dist.environment import Environment
+
+__all__ = [
+    "MESH_FORMATS",
+    "SCAFFOLD_FORMATS",
+    "SurfaceLike",
+    "export_mesh",
+    "export_scaffold",
+    "mesh_of",
+    "render_png",
+]
+
+MESH_FORMATS = ("obj", "ply", "stl", "glb")
+SCAFFOLD_FORMATS = ("obj", "ply", "dxf")
+
+
+class SurfaceLike(Protocol):
+    """What export needs of a surface (genr8_dist.hemls.Surface has it)."""
+
+    vertices: np.ndarray
+    edges: np.ndarray
+    labels: np.ndarray
+
+    def triangles(self) -> np.ndarray: ...
+
+
+def _suffix(path: Path, allowed: tuple[str, ...], what: str) -> str:
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in allowed:
+        names = ", ".join(f".{s}" for s in allowed)
+        given = path.suffix or "(no suffix)"
+        raise ConfigError(f"{path}: unknown {what} format '{given}'; use one of {names}")
+    return suffix
+
+
+@contextlib.contextmanager
+def _atomic(path: Path) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; rename it over ``path`` only when the block succeeds."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise ConfigError(f"{path}: folder '{folder}' does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    finally:
+        if tmp_path.exists():
+            tmp_path.unlink()
+
+
+def _write_bytes(path: Path, data: bytes | str) -> None:
+    with _atomic(path) as tmp:
+        tmp.write_bytes(data.encode() if isinstance(data, str) else data)
+
+
+def _arrays(surface: SurfaceLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    return vertices, edges, faces
+
+
+def mesh_of(surface: SurfaceLike) -> Any:
+    """The surface's regions as one ``trimesh.Trimesh`` (every vertex kept, in order; not merged)."""
+    import trimesh
+
+    vertices, _, faces = _arrays(surface)
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
+
+
+def export_mesh(surface: SurfaceLike, path: str | Path) -> Path:
+    """Write the triangulated regions to ``path`` (OBJ, PLY, STL or GLB by suffix); returns the path."""
+    path = Path(path)
+    kind = _suffix(path, MESH_FORMATS, "mesh")
+    mesh = mesh_of(surface)
+    if kind == "obj":
+        data = mesh.export(file_type="obj", include_normals=False, include_texture=False, digits=17,
+                           header="genr8_dist")
+    else:
+        data = mesh.export(file_type=kind)
+    _write_bytes(path, data)
+    return path
+
+
+def _scaffold_obj(vertices: np.ndarray, edges: np.ndarray, labels: np.ndarray) -> str:
+    lines = ["# genr8 scaffold: the map's edges as polylines, grouped by edge label"]
+    lines.extend(f"v {x:.17g} {y:.17g} {z:.17g}" for x, y, z in vertices)
+    for label in np.unique(labels) if len(labels) else []:
+        lines.append(f"g label{label}")
+        lines.extend(f"l {a + 1} {b + 1}" for a, b in edges[labels == label])
+    return "\n".join(lines) + "\n"
+
+
+def _scaffold_ply(vertices: np.ndarray, edges: np.ndarray, labels: np.ndarray) -> str:
+    head = [
+        "ply", "format ascii 1.0", "comment genr8 scaffold",
+        f"element vertex {len(vertices)}", "property double x", "property double y", "property double z",
+        f"element edge {len(edges)}", "property int vertex1", "property int vertex2", "property int label",
+        "end_header",
+    ]
+    body = [f"{x:.17g} {y:.17g} {z:.17g}" for x, y, z in vertices]
+    body.extend(f"{a} {b} {int(label)}" for (a, b), label in zip(edges, labels, strict=True))
+    return "\n".join(head + body) + "\n"
+
+
+def _scaffold_dxf(vertices: np.ndarray, edges: np.ndarray, labels: np.ndarray) -> str:
+    """A minimal DXF (R12, ENTITIES only): one LINE per edge, on layer ``label<N>``; CAD tools read it."""
+    out = ["0", "SECTION", "2", "ENTITIES"]
+    for (a, b), label in zip(edges, labels, strict=True):
+        (x1, y1, z1), (x2, y2, z2) = vertices[a], vertices[b]
+        out += ["0", "LINE", "8", f"label{int(label)}",
+                "10", f"{x1:.17g}", "20", f"{y1:.17g}", "30", f"{z1:.17g}",
+                "11", f"{x2:.17g}", "21", f"{y2:.17g}", "31", f"{z2:.17g}"]
+    out += ["0", "ENDSEC", "0", "EOF"]
+    return "\n".join(out) + "\n"
+
+
+def export_scaffold(surface: SurfaceLike, path: str | Path) -> Path:
+    """Write the map's edges as polylines to ``path`` (OBJ lines, PLY edges, or DXF); returns the path."""
+    path = Path(path)
+    kind = _suffix(path, SCAFFOLD_FORMATS, "scaffold")
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    labels = np.asarray(surface.labels).reshape(-1)
+    if len(labels) != len(edges):
+        labels = np.zeros(len(edges), dtype=np.int64)
+    labels = labels.astype(np.int64)
+    if kind == "obj":
+        _write_bytes(path, _scaffold_obj(vertices, edges, labels))
+    elif kind == "ply":
+        _write_bytes(path, _scaffold_ply(vertices, edges, labels))
+    else:
+        _write_bytes(path, _scaffold_dxf(vertices, edges, labels))
+    return path
+
+
+# -- pictures ------------------------------------------------------------------------------------------
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+    except ImportError:
+        raise ConfigError("PNG previews need matplotlib: pip install 'genr8-dist[viz]'") from None
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any) -> np.ndarray:
+    """Colour by height, shaded by a fixed light (Lambert, two-sided so face winding does not matter)."""
+    tri = vertices[faces]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(normal, axis=1, keepdims=True)
+    normal = np.divide(normal, norm, out=np.zeros_like(normal), where=norm > 0)
+    light = np.array([-0.4, -0.5, 0.77])
+    light /= np.linalg.norm(light)
+    lambert = np.abs(normal @ light)
+    z = tri[:, :, 2].mean(axis=1)
+    span = float(np.ptp(z)) if len(z) else 0.0
+    level = (z - z.min()) / span if span > 1e-12 else np.full(len(z), 0.55)
+    colours = cmap(0.15 + 0.7 * level)
+    colours[:, :3] *= (0.45 + 0.55 * lambert)[:, None]
+    colours[:, 3] = 0.95
+    return colours
+
+
+def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Boundaries as light wireframes, attractors (green) and repellers (red) as dots, gravity an arrow."""
+    from genr8_dist.environment import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
+
+    style = {"color": "0.45", "linewidth": 0.5, "alpha": 0.6, "zorder": 0}
+    for b in env.boundaries:
+        if isinstance(b, SphereBoundary):
+            u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
+            c, r = np.asarray(b.centre), b.radius
+            ax.plot_wireframe(c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
+                              c[2] + r * np.cos(v), **style)
+        elif isinstance(b, BoxBoundary):
+            x0, y0, z0 = b.min
+            x1, y1, z1 = b.max
+            corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
+            for i in range(8):
+                for j in range(i + 1, 8):
+                    if np.sum(corners[i] != corners[j]) == 1:
+                        ax.plot(*corners[[i, j]].T, **style)
+        elif isinstance(b, PlaneBoundary):
+            n = np.asarray(b.normal)
+            helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+            e1 = np.cross(n, helper)
+            e1 /= np.linalg.norm(e1)
+            e2 = np.cross(n, e1)
+            size = 0.6 * float(np.max(hi - lo))
+            middle = (lo + hi) / 2
+            centre = middle - n * float(np.dot(middle - np.asarray(b.point), n))
+            s = np.linspace(-size, size, 7)
+            for t in s:
+                ax.plot(*np.array([centre + e1 * t - e2 * size, centre + e1 * t + e2 * size]).T, **style)
+                ax.plot(*np.array([centre + e2 * t - e1 * size, centre + e2 * t + e1 * size]).T, **style)
+        elif isinstance(b, MeshBoundary):
+            tri = b.triangles
+            if len(tri) > 4000:
+                tri = tri[:: int(np.ceil(len(tri) / 4000))]
+            from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+            segments = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+            ax.add_collection3d(Line3DCollection(segments, colors="0.55", linewidths=0.3, alpha=0.5,
+                                                 zorder=0))
+    for force, colour, marker in ([(a, "tab:green", "o") for a in env.attractors]
+                                  + [(r, "tab:red", "X") for r in env.repellers]):
+        ax.scatter(*np.asarray(force.position)[:, None], color=colour, marker=marker, s=70, depthshade=False,
+                   edgecolors="black", linewidths=0.6, zorder=5)
+    g = np.asarray(env.gravity)
+    if np.any(g):
+        top = np.array([lo[0], lo[1], hi[2]])
+        arrow = g / np.linalg.norm(g) * 0.2 * float(np.max(hi - lo))
+        ax.quiver(*top, *arrow, color="tab:blue", linewidth=2.0, arrow_length_ratio=0.3, zorder=5)
+        ax.text(*top, "  gravity", color="tab:blue", fontsize=8, zorder=5)
+
+
+def _scene_bounds(env: Environment, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The surface's bounding box grown to show nearby attractors, repellers and sphere boundaries.
+
+    Things further than twice the surface's size away are left out of the view (a huge enclosing box
+    would otherwise shrink the surface to a dot).
+    """
+    from genr8_dist.environment import SphereBoundary
+
+    size = max(float(np.max(hi - lo)), 1e-9)
+    middle = (lo + hi) / 2
+    limit_lo, limit_hi = middle - 2.0 * size, middle + 2.0 * size
+    points = [np.asarray(f.position) for f in (*env.attractors, *env.repellers)]
+    for b in env.boundaries:
+        if isinstance(b, SphereBoundary) and not b.allowed_inside:
+            points += [np.asarray(b.centre) - b.radius, np.asarray(b.centre) + b.radius]
+    new_lo, new_hi = lo.copy(), hi.copy()
+    for point in points:
+        clipped = np.clip(point, limit_lo, limit_hi)
+        new_lo = np.minimum(new_lo, clipped)
+        new_hi = np.maximum(new_hi, clipped)
+    return new_lo, new_hi
+
+
+def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Environment | None = None,
+               size: tuple[float, float] = (8.0, 7.0), dpi: int = 120) -> Path:
+    """Draw the surface (shaded regions, edges, axes, ``title``) into a PNG at ``path``; returns the path.
+
+    The subtitle gives the vertex, edge and region counts. With ``env`` the environment's boundaries,
+    attractors (green), repellers (red) and gravity (blue arrow) are drawn too.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ConfigError(f"{path}: a preview is a .png file")
+    plt = _pyplot()
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    vertices, edges, faces = _arrays(surface)
+    regions = getattr(surface, "regions", None)
+    fig = plt.figure(figsize=size, dpi=dpi)
+    try:
+        ax = fig.add_subplot(projection="3d")
+        ax.set_proj_type("persp", focal_length=0.4)
+        # draw order: environment wireframes, then the surface (depth-sorted), its edges, then markers
+        ax.computed_zorder = False
+        if len(vertices):
+            lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        else:
+            lo, hi = np.zeros(3), np.ones(3)
+        if len(faces):
+            colours = _face_colours(vertices, faces, plt.get_cmap("viridis"))
+            # edges painted in the face colour hide the seams between the triangles of one region
+            polys = Poly3DCollection(vertices[faces], facecolors=colours, edgecolors=colours, linewidths=0.25,
+                                     zorder=1)
+            ax.add_collection3d(polys)
+        if len(edges):
+            width = 0.8 if len(edges) < 3000 else (0.4 if len(edges) < 20000 else 0.2)
+            ax.add_collection3d(Line3DCollection(vertices[edges], colors="0.12", linewidths=width, alpha=0.9,
+                                                 zorder=2))
+        if env is not None:
+            lo, hi = _scene_bounds(env, lo, hi)
+            _draw_environment(ax, env, lo, hi)
+        centre = (lo + hi) / 2
+        extent = np.maximum(hi - lo, 0.08 * float(np.max(hi - lo)) if np.any(hi > lo) else 1.0)
+        ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
+        ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
+        ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
+        ax.set_box_aspect(tuple(extent / np.max(extent)))
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.set_zlabel("z")
+        ax.view_init(elev=32, azim=-58)
+        ax.tick_params(labelsize=7)
+        n_regions = len(regions) if regions is not None else len(faces)
+        counts = f"{len(vertices)} vertices, {len(edges)} edges, {n_regions} regions"
+        fig.text(0.5, 0.965, title, ha="center", va="top", fontsize=13, fontweight="bold")
+        fig.text(0.5, 0.925, counts, ha="center", va="top", fontsize=9, color="0.35")
+        fig.subplots_adjust(left=0.0, right=0.97, bottom=0.02, top=0.97)
+        with _atomic(path) as tmp:
+            fig.savefig(tmp, format="png", bbox_inches="tight", pad_inches=0.15, facecolor="white")
+    finally:
+        plt.close(fig)
+    return path
