@@ -346,6 +346,8 @@ def query(run: RunLike, sql: str) -> pa.Table:
         import duckdb
     except ImportError:
         raise HistoryError("query needs DuckDB: pip install 'genr8-dist[sql]'") from None
+    if not str(sql).strip():
+        raise HistoryError("query: the SQL statement is empty")
     store = open_run(run)
     data = dataset(store)
     con = duckdb.connect(":memory:")
