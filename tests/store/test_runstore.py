@@ -1,0 +1,447 @@
+"""The run store: creation, commits all-or-nothing, reads, configurations, events, faults, compaction."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import duckdb
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.fs as pafs
+import pytest
+
+from genr8_dist.errors import ConfigError, StoreError
+from genr8_dist.evolution.individual import Individual
+from genr8_dist.rng import stream
+from genr8_dist.store import Event, RunStore
+from genr8_dist.store._fs import RunFS
+from genr8_dist.store.runstore import KEEP_MANIFESTS
+
+CONFIG = '[run]\nseed = 3\nislands = 2\n'
+
+
+def generation(island: int, gen: int, pop: int = 5) -> list[Individual]:
+    """A generation whose rows vary in every field, including the awkward values."""
+    out = []
+    for k in range(pop):
+        valid = (k + gen) % 3 != 0
+        out.append(Individual(
+            island=island, generation=gen, index=k, genome=tuple(range(k, k + 4 + gen % 3)),
+            origin="random" if gen == 0 else "crossover",
+            parents=() if gen == 0 else (f"{island}-{gen - 1}-{k}", f"{island}-{gen - 1}-0"),
+            text=f"Axiom a b c\na -> a [+ b] {k}" if valid or k % 2 else None,
+            valid=valid, stage=None if valid else "grow", error=None if valid else "no regions",
+            fitness=float(gen * 10 + k) if valid else math.inf,
+            criteria={"size": 1.5 * k, "symmetry": 0.25} if valid else {},
+            config_version=1, codons_used=7 + k, wraps=k % 2, n_vertices=10 * k, n_edges=20 * k, n_regions=k,
+            steps_done=3, capped="vertices" if k == 4 else None,
+            surface_digest=f"{gen:08x}{k:024x}" if valid else None,
+            eval_seconds=0.5, map_seconds=0.1, grow_seconds=0.3, score_seconds=0.1,
+        ))
+    return out
+
+
+def epoch(gens: range, islands: int = 2, pop: int = 5) -> list[Individual]:
+    return [ind for i in range(islands) for g in gens for ind in generation(i, g, pop)]
+
+
+def tree(path: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(path.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def store(tmp_path: Path) -> RunStore:
+    return RunStore.create(tmp_path / "run", CONFIG)
+
+
+# --- creating and opening ----------------------------------------------------------------------
+
+def test_create_then_open_reads_the_same_run(tmp_path: Path) -> None:
+    created = RunStore.create(tmp_path / "my-run", CONFIG)
+    assert created.run_id == "my-run"
+    assert created.path == str(tmp_path / "my-run")
+    created.commit(epoch(range(3)))
+    opened = RunStore.open(str(tmp_path / "my-run"))
+    assert opened.run_id == "my-run"
+    assert opened.committed_generations() == {0: 2, 1: 2}
+    assert opened.individuals().num_rows == 2 * 3 * 5
+    assert opened.configs()[0].toml == CONFIG
+
+
+def test_create_refuses_an_existing_run_and_leaves_it_untouched(store: RunStore, tmp_path: Path) -> None:
+    store.commit(epoch(range(2)))
+    before = tree(tmp_path / "run")
+    with pytest.raises(StoreError, match=r"run.*already holds run 'run'"):
+        RunStore.create(tmp_path / "run", CONFIG)
+    assert tree(tmp_path / "run") == before
+
+
+def test_create_refuses_a_directory_holding_other_things(tmp_path: Path) -> None:
+    (tmp_path / "home").mkdir()
+    (tmp_path / "home" / "thesis.pdf").write_bytes(b"%PDF")
+    with pytest.raises(StoreError, match=r"home: exists and is not empty \(holds 'thesis.pdf'\)"):
+        RunStore.create(tmp_path / "home", CONFIG)
+    assert os.listdir(tmp_path / "home") == ["thesis.pdf"]
+
+
+def test_create_accepts_an_empty_directory_and_refuses_bad_toml(tmp_path: Path) -> None:
+    (tmp_path / "empty").mkdir()
+    RunStore.create(tmp_path / "empty", CONFIG, run_id="exp-7")
+    assert RunStore.open(tmp_path / "empty").run_id == "exp-7"
+    with pytest.raises(ConfigError, match=r"configuration version 1: not valid TOML.*line 1"):
+        RunStore.create(tmp_path / "bad", "[run\nseed = 1")
+    with pytest.raises(StoreError, match="run_id"):
+        RunStore.create(tmp_path / "bad2", CONFIG, run_id="a b")
+
+
+def test_open_names_the_path_when_missing_or_not_a_run(tmp_path: Path) -> None:
+    with pytest.raises(StoreError, match=r"nowhere: no such run directory"):
+        RunStore.open(tmp_path / "nowhere")
+    (tmp_path / "plain").mkdir()
+    (tmp_path / "plain" / "x.txt").write_text("hi")
+    with pytest.raises(StoreError, match=r"plain: not a run directory"):
+        RunStore.open(tmp_path / "plain")
+    with pytest.raises(StoreError, match=r"x.txt: is a file"):
+        RunStore.open(tmp_path / "plain" / "x.txt")
+
+
+def test_open_refuses_a_run_written_by_a_newer_schema(store: RunStore, tmp_path: Path) -> None:
+    import json
+
+    from genr8_dist.store.runstore import _encode_manifest
+
+    path = tmp_path / "run" / "_manifest" / "0000000001.json"
+    manifest = json.loads(path.read_text())
+    manifest["schema_version"] = 99
+    path.write_bytes(_encode_manifest(manifest))
+    with pytest.raises(StoreError, match="schema version 99 is newer"):
+        RunStore.open(tmp_path / "run")
+
+
+# --- commits and reads -------------------------------------------------------------------------
+
+def test_load_generation_round_trips_every_field(store: RunStore) -> None:
+    store.commit(epoch(range(4)))
+    reopened = RunStore.open(store.path)
+    for island in (0, 1):
+        for gen in range(4):
+            assert reopened.load_generation(island, gen) == generation(island, gen)
+    back = reopened.load_generation(1, 3)
+    assert math.isinf(back[0].fitness) and back[0].text is None
+    assert back[1].parents == ("1-2-1", "1-2-0")
+
+
+def test_commits_must_follow_each_islands_last_generation(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    with pytest.raises(StoreError, match=r"island 0: .*generations \[1\].*next one to commit is 2"):
+        store.commit(generation(0, 1))
+    with pytest.raises(StoreError, match=r"island 1: .*next one to commit is 2"):
+        store.commit(generation(1, 3))
+    with pytest.raises(StoreError, match="1-2-0 appears twice"):
+        store.commit(generation(1, 2) + generation(1, 2)[:1])
+    assert store.committed_generations() == {0: 1, 1: 1}
+    store.commit(generation(0, 2))  # islands may move separately
+    assert store.committed_generations() == {0: 2, 1: 1}
+    with pytest.raises(StoreError, match=r"not committed.*last committed generation is 1"):
+        store.load_generation(1, 2)
+
+
+def test_individuals_projects_columns_and_filters_rows(store: RunStore) -> None:
+    store.commit(epoch(range(3)))
+    store.commit(epoch(range(3, 5)))
+    table = store.individuals(columns=["id", "fitness"], filter=pc.field("generation") == 4)
+    assert table.column_names == ["id", "fitness"]
+    assert sorted(table.column("id").to_pylist()) == sorted(f"{i}-4-{k}" for i in (0, 1) for k in range(5))
+    everything = store.individuals()
+    assert everything.num_rows == 2 * 5 * 5
+    assert everything.column("run_id").unique().to_pylist() == ["run"]
+    with pytest.raises(StoreError, match="no column 'beauty'"):
+        store.individuals(columns=["beauty"])
+
+
+def test_dataset_is_queryable_by_duckdb(store: RunStore) -> None:
+    store.commit(epoch(range(3)))
+    individuals = store.dataset()  # noqa: F841  (DuckDB finds it by name)
+    rows = duckdb.sql(
+        "select generation, count(*), min(fitness) from individuals group by generation order by generation"
+    ).fetchall()
+    assert rows == [(0, 10, 1.0), (1, 10, 10.0), (2, 10, 20.0)]
+
+
+def test_rows_written_by_commit_table_are_checked(store: RunStore) -> None:
+    from genr8_dist.store.schema import individuals_table
+
+    good = individuals_table(generation(0, 0), "run", store.criteria)
+    with pytest.raises(StoreError, match="another run"):
+        store.commit_table(individuals_table(generation(0, 0), "other", store.criteria))
+    bad_id = good.set_column(1, "id", pa.array(["x"] * good.num_rows))
+    with pytest.raises(StoreError, match="'id' must be"):
+        store.commit_table(bad_id)
+    with pytest.raises(StoreError, match="lacks column 'fitness'"):
+        store.commit_table(good.drop_columns(["fitness"]))
+    assert store.commit_table(good) == 2
+
+
+# --- configurations and events -----------------------------------------------------------------
+
+def test_config_versions_and_the_one_in_force(store: RunStore) -> None:
+    store.commit(epoch(range(5)))
+    with pytest.raises(StoreError, match=r"already committed.*generation 5 or later"):
+        store.add_config(CONFIG, 4)
+    assert store.add_config(CONFIG + "mutation = 0.2\n", 5) == 2
+    assert store.add_config(CONFIG + "mutation = 0.3\n", 9, events=[Event("intervention", 9)]) == 3
+    versions = RunStore.open(store.path).configs()
+    assert [(v.version, v.effective_generation) for v in versions] == [(1, 0), (2, 5), (3, 9)]
+    assert versions[2].toml.endswith("mutation = 0.3\n")
+    assert store.config_for(0).version == 1
+    assert store.config_for(4).version == 1
+    assert store.config_for(5).version == 2
+    assert store.config_for(8).version == 2
+    assert store.config_for(100).version == 3
+    assert store.events().column("kind").to_pylist() == ["intervention"]
+    with pytest.raises(StoreError, match="before configuration version 3"):
+        store.add_config(CONFIG, 7)
+    with pytest.raises(ConfigError, match="configuration version 4: not valid TOML"):
+        store.add_config("= 1", 12)
+    assert (Path(store.path) / "configs" / "v0003.toml").read_text().endswith("mutation = 0.3\n")
+
+
+def test_events_are_numbered_in_order_with_their_details(store: RunStore) -> None:
+    store.record_event("start", generation=0, detail={"islands": 2})
+    store.commit(epoch(range(2)), [Event("migration", 1, detail={"moved": 4})])
+    store.record_event("interrupt", generation=1, island=None, detail={"signal": "SIGTERM"})
+    store.record_event("recovery", generation=1, island=1, detail={"actor": "lost"})
+    events = RunStore.open(store.path).events()
+    assert events.column_names == ["run_id", "seq", "kind", "generation", "island", "detail", "time"]
+    assert events.column("seq").to_pylist() == [0, 1, 2, 3]
+    assert events.column("kind").to_pylist() == ["start", "migration", "interrupt", "recovery"]
+    assert events.column("island").to_pylist() == [None, None, None, 1]
+    assert events.column("detail").to_pylist()[1] == '{"moved":4}'
+    with pytest.raises(StoreError, match="'bogus'"):
+        store.record_event("bogus", generation=0)
+
+
+# --- atomicity ---------------------------------------------------------------------------------
+
+def test_a_crash_between_data_and_manifest_leaves_nothing(
+    store: RunStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    store.commit(epoch(range(2)))
+
+    def crash(self: RunFS, rel: str, data: bytes) -> None:
+        raise OSError("power cut")
+
+    monkeypatch.setattr(RunFS, "write_exclusive", crash)
+    with pytest.raises(OSError, match="power cut"):
+        store.commit(epoch(range(2, 4)), [Event("migration", 3)])
+    monkeypatch.undo()
+    data_files = os.listdir(Path(store.path) / "individuals")
+    assert len(data_files) == 2  # the orphan is on disk ...
+    reopened = RunStore.open(store.path)
+    assert reopened.committed_generations() == {0: 1, 1: 1}  # ... but not in the run
+    assert reopened.individuals().num_rows == 20
+    assert reopened.events().num_rows == 0
+    assert reopened.verify() == []
+    reopened.commit(epoch(range(2, 4)))
+    assert reopened.individuals().num_rows == 40
+    assert reopened.collect_garbage() >= 1  # the orphaned events file
+    assert len(os.listdir(Path(store.path) / "events")) == 0
+
+
+CHILD = textwrap.dedent("""
+    import sys
+    from genr8_dist.evolution.individual import Individual
+    from genr8_dist.store import Event, RunStore
+    store = RunStore.open(sys.argv[1], compact_every=4)
+    g = max(store.committed_generations().values(), default=-1) + 1
+    while True:
+        rows = [Individual(island=i, generation=g, index=k, genome=tuple(range(200)), origin="random",
+                           fitness=float(g * 100 + k), text="x" * 500)
+                for i in range(3) for k in range(60)]
+        store.commit(rows, [Event("migration", g, detail={"g": g})])
+        print(g, flush=True)
+        g += 1
+""")
+
+
+@pytest.mark.slow
+def test_sigkill_at_any_moment_leaves_whole_commits(tmp_path: Path) -> None:
+    store = RunStore.create(tmp_path / "run", CONFIG)
+    rng = stream(11, "test", "sigkill")
+    for attempt in range(4):
+        child = subprocess.Popen([sys.executable, "-c", CHILD, store.path], stdout=subprocess.PIPE,
+                                 stderr=subprocess.PIPE, text=True)
+        target = int(rng.integers(2, 9))
+        for _ in range(target):
+            assert child.stdout is not None
+            if not child.stdout.readline():
+                pytest.fail(f"writer died: {child.stderr.read() if child.stderr else ''}")
+        time.sleep(float(rng.uniform(0.0, 0.03)))
+        child.kill()
+        child.wait()
+        assert child.stdout is not None and child.stderr is not None
+        child.stdout.close()
+        child.stderr.close()
+        reopened = RunStore.open(store.path)
+        assert reopened.verify() == [], f"attempt {attempt}"
+        done = reopened.committed_generations()
+        assert set(done) == {0, 1, 2} and len(set(done.values())) == 1
+        last = done[0]
+        table = reopened.individuals(columns=["island", "generation", "fitness"])
+        assert table.num_rows == 3 * 60 * (last + 1)
+        counts = table.group_by(["island", "generation"]).aggregate([("fitness", "count")])
+        assert set(counts.column("fitness_count").to_pylist()) == {60}
+        events = reopened.events()
+        assert events.column("generation").to_pylist() == list(range(last + 1))
+        assert reopened.load_generation(2, last)[59].fitness == last * 100 + 59
+
+
+# --- faults: detection and repair --------------------------------------------------------------
+
+def test_a_truncated_file_is_named_and_repair_falls_back_to_the_last_intact_commit(store: RunStore) -> None:
+    store.commit(epoch(range(3)), [Event("migration", 2)])
+    store.commit(epoch(range(3, 6)), [Event("migration", 5)])
+    store.commit(epoch(range(6, 9)), [Event("migration", 8)])
+    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    victim.write_bytes(victim.read_bytes()[:-100])
+    reopened = RunStore.open(store.path)
+    problems = reopened.verify()
+    assert len(problems) == 1 and "part-0000000003.parquet: truncated" in problems[0]
+    with pytest.raises(StoreError, match=r"part-0000000003.parquet"):
+        reopened.individuals()
+    assert reopened.repair() == problems
+    assert reopened.verify() == []
+    assert reopened.committed_generations() == {0: 2, 1: 2}
+    assert reopened.individuals().num_rows == 30
+    events = reopened.events()
+    assert events.column("kind").to_pylist() == ["migration", "recovery"]
+    assert "part-0000000003.parquet" in events.column("detail")[1].as_py()
+    # the run goes on from the last intact generation
+    reopened.commit(epoch(range(3, 4)))
+    assert RunStore.open(store.path).committed_generations() == {0: 3, 1: 3}
+    assert reopened.load_generation(0, 3) == generation(0, 3)
+
+
+def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    store.commit(epoch(range(2, 4)))
+    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    victim.write_bytes(bytes(data))
+    problems = RunStore.open(store.path).verify()
+    assert problems == [f"{victim}: corrupt: its sha256 differs from the one the manifest recorded"]
+
+
+def test_a_missing_events_file_is_repaired_too(store: RunStore) -> None:
+    store.commit(epoch(range(2)), [Event("migration", 1)])
+    store.commit(epoch(range(2, 4)), [Event("migration", 3)])
+    (Path(store.path) / "events" / "events-0000000003.parquet").unlink()
+    with pytest.raises(StoreError, match=r"events-0000000003.parquet: missing"):
+        store.events()
+    store.repair()
+    assert store.committed_generations() == {0: 1, 1: 1}
+    assert store.events().column("kind").to_pylist() == ["migration", "recovery"]
+
+
+def test_repair_of_a_corrupt_compacted_file_uses_the_files_before_compaction(store: RunStore) -> None:
+    for g in range(6):
+        store.commit(epoch(range(g, g + 1)))
+    assert store.compact(target_rows=1000) == 5
+    (merged,) = store.individual_files()
+    Path(merged).write_bytes(b"garbage")
+    assert store.repair()
+    assert store.committed_generations() == {0: 5, 1: 5}  # nothing lost: the small files were kept
+    assert store.individuals().num_rows == 60
+    assert store.verify() == []
+
+
+def test_a_torn_manifest_is_skipped_and_reported(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    torn = Path(store.path) / "_manifest" / "0000000003.json"
+    torn.write_text('{"format": "genr8-run", "vers')
+    reopened = RunStore.open(store.path)
+    assert reopened.version == 2
+    assert reopened.verify() == [f"{torn}: manifest is torn or altered; the run is read from manifest 2"]
+    reopened.repair()
+    assert not torn.exists()
+    assert reopened.verify() == []
+    reopened.commit(epoch(range(2, 3)))
+    assert reopened.committed_generations() == {0: 2, 1: 2}
+
+
+def test_two_writers_cannot_both_commit(store: RunStore) -> None:
+    other = RunStore.open(store.path)
+    store.commit(epoch(range(1)))
+    with pytest.raises(StoreError, match="another process committed"):
+        other.commit(epoch(range(1)))
+    assert RunStore.open(store.path).individuals().num_rows == 10
+
+
+# --- compaction --------------------------------------------------------------------------------
+
+def test_compaction_keeps_rows_identical_and_reduces_files(tmp_path: Path) -> None:
+    store = RunStore.create(tmp_path / "run", CONFIG, compact_every=None)
+    for g in range(12):
+        store.commit(epoch(range(g, g + 1)), [Event("migration", g)])
+    before = store.individuals()
+    events_before = store.events().drop_columns(["time"])
+    reader = RunStore.open(store.path)  # holds the old snapshot
+    assert store.compact(target_rows=40) == 12 * 2 - 3 - 1
+    assert len(store.individual_files()) == 3
+    assert store.individuals().equals(before)
+    assert store.events().drop_columns(["time"]).equals(events_before)
+    assert reader.individuals().equals(before)  # old files are kept for readers of older snapshots
+    assert store.load_generation(1, 7) == generation(1, 7)
+    assert store.compact(target_rows=40) == 0  # nothing left to merge
+    assert RunStore.open(store.path).verify() == []
+
+
+def test_commits_compact_by_themselves_and_old_files_go(tmp_path: Path) -> None:
+    store = RunStore.create(tmp_path / "run", CONFIG, compact_every=4)
+    for g in range(3 * KEEP_MANIFESTS):
+        store.commit(epoch(range(g, g + 1)))
+    assert len(store.individual_files()) < 4
+    assert len(os.listdir(Path(store.path) / "_manifest")) <= KEEP_MANIFESTS
+    on_disk = len(os.listdir(Path(store.path) / "individuals"))
+    assert on_disk <= len(store.individual_files()) + 4 * 4
+    assert store.individuals().num_rows == 3 * KEEP_MANIFESTS * 10
+
+
+# --- filesystems -------------------------------------------------------------------------------
+
+def test_a_file_uri_works(tmp_path: Path) -> None:
+    uri = (tmp_path / "run").as_uri()
+    store = RunStore.create(uri, CONFIG)
+    store.commit(epoch(range(2)))
+    reopened = RunStore.open(uri)
+    assert reopened.path == str(tmp_path / "run")
+    assert reopened.load_generation(1, 1) == generation(1, 1)
+
+
+@pytest.mark.parametrize("kind", ["subtree", "mock"])
+def test_other_pyarrow_filesystems_work(tmp_path: Path, kind: str) -> None:
+    if kind == "subtree":
+        (tmp_path / "base").mkdir()
+        fs = pafs.SubTreeFileSystem(str(tmp_path / "base"), pafs.LocalFileSystem())
+    else:
+        fs = pafs._MockFileSystem()
+    store = RunStore.create("runs/exp", CONFIG, filesystem=fs)
+    store.commit(epoch(range(2)), [Event("migration", 1)])
+    store.commit(epoch(range(2, 4)))
+    store.add_config(CONFIG + "x = 1\n", 4)
+    assert store.compact(target_rows=1000) == 1
+    reopened = RunStore.open("runs/exp", filesystem=fs)
+    assert reopened.committed_generations() == {0: 3, 1: 3}
+    assert reopened.load_generation(0, 3) == generation(0, 3)
+    assert reopened.config_for(4).version == 2
+    assert reopened.events().num_rows == 1
+    assert reopened.verify() == []
+    with pytest.raises(StoreError, match="already holds run"):
+        RunStore.create("runs/exp", CONFIG, filesystem=fs)
