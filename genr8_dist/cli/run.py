@@ -1,0 +1,105 @@
+"""``genr8 run``, ``genr8 resume`` and ``genr8 edit``: start a foray, go on with it, intervene in it.
+
+Interruption, intervention and resumption (thesis 4.2): Ctrl-C (or SIGTERM, what ``ray job stop``
+sends) stops a run after committing every complete generation and prints how to resume; ``genr8 edit``
+records a new configuration version and injected individuals for the next generation; ``genr8 resume``
+goes on from the last committed generation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+__all__ = ["register"]
+
+
+def _ray_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--address", metavar="ADDRESS", default=None,
+                        help="a Ray cluster to run on: 'auto' (the one on this machine), HOST:PORT or "
+                             "ray://HOST:PORT; default: start a local Ray inside this command")
+    parser.add_argument("--cpus", type=int, default=None, metavar="N",
+                        help="CPUs of the local Ray (default: all of this machine's); ignored with --address")
+    parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
+
+
+def _options(args: argparse.Namespace):
+    from genr8_dist.distributed.session import RunOptions
+    from genr8_dist.errors import ConfigError
+
+    if args.cpus is not None and args.cpus < 1:
+        raise ConfigError(f"--cpus {args.cpus}: must be >= 1")
+    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from genr8_dist.distributed.session import start_run
+
+    start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
+    return 0
+
+
+def _resume(args: argparse.Namespace) -> int:
+    from genr8_dist.distributed.session import resume_run
+
+    resume_run(args.run_dir, _options(args), out=sys.stdout)
+    return 0
+
+
+def _edit(args: argparse.Namespace) -> int:
+    from genr8_dist.distributed.intervene import Edit, apply_edit
+
+    edit = Edit(assignments=args.set or (), inject_copy=args.inject_copy or (),
+                inject_text=args.inject_text or (), inject_from=args.inject_from or (),
+                island=args.island, generations=args.generations)
+    result = apply_edit(args.run_dir, edit)
+    what = [f"{k} = {v!r}" for k, v in result.changes.items()]
+    what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
+    print(f"{args.run_dir}: configuration version {result.version} in force from generation "
+          f"{result.effective_generation} (the run now ends at generation {result.last_generation})")
+    for line in what:
+        print(f"  {line}")
+    print(f"go on with: genr8 resume {args.run_dir}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``run``, ``resume`` and ``edit``."""
+    p = subparsers.add_parser(
+        "run", help="start an evolution run (islands on Ray) in a new run directory",
+        description="Start an evolution run of the configuration CONFIG in the new directory DIR, on a "
+                    "local Ray or a cluster. Ctrl-C stops it cleanly; `genr8 resume DIR` goes on.")
+    p.add_argument("config", metavar="CONFIG", help="the run configuration (TOML; see docs/run-config.md)")
+    p.add_argument("--run-dir", required=True, metavar="DIR",
+                   help="where the run is kept: a new or empty local directory, or a URI such as s3://b/r")
+    _ray_options(p)
+    p.set_defaults(handler=_run)
+
+    p = subparsers.add_parser(
+        "resume", help="go on with a stopped run from its last committed generation",
+        description="Go on with the run in DIR from its last committed generation. A damaged file is "
+                    "reported and the run falls back to its last intact generation.")
+    p.add_argument("run_dir", metavar="DIR", help="the run directory")
+    _ray_options(p)
+    p.set_defaults(handler=_resume)
+
+    p = subparsers.add_parser(
+        "edit", help="intervene in a stopped run: change its configuration, inject individuals",
+        description="Record a new configuration version of the run in DIR, in force from the "
+                    "generation after the last committed one, and individuals to inject there. "
+                    "Then `genr8 resume DIR`.")
+    p.add_argument("run_dir", metavar="DIR", help="the run directory")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE",
+                   help="change a configuration value (TOML syntax), e.g. fitness.size.weight=2, "
+                        "ea.mutation_rate=0.05, islands.topology=random (repeatable)")
+    p.add_argument("--inject-copy", action="append", metavar="ID",
+                   help="inject a copy of this run's individual ID (ISLAND-GENERATION-INDEX)")
+    p.add_argument("--inject-text", action="append", metavar="FILE",
+                   help="inject the rewrite system written in FILE, through the universe's inverse mapping")
+    p.add_argument("--inject-from", action="append", metavar="RUN:ID",
+                   help="inject individual ID of another run directory RUN")
+    p.add_argument("--island", type=int, default=None, metavar="N",
+                   help="the island injected individuals go to (default: a copy's own island, else 0)")
+    p.add_argument("--generations", type=int, default=None, metavar="N",
+                   help="go on for N more generations after the last committed one")
+    p.set_defaults(handler=_edit)

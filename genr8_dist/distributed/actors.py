@@ -1,0 +1,91 @@
+"""The island host: a Ray actor that keeps one or several islands and advances them a generation at a time.
+
+``IslandHost`` is a plain class (testable without Ray); ``remote_host_class()`` wraps it as a Ray actor.
+An actor holds only each island's latest generation, to avoid sending it back and forth: the coordinator
+sends the generation number, the configuration in effect, the incoming migrants and any injected
+individuals, and receives the new generation. A host that lacks the generation before the one asked for
+(it was just created to replace a dead actor, or it adopted an island from one) reads it from the run
+store: per-generation traffic stays small, and a restarted actor rebuilds its state from the last
+commit. Because ``Island.step`` is a pure function of its inputs, the rebuilt island produces exactly
+what the lost one would have.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+from collections.abc import Sequence
+from typing import Any
+
+from genr8_dist.evolution.individual import Individual
+
+__all__ = ["IslandHost", "remote_host_class"]
+
+
+class IslandHost:
+    """Hosts islands of one run; ``run_dir`` is where it reads a generation it does not hold."""
+
+    def __init__(self, run_dir: str) -> None:
+        self.run_dir = run_dir
+        self._islands: dict[tuple[int, int], Any] = {}
+        self._latest: dict[int, tuple[int, list[Individual]]] = {}
+        self._store: Any = None
+
+    def ready(self) -> dict[str, Any]:
+        """Where this host runs (answers once the actor is scheduled and started)."""
+        return {"host": socket.gethostname(), "pid": os.getpid()}
+
+    def _island(self, island: int, config: Any, config_version: int) -> Any:
+        from genr8_dist.evolution.island import Island
+
+        key = (island, config_version)
+        found = self._islands.get(key)
+        if found is None:
+            found = Island(config, island, config_version=config_version)
+            self._islands[key] = found
+        return found
+
+    def _previous(self, island: int, generation: int) -> list[Individual]:
+        held = self._latest.get(island)
+        if held is not None and held[0] == generation:
+            return held[1]
+        if self._store is None:
+            from genr8_dist.store import RunStore
+
+            self._store = RunStore.open(self.run_dir)
+        return list(self._store.load_generation(island, generation))
+
+    def advance(
+        self,
+        island: int,
+        generation: int,
+        config: Any,
+        config_version: int,
+        migrants: Sequence[Individual] = (),
+        injected: Sequence[Any] = (),
+    ) -> list[Individual]:
+        """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest."""
+        model = self._island(island, config, config_version)
+        if generation == 0:
+            population = list(model.initial())
+        else:
+            previous = self._previous(island, generation - 1)
+            population = list(
+                model.step(previous, generation, migrants=tuple(migrants), injected=tuple(injected))
+            )
+        self._latest[island] = (generation, population)
+        return population
+
+    def forget(self, island: int) -> None:
+        """Drop what this host holds of ``island`` (it moved to another host)."""
+        self._latest.pop(island, None)
+        for key in [k for k in self._islands if k[0] == island]:
+            del self._islands[key]
+
+
+def remote_host_class(num_cpus: float) -> Any:
+    """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), never restarted by
+    Ray itself: the coordinator replaces a dead host and reloads its islands from the store."""
+    import ray
+
+    return ray.remote(IslandHost).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0)

@@ -1,0 +1,359 @@
+"""The coordinator: runs a run's epochs on the island hosts and commits every generation to the store.
+
+An *epoch* takes every island from its last committed generation to the next migration generation
+(a multiple of ``islands.migration_interval``, or the run's last generation). Each island advances one
+generation per actor call, so an interrupt waits for no more than what is already complete. At the end
+of an epoch the coordinator commits all of it at once (one atomic store commit), then computes the
+migrants from each island's committed last generation (``migration.plan_migration``) and sends them
+with the first generation of the next epoch.
+
+Generation ``g`` uses the configuration version in effect at ``g`` (``store.config_for(g)``), and the
+individuals a user injected for ``g`` (recorded in the ``intervention`` event). Everything an island
+computes is a pure function of the committed history, so:
+
+- interrupted (``Ctrl-C``, ``SIGTERM``, or a killed driver) and resumed, a run produces the rows an
+  uninterrupted one produces: whatever was not committed is recomputed identically;
+- when a host dies (its process, or its node), its islands restart from their last committed
+  generation on a new host (``recovery`` event) and the run's rows are those of a fault-free run.
+
+Hooks (``on_generation``, ``on_commit``) let a caller watch the run (tests use them to inject faults).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from genr8_dist.distributed.migration import is_migration_generation, plan_migration
+from genr8_dist.distributed.progress import ProgressDisplay
+from genr8_dist.errors import Genr8Error, RunError
+from genr8_dist.evolution.individual import Individual
+
+__all__ = [
+    "Coordinator",
+    "RunSummary",
+    "StopRequest",
+    "StoredEvent",
+    "epoch_end",
+    "last_generation",
+    "parse_config",
+    "stored_events",
+]
+
+
+def last_generation(config: Any) -> int:
+    """The last generation of a run: ``ea.generations`` (generation 0 is the random one)."""
+    return int(config.ea.generations)
+
+
+def epoch_end(low: int, interval: int, last: int) -> int:
+    """The generation an epoch that starts after ``low`` ends at: the next multiple of ``interval``
+    above ``low`` (generation 0 alone is the first epoch), or ``last``."""
+    return min(last, (low // interval + 1) * interval)
+
+
+@dataclass(frozen=True, slots=True)
+class StoredEvent:
+    """An event as read back from the store (``detail`` parsed from its JSON)."""
+
+    kind: str
+    generation: int
+    island: int | None
+    detail: dict[str, Any]
+
+
+def stored_events(table: Any) -> list[StoredEvent]:
+    """The rows of the store's events table as ``StoredEvent`` records, in order."""
+    rows = table.select(["kind", "generation", "island", "detail"]).to_pylist()
+    return [StoredEvent(r["kind"], int(r["generation"]), r["island"], json.loads(r["detail"] or "{}"))
+            for r in rows]
+
+
+def parse_config(toml_text: str, source: str) -> Any:
+    """A stored configuration version (TOML text) as a ``RunConfig``."""
+    import tomllib
+
+    from genr8_dist.config import RunConfig
+
+    return RunConfig.from_dict(tomllib.loads(toml_text), source=source)
+
+
+class StopRequest:
+    """Set (by a signal handler, or a test) to ask the coordinator to stop after what is complete."""
+
+    def __init__(self) -> None:
+        self.reason: str | None = None
+
+    def set(self, reason: str) -> None:
+        if self.reason is None:
+            self.reason = reason
+
+    def __bool__(self) -> bool:
+        return self.reason is not None
+
+
+@dataclass
+class RunSummary:
+    """What a coordinator session did, and where its time went."""
+
+    status: str = "running"                     # "complete" or "interrupted"
+    committed: dict[int, int] = field(default_factory=dict)   # island -> last committed generation
+    last_generation: int = 0
+    generations: int = 0                        # generations every island completed in this session
+    individuals: int = 0                        # individuals evaluated and committed in this session
+    recoveries: int = 0
+    hosts: int = 0
+    wall_seconds: float = 0.0                   # the epoch loop, from the first call to the last commit
+    wait_seconds: float = 0.0                   # waiting for islands (the work itself)
+    store_seconds: float = 0.0                  # commits and reads of the run store
+    coordinator_seconds: float = 0.0            # everything else: traffic, migration, bookkeeping
+    checkpoint_bytes: int = 0                   # bytes the store holds after the run (if it says)
+
+    @property
+    def finished(self) -> bool:
+        return self.status == "complete"
+
+
+class Coordinator:
+    """Runs the epochs of the run in ``store`` on ``hosts`` (a ``HostPool``) until its last generation,
+    or until ``stop`` is set."""
+
+    def __init__(
+        self,
+        store: Any,
+        hosts: Any,
+        *,
+        progress: ProgressDisplay | None = None,
+        stop: StopRequest | None = None,
+        on_generation: Callable[[Coordinator, int], None] | None = None,
+        on_commit: Callable[[Coordinator, Mapping[int, int]], None] | None = None,
+        poll_seconds: float = 0.2,
+    ) -> None:
+        self.store = store
+        self.hosts = hosts
+        self.stop = stop if stop is not None else StopRequest()
+        self.on_generation = on_generation
+        self.on_commit = on_commit
+        self.poll_seconds = poll_seconds
+        self.summary = RunSummary(hosts=hosts.size)
+        self._versions = self._load_versions()
+        latest = self._versions[-1][2]
+        self.n_islands = int(latest.islands.count)
+        self.interval = int(latest.islands.migration_interval)
+        self.last = last_generation(latest)
+        self.summary.last_generation = self.last
+        self.progress = progress or ProgressDisplay(total_generations=self.last, quiet=True)
+        self._injections = self._load_injections()
+        self._migrated = {e.generation for e in self._events() if e.kind == "migration"}
+        self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
+        self._pending_events: list[Any] = []
+
+    # -- reading the store ----------------------------------------------------------------------
+
+    def _timed_store(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        t = time.perf_counter()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            self.summary.store_seconds += time.perf_counter() - t
+
+    def _events(self) -> list[StoredEvent]:
+        return stored_events(self._timed_store(self.store.events))
+
+    def _load_versions(self) -> list[tuple[int, int, Any]]:
+        """(version, effective generation, config), by effective generation then version."""
+        out = [(int(v.version), int(v.effective_generation),
+                parse_config(v.toml, f"{self.store.path} configuration v{v.version}"))
+               for v in self._timed_store(self.store.configs)]
+        if not out:
+            raise RunError(f"{self.store.path}: the run has no configuration")
+        return sorted(out, key=lambda v: (v[1], v[0]))
+
+    def config_for(self, generation: int) -> tuple[int, Any]:
+        """The configuration version in effect at ``generation`` and the configuration."""
+        chosen = self._versions[0]
+        for version in self._versions:
+            if version[1] <= generation:
+                chosen = version
+        return chosen[0], chosen[2]
+
+    def _load_injections(self) -> dict[tuple[int, int], list[Any]]:
+        """(generation, island) -> the individuals a user injected, from the intervention events."""
+        out: dict[tuple[int, int], list[Any]] = {}
+        for event in self._events():
+            if event.kind != "intervention":
+                continue
+            for item in event.detail.get("injected", ()):
+                key = (int(event.generation), int(item["island"]))
+                genome = tuple(int(c) for c in item["genome"])
+                copy_of = item.get("copy_of")
+                if copy_of:  # a copy keeps its original as parent
+                    island, generation, index = (int(p) for p in str(copy_of).split("-"))
+                    out.setdefault(key, []).append(Individual(
+                        island=island, generation=generation, index=index, genome=genome, origin="injected"))
+                else:
+                    out.setdefault(key, []).append(genome)
+        return out
+
+    def _population(self, island: int, generation: int) -> list[Individual]:
+        held = self._populations.get(generation, {}).get(island)
+        if held is not None:
+            return held
+        return list(self._timed_store(self.store.load_generation, island, generation))
+
+    # -- the run ----------------------------------------------------------------------------------
+
+    def committed(self) -> dict[int, int]:
+        """Island -> its last committed generation (-1: none yet)."""
+        found = self._timed_store(self.store.committed_generations)
+        return {i: int(found.get(i, -1)) for i in range(self.n_islands)}
+
+    def run(self) -> RunSummary:
+        """Run epochs until the last generation is committed or a stop is requested."""
+        started = time.perf_counter()
+        committed = self.committed()
+        try:
+            while not self.stop and min(committed.values()) < self.last:
+                end = epoch_end(min(committed.values()), self.interval, self.last)
+                committed = self._epoch(committed, end)
+        finally:
+            self.summary.committed = committed
+            self.summary.wall_seconds = time.perf_counter() - started
+            self.summary.coordinator_seconds = max(
+                0.0, self.summary.wall_seconds - self.summary.wait_seconds - self.summary.store_seconds
+            )
+        low = min(committed.values())
+        if low >= self.last:
+            self.summary.status = "complete"
+            if not any(e.kind == "complete" and e.generation == self.last for e in self._events()):
+                self._timed_store(self.store.record_event, "complete", generation=self.last,
+                                  detail={"committed": {str(i): g for i, g in committed.items()}})
+        else:
+            self.summary.status = "interrupted"
+            detail = {"reason": self.stop.reason or "stopped",
+                      "committed": {str(i): g for i, g in committed.items()}}
+            self._timed_store(self.store.record_event, "interrupt", generation=max(0, low), detail=detail)
+        return self.summary
+
+    def _migrants(self, generation: int, config: Any) -> dict[int, list[Individual]]:
+        """The migrants that move after ``generation`` (from its committed populations)."""
+        populations = {i: self._population(i, generation) for i in range(self.n_islands)}
+        islands = config.islands
+        plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
+                              generation)
+        if generation not in self._migrated:
+            self._migrated.add(generation)
+            moves = {str(dest): [m.id for m in migrants] for dest, migrants in plan.items()}
+            self._pending_events.append(self._event(
+                "migration", generation, None, {"topology": islands.topology, "moves": moves}))
+        return plan
+
+    @staticmethod
+    def _event(kind: str, generation: int, island: int | None, detail: dict[str, Any]) -> Any:
+        from genr8_dist.store import Event
+
+        return Event(kind=kind, generation=max(0, generation), island=island, detail=detail)
+
+    def _epoch(self, committed: dict[int, int], end: int) -> dict[int, int]:
+        import ray
+
+        cursor = dict(committed)
+        results: dict[int, dict[int, list[Individual]]] = {i: {} for i in range(self.n_islands)}
+        pending: dict[Any, tuple[int, int]] = {}
+        migrants_after: dict[int, dict[int, list[Individual]]] = {}
+        shown = min(committed.values())
+
+        def submit(island: int) -> None:
+            g = cursor[island] + 1
+            version, config = self.config_for(g)
+            migrants: Sequence[Individual] = ()
+            if is_migration_generation(g - 1, self.interval):
+                if g - 1 not in migrants_after:
+                    migrants_after[g - 1] = self._migrants(g - 1, config)
+                migrants = migrants_after[g - 1][island]
+            injected = self._injections.get((g, island), ())
+            ref = self.hosts.host_of(island).advance.remote(island, g, config, version, migrants, injected)
+            pending[ref] = (island, g)
+
+        def recover(island: int, exc: BaseException) -> None:
+            moved = self.hosts.replace(island)
+            for isl in moved:
+                for ref in [r for r, (i, _) in pending.items() if i == isl]:
+                    del pending[ref]
+                results[isl].clear()
+                cursor[isl] = committed[isl]
+                self.summary.recoveries += 1
+                self._pending_events.append(self._event(
+                    "recovery", committed[isl] + 1, isl,
+                    {"reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
+                     "restarted_from": committed[isl]}))
+                self.progress.message(
+                    f"island {isl}: its host was lost; rebuilt from generation {committed[isl]}")
+                if cursor[isl] < end:
+                    submit(isl)
+
+        for island in range(self.n_islands):
+            if cursor[island] < end:
+                submit(island)
+        try:
+            while pending and not self.stop:
+                t = time.perf_counter()
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=self.poll_seconds)
+                self.summary.wait_seconds += time.perf_counter() - t
+                for ref in ready:
+                    if ref not in pending:
+                        continue
+                    island, g = pending.pop(ref)
+                    try:
+                        population = ray.get(ref)
+                    except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
+                        recover(island, exc)
+                        continue
+                    except ray.exceptions.RayTaskError as exc:
+                        cause = getattr(exc, "cause", None)
+                        if isinstance(cause, Genr8Error):
+                            raise cause from None
+                        raise
+                    results[island][g] = population
+                    cursor[island] = g
+                    if g < end:
+                        submit(island)
+                    low = min(cursor.values())
+                    while shown < low:
+                        shown += 1
+                        self._show(shown, results)
+        finally:
+            committed = self._commit(committed, results)
+        return committed
+
+    def _show(self, generation: int, results: Mapping[int, Mapping[int, list[Individual]]]) -> None:
+        populations = {i: r[generation] for i, r in results.items() if generation in r}
+        self.summary.generations += 1
+        self.progress.generation(generation, populations, remaining=self.last - generation)
+        if self.on_generation is not None:
+            self.on_generation(self, generation)
+
+    def _commit(self, committed: dict[int, int],
+                results: Mapping[int, Mapping[int, list[Individual]]]) -> dict[int, int]:
+        rows = [ind for i in sorted(results) for g in sorted(results[i]) for ind in results[i][g]]
+        events = list(self._pending_events)
+        if not rows and not events:
+            return committed
+        self._timed_store(self.store.commit, rows, events=events)
+        self._pending_events.clear()
+        self.summary.individuals += len(rows)
+        after = dict(committed)
+        for i, gens in results.items():
+            if gens:
+                after[i] = max(gens)
+        # Keep only what the next migration needs in memory: each island's newest generation.
+        self._populations = {}
+        for i, gens in results.items():
+            if gens:
+                self._populations.setdefault(max(gens), {})[i] = gens[max(gens)]
+        if self.on_commit is not None:
+            self.on_commit(self, after)
+        return after

@@ -1,0 +1,137 @@
+"""The pool of island hosts (Ray actors): how many, how much CPU each reserves, and replacing dead ones.
+
+Islands can outnumber cores: the pool starts ``min(islands, free CPUs)`` hosts, each reserving one CPU
+(a fraction when the cluster offers less than one), and deals the islands out round-robin, so every
+host has work and no actor waits for a CPU that will never be free. A run that cannot be scheduled
+(no free CPU, or hosts not started within ``timeout`` seconds) is refused with a ``RunError``.
+
+When a host dies (its process or its node), ``replace`` starts a new host when a CPU is free and deals
+its islands to it, or else deals them to the surviving hosts; the new host reads their last committed
+generation from the run store.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from genr8_dist.errors import RunError
+
+__all__ = ["HostPool", "plan_hosts"]
+
+
+@dataclass(frozen=True, slots=True)
+class HostPlan:
+    """How many hosts to start and the CPUs each reserves."""
+
+    hosts: int
+    num_cpus: float
+
+
+def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -> HostPlan:
+    """``min(islands, free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
+    if n_islands < 1:
+        raise RunError(f"a run needs at least one island, got {n_islands}")
+    if not free_cpus > 0:
+        raise RunError(
+            f"the Ray cluster has no free CPU for {n_islands} island(s); "
+            "free some, add a node, or give the local Ray more CPUs"
+        )
+    hosts = min(n_islands, max(1, math.floor(free_cpus)))
+    if max_hosts is not None:
+        hosts = max(1, min(hosts, max_hosts))
+    return HostPlan(hosts=hosts, num_cpus=1.0 if free_cpus >= 1 else float(free_cpus))
+
+
+class HostPool:
+    """The live island hosts of one run and which island each holds."""
+
+    def __init__(self, run_dir: str, n_islands: int, *, max_hosts: int | None = None,
+                 timeout: float = 60.0) -> None:
+        import ray
+
+        self.run_dir = run_dir
+        self.n_islands = n_islands
+        self.timeout = timeout
+        free = float(ray.available_resources().get("CPU", 0.0))
+        self.plan = plan_hosts(n_islands, free, max_hosts)
+        self._hosts: list[Any] = []
+        self._alive: list[bool] = []
+        self.placement: dict[int, int] = {}
+        handles = [self._new_host(self.plan.num_cpus) for _ in range(self.plan.hosts)]
+        self._await_ready(handles, what=f"{self.plan.hosts} island host(s)")
+        for handle in handles:
+            self._hosts.append(handle)
+            self._alive.append(True)
+        for island in range(n_islands):
+            self.placement[island] = island % self.plan.hosts
+
+    def _new_host(self, num_cpus: float) -> Any:
+        from genr8_dist.distributed.actors import remote_host_class
+
+        return remote_host_class(num_cpus).remote(self.run_dir)
+
+    def _await_ready(self, handles: Sequence[Any], *, what: str) -> None:
+        import ray
+
+        try:
+            ray.get([h.ready.remote() for h in handles], timeout=self.timeout)
+        except ray.exceptions.GetTimeoutError:
+            for h in handles:
+                ray.kill(h, no_restart=True)
+            total = ray.cluster_resources().get("CPU", 0.0)
+            raise RunError(
+                f"could not start {what} within {self.timeout:g}s (the cluster has {total:g} CPUs, "
+                f"{ray.available_resources().get('CPU', 0.0):g} free); the run was not started"
+            ) from None
+
+    @property
+    def size(self) -> int:
+        """How many hosts are alive."""
+        return sum(self._alive)
+
+    def host_of(self, island: int) -> Any:
+        """The actor handle holding ``island``."""
+        return self._hosts[self.placement[island]]
+
+    def islands_on(self, host: int) -> list[int]:
+        """The islands dealt to host number ``host``."""
+        return sorted(i for i, h in self.placement.items() if h == host)
+
+    def replace(self, island: int) -> list[int]:
+        """The host of ``island`` died: replace it; returns every island that was on it (now moved)."""
+        import ray
+
+        dead = self.placement[island]
+        moved = self.islands_on(dead)
+        if self._alive[dead]:
+            self._alive[dead] = False
+            ray.kill(self._hosts[dead], no_restart=True)
+        target: int | None = None
+        if ray.available_resources().get("CPU", 0.0) >= self.plan.num_cpus:
+            handle = self._new_host(self.plan.num_cpus)
+            try:
+                ray.get(handle.ready.remote(), timeout=self.timeout)
+            except (ray.exceptions.GetTimeoutError, ray.exceptions.RayActorError):
+                ray.kill(handle, no_restart=True)
+            else:
+                self._hosts.append(handle)
+                self._alive.append(True)
+                target = len(self._hosts) - 1
+        survivors = [h for h, alive in enumerate(self._alive) if alive]
+        if not survivors:
+            raise RunError("every island host died and no CPU is free to start a new one")
+        for n, isl in enumerate(moved):
+            self.placement[isl] = target if target is not None else survivors[n % len(survivors)]
+        return moved
+
+    def shutdown(self) -> None:
+        """Stop every host this pool started."""
+        import ray
+
+        for handle, alive in zip(self._hosts, self._alive, strict=True):
+            if alive:
+                ray.kill(handle, no_restart=True)
+        self._alive = [False] * len(self._alive)

@@ -1,0 +1,251 @@
+"""Starting, resuming and driving a run: connect to Ray, start the island hosts, run the coordinator.
+
+``start_run`` and ``resume_run`` are what ``genr8 run`` and ``genr8 resume`` call. Nothing is written to
+the run directory before Ray answers and the island hosts are scheduled, so a wrong ``--address`` or a
+cluster without room leaves the directory exactly as it was.
+
+Ray: with no address (and no ``RAY_ADDRESS`` in the environment, which ``ray job submit`` sets) a local
+Ray starts inside the command and stops with it (the embedded default). ``address="auto"`` joins the
+cluster running on this machine, ``"HOST:PORT"`` a cluster's head, ``"ray://HOST:PORT"`` a cluster
+through Ray Client. If Ray is already initialised in this process (a notebook, the tests), it is used
+as it is and left running.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest, parse_config
+from genr8_dist.distributed.interrupts import stop_on_signals
+from genr8_dist.distributed.progress import ProgressDisplay, format_duration
+from genr8_dist.errors import RunError, StoreError
+
+__all__ = ["RunOptions", "connect_ray", "drive", "latest_config", "resume_run", "start_run"]
+
+CONNECT_TIMEOUT = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class RunOptions:
+    """How to run: where Ray is, how many CPUs a local Ray gets, and what to print."""
+
+    address: str | None = None
+    num_cpus: int | None = None           # a local Ray's CPUs (default: all of this machine's)
+    quiet: bool = False
+    schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
+    max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
+
+
+def _host_port(address: str) -> tuple[str, int] | None:
+    rest = address.split("://", 1)[1] if "://" in address else address
+    host, sep, port = rest.rstrip("/").rpartition(":")
+    if not sep or not port.isdigit():
+        return None
+    return host.strip("[]") or "127.0.0.1", int(port)
+
+
+def _probe(address: str) -> None:
+    """Refuse at once (``RunError``) an address where nothing accepts a connection."""
+    where = _host_port(address)
+    if where is None:
+        raise RunError(f"--address {address!r}: expected 'auto', HOST:PORT or ray://HOST:PORT")
+    try:
+        with socket.create_connection(where, timeout=CONNECT_TIMEOUT):
+            pass
+    except OSError as exc:
+        raise RunError(
+            f"--address {address}: no Ray cluster answers there ({exc.strerror or exc}); "
+            "start one (cluster/README.md) or leave --address out to run on a local Ray"
+        ) from None
+
+
+@contextmanager
+def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
+    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
+    import logging
+
+    import ray
+
+    if ray.is_initialized():
+        yield ray
+        return
+    if address is None:
+        address = os.environ.get("RAY_ADDRESS") or None
+    if address is not None and address != "auto":
+        _probe(address)
+    kwargs: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
+    try:
+        if address is None:
+            ray.init(num_cpus=num_cpus, include_dashboard=False, **kwargs)
+        else:
+            ray.init(address=address, **kwargs)
+    except (ConnectionError, TimeoutError, RuntimeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def _local_path(run_dir: str) -> Path | None:
+    return None if "://" in str(run_dir) else Path(run_dir)
+
+
+def _check_new_run_dir(run_dir: str) -> None:
+    """Refuse, before anything starts, a local run directory that holds a run or anything else."""
+    path = _local_path(run_dir)
+    if path is None or not path.exists():
+        return
+    if not path.is_dir():
+        raise StoreError(f"{run_dir}: exists and is not a directory; choose another --run-dir")
+    if (path / "_manifest").is_dir():
+        raise StoreError(
+            f"{run_dir}: already holds a run; go on with `genr8 resume {run_dir}` or choose another --run-dir"
+        )
+    if any(path.iterdir()):
+        raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
+
+
+def latest_config(store: Any) -> Any:
+    """The run's newest configuration version, as a ``RunConfig``."""
+    newest = store.configs()[-1]
+    return parse_config(newest.toml, f"{store.path} configuration v{newest.version}")
+
+
+def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
+          on_generation: Callable[[Coordinator, int], None] | None = None,
+          on_commit: Callable[[Coordinator, Any], None] | None = None,
+          stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
+    """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
+    from genr8_dist.distributed.hosts import HostPool
+
+    out = out if out is not None else sys.stdout
+    own_hosts = hosts is None
+    if hosts is None:
+        latest = latest_config(store)
+        hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
+                         timeout=options.schedule_timeout)
+    stop = stop if stop is not None else StopRequest()
+    try:
+        coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=on_commit,
+                                  progress=None)
+        coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
+                                               quiet=options.quiet)
+        with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):
+            return coordinator.run()
+    finally:
+        if own_hosts:
+            hosts.shutdown()
+
+
+def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
+    committed = summary.committed
+    low = min(committed.values()) if committed else -1
+    rate = summary.individuals / summary.wall_seconds if summary.wall_seconds > 0 else 0.0
+    timing = (f"{summary.individuals} individuals in {format_duration(summary.wall_seconds)}"
+              f" ({rate:.1f}/s)")
+    if summary.finished:
+        print(f"run complete: generations 0..{summary.last_generation} of {len(committed)} island(s) "
+              f"committed; {timing}", file=out)
+        print(f"results: {run_dir}", file=out)
+        commands = _history_commands(run_dir)
+        if commands:
+            print("look at them: " + "   ".join(commands), file=out)
+    else:
+        spread = sorted(set(committed.values()))
+        at = f"generation {low}" if len(spread) == 1 else f"generations {spread[0]}..{spread[-1]}"
+        print(f"interrupted: islands committed up to {at}; {timing}", file=out)
+        print(f"resume with: genr8 resume {run_dir}", file=out)
+    out.flush()
+
+
+def _history_commands(run_dir: str) -> list[str]:
+    """The ``genr8`` commands that show a run's results, among those this install has."""
+    from genr8_dist.cli import build_parser
+
+    try:
+        parser = build_parser()
+        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
+        names = set(sub.choices)
+    except (StopIteration, ImportError):
+        return []
+    wanted = [("top", f"genr8 top {run_dir}"), ("report", f"genr8 report {run_dir}"),
+              ("history", f"genr8 history {run_dir}")]
+    return [line for name, line in wanted if name in names]
+
+
+def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOptions,
+              *, out: TextIO | None = None, **hooks: Any) -> RunSummary:
+    """``genr8 run``: a new run of the configuration in ``config_path`` in the new ``run_dir``."""
+    from genr8_dist.config import load_config
+    from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.store import RunStore
+
+    out = out if out is not None else sys.stdout
+    config = load_config(config_path)
+    _check_new_run_dir(run_dir)
+    with connect_ray(options.address, options.num_cpus):
+        hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
+                         int(config.islands.count), max_hosts=options.max_hosts,
+                         timeout=options.schedule_timeout)
+        try:
+            store = RunStore.create(run_dir, config.to_toml())
+            store.record_event("start", generation=0, detail={
+                "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
+                "address": options.address or "local"})
+            if not options.quiet:
+                print(f"run {run_dir}: {config.islands.count} island(s) x {config.ea.population} "
+                      f"individuals, generations 0..{config.ea.generations}, on {hosts.size} Ray "
+                      f"host(s); Ctrl-C stops it cleanly", file=out, flush=True)
+            summary = drive(store, options, out=out, hosts=hosts, **hooks)
+        finally:
+            hosts.shutdown()
+    _report(summary, run_dir, out)
+    return summary
+
+
+def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, **hooks: Any) -> RunSummary:
+    """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation."""
+    from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.store import RunStore
+
+    out = out if out is not None else sys.stdout
+    store = RunStore.open(run_dir)
+    problems = store.verify()
+    latest = latest_config(store)
+    committed = store.committed_generations()
+    n = int(latest.islands.count)
+    last = int(latest.ea.generations)
+    if not problems and committed and min(committed.get(i, -1) for i in range(n)) >= last:
+        print(f"{run_dir}: the run is complete (generation {last}); nothing to resume. "
+              f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
+        summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
+        return summary
+    with connect_ray(options.address, options.num_cpus):
+        hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts, timeout=options.schedule_timeout)
+        try:
+            if problems:
+                for problem in problems:
+                    print(f"damaged: {problem}", file=out, flush=True)
+                store.repair()
+            committed = store.committed_generations()
+            low = min(committed.get(i, -1) for i in range(n))
+            store.record_event("resume", generation=max(0, low + 1), detail={
+                "committed": {str(i): int(committed.get(i, -1)) for i in range(n)},
+                "hosts": hosts.size, "address": options.address or "local"})
+            if not options.quiet:
+                print(f"resuming {run_dir} after generation {low} on {hosts.size} Ray host(s)",
+                      file=out, flush=True)
+            summary = drive(store, options, out=out, hosts=hosts, **hooks)
+        finally:
+            hosts.shutdown()
+    _report(summary, run_dir, out)
+    return summary
