@@ -339,14 +339,17 @@ class RunStore:
     def generation_table(
         self, island: int, generation: int, columns: Sequence[str] | None = None
     ) -> pa.Table:
-        """The rows of ``island``'s ``generation``, ordered by index."""
+        """The rows of ``island``'s ``generation``, ordered by index. A generation committed after
+        this store's snapshot was loaded (by another process) is found too: the snapshot is refreshed."""
         import pyarrow.compute as pc
 
         key = str(island)
-        entries = [
-            e for e in self._m["individuals"]
-            if key in e["islands"] and e["islands"][key][0] <= generation <= e["islands"][key][1]
-        ]
+        entries = self._entries_holding(key, generation)
+        if not entries and generation > self._m["generations"].get(key, -1):
+            newest = _latest_manifest(self._fs)
+            if newest is not None and newest["version"] > self.version:
+                self._m = newest
+                entries = self._entries_holding(key, generation)
         if not entries:
             done = self._m["generations"].get(key)
             held = f"its last committed generation is {done}" if done is not None else "it has none"
@@ -362,6 +365,12 @@ class RunStore:
         if columns is not None and "index" not in columns:
             table = table.drop_columns(["index"])
         return table
+
+    def _entries_holding(self, island: str, generation: int) -> list[dict[str, Any]]:
+        return [
+            e for e in self._m["individuals"]
+            if island in e["islands"] and e["islands"][island][0] <= generation <= e["islands"][island][1]
+        ]
 
     def load_generation(self, island: int, generation: int) -> list[Individual]:
         """Every individual of ``island``'s ``generation``, exactly as committed, ordered by index."""

@@ -137,6 +137,14 @@ def test_load_generation_round_trips_every_field(store: RunStore) -> None:
     assert back[1].parents == ("1-2-1", "1-2-0")
 
 
+def test_a_reader_finds_generations_committed_after_it_opened(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    reader = RunStore.open(store.path)
+    store.commit(epoch(range(2, 4)))
+    assert reader.load_generation(1, 3) == generation(1, 3)
+    assert reader.committed_generations() == {0: 3, 1: 3}
+
+
 def test_commits_must_follow_each_islands_last_generation(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     with pytest.raises(StoreError, match=r"island 0: .*generations \[1\].*next one to commit is 2"):
