@@ -14,9 +14,19 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from genr8_dist.errors import Genr8Error
 from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
 
-__all__ = ["curves_figure", "curves_png", "draw_surface", "gallery_png", "lineage_png"]
+__all__ = [
+    "curves_figure",
+    "curves_png",
+    "draw_surface",
+    "gallery_figure",
+    "gallery_figure_of",
+    "gallery_png",
+    "lineage_png",
+    "png_bytes",
+]
 
 # Colours for how an individual was made (lineage) and the palette for islands.
 ORIGIN_COLOURS = {
@@ -250,37 +260,28 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
 
 
 def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
-    """Draw ``surface`` on the 3D axes ``ax``: its regions shaded by height and lit from above-left,
-    its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
+    """Draw ``surface`` on the 3D axes ``ax``: its regions (triangulated) shaded by height and lit from
+    above, its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
     plt = _pyplot()
-    v = np.asarray(surface.vertices, dtype=np.float64)
+    v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
-    polygons = [v[np.asarray(cycle, dtype=np.int64)] for cycle in surface.regions if len(cycle) >= 3]
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
     lo, hi = v.min(axis=0), v.max(axis=0)
     centre = (lo + hi) / 2.0
     radius = max(float((hi - lo).max()) / 2.0, 1e-9)
-    if polygons:
-        z = np.array([p[:, 2].mean() for p in polygons])
+    if len(faces):
+        tri = v[faces]
+        z = tri[:, :, 2].mean(axis=1)
         zn = (z - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else np.full(len(z), 0.55)
-        base = plt.get_cmap("viridis")(0.15 + 0.7 * zn)
-        light = np.array([-0.4, -0.5, 0.77])
-        light /= np.linalg.norm(light)
-        shade = []
-        for p in polygons:
-            normal = np.cross(p[1] - p[0], p[2] - p[0]) if len(p) >= 3 else np.zeros(3)
-            if len(p) > 3:  # Newell's normal, robust for any simple polygon
-                q = np.roll(p, -1, axis=0)
-                normal = np.array([((p[:, 1] - q[:, 1]) * (p[:, 2] + q[:, 2])).sum(),
-                                   ((p[:, 2] - q[:, 2]) * (p[:, 0] + q[:, 0])).sum(),
-                                   ((p[:, 0] - q[:, 0]) * (p[:, 1] + q[:, 1])).sum()])
-            norm = np.linalg.norm(normal)
-            shade.append(0.55 + 0.45 * abs(float(normal @ light)) / norm if norm > 0 else 0.8)
-        colours = base.copy()
-        colours[:, :3] *= np.asarray(shade)[:, None]
-        ax.add_collection3d(Poly3DCollection(polygons, facecolors=colours, edgecolors="none",
-                                             alpha=0.95))
+        colours = plt.get_cmap("viridis")(0.18 + 0.64 * zn)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1)
+        light = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
+        lit = np.where(length > 0, np.abs(normal @ light) / np.where(length > 0, length, 1.0), 0.8)
+        colours[:, :3] *= (0.55 + 0.45 * lit)[:, None]
+        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors="none", alpha=0.95))
     if len(edges):
         ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
                                              alpha=0.85))
@@ -322,43 +323,68 @@ def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int
     return fig
 
 
-def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
-                island: int | None = None, per_island: bool = False) -> str:
-    """Regrow the ``k`` best valid individuals of ``generation`` (negative counts back from the last;
-    ``None``: the whole run) — of one ``island``, or the best ``k`` of each island with
-    ``per_island`` — and write their contact sheet to ``path``. Returns a one-line description."""
+def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
+                      island: int | None = None, per_island: bool = False) -> tuple[Any, str]:
+    """The contact sheet of the ``k`` best valid individuals of ``generation`` (negative counts back
+    from the last; ``None``: the whole run), of one ``island``, or the best ``k`` of each island with
+    ``per_island``; each regrown from its row. Returns the figure and a one-line description."""
     from genr8_dist.history._run import dataset
     from genr8_dist.history._tables import _resolve_generation, top
     from genr8_dist.history.regrow import regrow
 
+    if k < 1:
+        raise HistoryError(f"k: must be at least 1, got {k}")
     store = open_run(run)
     generation = _resolve_generation(dataset(store), generation)
     if per_island:
         islands = [island] if island is not None else sorted(
             int(i) for i in store.committed_generations())
         groups = [top(store, k, generation=generation, island=i) for i in islands]
-        groups = [g for g in groups if g.num_rows]
         row_labels = [f"island {g['island'][0].as_py()}" for g in groups]
-        ids = []
+        ids: list[str | None] = []
         for g in groups:
             ids.extend(g["id"].to_pylist() + [None] * (k - g.num_rows))
-        columns = k
+        columns: int | None = k
     else:
-        ids = top(store, k, generation=generation, island=island)["id"].to_pylist()
+        ids = list(top(store, k, generation=generation, island=island)["id"].to_pylist())
         row_labels, columns = None, None
     tiles = []
-    fitness_of = {}
+    count = 0
     for ident in ids:
         if ident is None:
             tiles.append(("", None))
             continue
-        result = regrow(store, ident)
-        fitness_of[ident] = result.row["fitness"]
+        try:
+            result = regrow(store, ident)
+        except Genr8Error as exc:
+            raise HistoryError(f"gallery: cannot regrow {ident}: {exc}") from None
+        count += 1
         tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result.surface))
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
         where += f", island {island}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: best {k} of {where}"
-             + (" per island" if per_island else ""))
-    _save(gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels), path, dpi=100)
-    return f"{len(fitness_of)} surfaces of {where}"
+             + (" per island" if per_island else "") + "  (lower fitness is better)")
+    fig = gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels)
+    return fig, f"{count} surfaces of {where}"
+
+
+def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
+                island: int | None = None, per_island: bool = False) -> str:
+    """Write the contact sheet of ``gallery_figure_of`` to the PNG ``path``; returns its description."""
+    fig, info = gallery_figure_of(run, generation=generation, k=k, island=island, per_island=per_island)
+    _save(fig, path, dpi=100)
+    return info
+
+
+def png_bytes(fig: Any, dpi: int = 100) -> bytes:
+    """The figure as PNG bytes (closed afterwards), for embedding in a page."""
+    import io
+
+    plt = _pyplot()
+    buffer = io.BytesIO()
+    try:
+        fig.savefig(buffer, format="png", dpi=dpi, facecolor=fig.get_facecolor())
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()

@@ -1,0 +1,175 @@
+"""Regrow one individual of a run from its row, bit for bit, and take it out of the run as files.
+
+Genr8 let a designer "re-grow that member and thus study it in closer detail" and save its genome, its
+grammar and its surface (thesis 4.1.2). Here the row gives the genome and the configuration version it
+was evaluated under; the genome is mapped again with that version's universe, the rewrite system is
+grown in that version's environment, and the surface's digest (blake2b of the vertex array) must equal
+the one recorded when the run evaluated it: the exported surface is the one the run scored.
+"""
+
+from __future__ import annotations
+
+import os
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from genr8_dist.errors import ConfigError
+from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+
+__all__ = ["EXPORT_FORMATS", "Regrown", "config_of", "export", "picture", "regrow", "save_text"]
+
+EXPORT_FORMATS = ("obj", "ply", "stl", "glb", "3dm")
+
+
+@dataclass(frozen=True)
+class Regrown:
+    """One individual regrown: its stored ``row``, the ``config`` it was evaluated under, the rewrite
+    ``system``, the ``surface`` (``None`` when the individual never grew one), the derivation ``steps``
+    done, the surface ``digest``, and whether the genome still maps to the recorded text."""
+
+    row: dict[str, Any]
+    config: Any
+    system: Any
+    surface: Any
+    steps: int
+    digest: str | None
+    text_matches: bool
+
+
+def config_of(store: Any, version: int) -> Any:
+    """The ``RunConfig`` of configuration ``version`` of ``store``."""
+    from genr8_dist.config import RunConfig
+
+    for cv in store.configs():
+        if int(cv.version) == int(version):
+            source = f"{run_label(store)} configuration version {version}"
+            try:
+                return RunConfig.from_dict(tomllib.loads(cv.toml), source=source)
+            except ConfigError as exc:
+                raise HistoryError(f"cannot regrow from {source}: {exc}") from None
+    raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+
+
+def regrow(run: RunLike, id: str) -> Regrown:
+    """Regrow individual ``id`` of ``run`` and check it against what the run recorded.
+
+    The text grown is the recorded rewrite system (what the run grew); the genome is mapped again to
+    check it still gives that text. The grown surface must have the recorded digest and counts, else a
+    ``HistoryError`` says what differs. An individual that failed before growth has no surface.
+    """
+    from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.hemls import grow, parse
+    from genr8_dist.history._tables import individual
+
+    store = open_run(run)
+    row = individual(store, id).to_pylist()[0]
+    config = config_of(store, row["config_version"])
+    universe = universe_for(config.universe)
+    mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
+                          max_wraps=config.genome.max_wraps)
+    text = row["text"]
+    text_matches = bool(mapped.valid) and mapped.text == text
+    if text is None or row["surface_digest"] is None:
+        return Regrown(row, config, None, None, 0, None, text_matches)
+    system = parse(text)
+    result = grow(system, config.environment)
+    surface = result.surface
+    digest = surface.digest()
+    counts = (len(surface.vertices), len(surface.edges), len(surface.regions))
+    recorded = (row["n_vertices"], row["n_edges"], row["n_regions"])
+    if digest != row["surface_digest"] or counts != recorded:
+        raise HistoryError(
+            f"regrowing {id} did not reproduce the recorded surface: digest {digest} vs "
+            f"{row['surface_digest']}, "
+            f"(vertices, edges, regions) {counts} vs {recorded}; was the run made by another version "
+            f"of genr8_dist?")
+    return Regrown(row, config, system, surface, int(result.steps), digest, text_matches)
+
+
+def _need_surface(result: Regrown, what: str) -> Any:
+    if result.surface is None:
+        row = result.row
+        raise HistoryError(f"{row['id']} has no surface to {what}: it failed at {row['stage']} "
+                           f"({row['error']})")
+    return result.surface
+
+
+def export(result: Regrown, path: str | os.PathLike) -> Path:
+    """Write the regrown surface to ``path``: .obj .ply .stl .glb through trimesh, .3dm through
+    rhino3dm (the ``rhino`` extra). The file is written atomically."""
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in EXPORT_FORMATS:
+        raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
+                           + ", ".join(f".{s}" for s in EXPORT_FORMATS))
+    surface = _need_surface(result, "export")
+    if suffix == "3dm":
+        _export_3dm(surface, path, name=result.row["id"])
+    else:
+        from genr8_dist.export import export_mesh
+
+        export_mesh(surface, path)
+    return path
+
+
+def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
+    """A Rhino file holding the surface as one mesh (every vertex, in order; the regions' triangles)
+    and its edges as a line layer, the scaffold a designer builds on."""
+    import numpy as np
+
+    try:
+        import rhino3dm
+    except ImportError:
+        raise HistoryError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
+    vertices = np.asarray(surface.vertices, dtype=np.float64)
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    mesh = rhino3dm.Mesh()
+    for x, y, z in vertices.tolist():
+        mesh.Vertices.Add(x, y, z)
+    for a, b, c in faces.tolist():
+        mesh.Faces.AddFace(a, b, c)
+    mesh.Normals.ComputeNormals()
+    model = rhino3dm.File3dm()
+    surface_layer = rhino3dm.Layer()
+    surface_layer.Name = "genr8 surface"
+    scaffold_layer = rhino3dm.Layer()
+    scaffold_layer.Name = "genr8 scaffold"
+    surface_index = model.Layers.Add(surface_layer)
+    scaffold_index = model.Layers.Add(scaffold_layer)
+    attributes = rhino3dm.ObjectAttributes()
+    attributes.Name = name
+    attributes.LayerIndex = surface_index
+    model.Objects.AddMesh(mesh, attributes)
+    line_attributes = rhino3dm.ObjectAttributes()
+    line_attributes.LayerIndex = scaffold_index
+    for a, b in np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2).tolist():
+        p, q = vertices[a], vertices[b]
+        model.Objects.AddLine(rhino3dm.Point3d(*p), rhino3dm.Point3d(*q), line_attributes)
+
+    def write(tmp: str) -> None:
+        if not model.Write(tmp, 7):
+            raise OSError(5, "rhino3dm could not write the file", str(path))
+
+    atomic_write(path, write)
+
+
+def picture(result: Regrown, path: str | os.PathLike) -> Path:
+    """A shaded PNG of the regrown surface in its environment, titled with its id and fitness."""
+    from genr8_dist.export import render_png
+
+    surface = _need_surface(result, "draw")
+    row = result.row
+    title = (f"{row['id']}  fitness {row['fitness']:.4g}  (generation {row['generation']}, "
+             f"island {row['island']})")
+    return render_png(surface, Path(path), title=title, env=result.config.environment)
+
+
+def save_text(text: str, path: str | os.PathLike, *, what: str, id: str) -> Path:
+    """Write ``text`` (a rewrite system or a genome) to ``path`` atomically."""
+    if not text:
+        raise HistoryError(f"{id} has no {what} to save")
+    body = text if text.endswith("\n") else text + "\n"
+    atomic_write(path, lambda tmp: Path(tmp).write_text(body, encoding="utf-8"))
+    return Path(path)

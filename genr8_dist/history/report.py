@@ -1,0 +1,194 @@
+"""One self-contained HTML page about a run: Genr8's output window as a file a designer can open anywhere.
+
+The page holds the fitness curves, a gallery of the best surfaces of the last generation, the top
+individuals with their criteria and rewrite systems, the interventions with what each changed, and the
+configuration versions. Images are embedded as base64 PNG; there are no scripts, fonts or links to
+fetch, so it opens offline and can be mailed as one file.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from genr8_dist.errors import Genr8Error
+from genr8_dist.history._run import RunLike, atomic_write, open_run, run_label
+
+__all__ = ["report_html", "write_report"]
+
+_CSS = """
+body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 0;
+       background: #f6f6f3; color: #222; }
+header { background: #1f2a36; color: #fff; padding: 22px 36px; }
+header h1 { margin: 0 0 6px 0; font-size: 26px; font-weight: 600; }
+header p { margin: 0; color: #c8d0d8; font-size: 14px; }
+main { padding: 10px 36px 40px 36px; max-width: 1500px; }
+section { background: #fff; border-radius: 8px; padding: 16px 22px; margin: 18px 0;
+          box-shadow: 0 1px 3px rgba(0,0,0,0.08); }
+h2 { font-size: 19px; margin: 4px 0 12px 0; color: #1f2a36; }
+.facts { display: flex; flex-wrap: wrap; gap: 12px; }
+.fact { background: #eef2f5; border-radius: 6px; padding: 10px 16px; min-width: 120px; }
+.fact b { display: block; font-size: 22px; color: #1f2a36; }
+.fact span { font-size: 12px; color: #5a6570; text-transform: uppercase; letter-spacing: .04em; }
+img { max-width: 100%; height: auto; display: block; }
+table { border-collapse: collapse; font-size: 13px; width: 100%; }
+th { text-align: left; background: #eef2f5; padding: 6px 8px; font-weight: 600; }
+td { padding: 6px 8px; border-top: 1px solid #eceff1; vertical-align: top; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+pre { margin: 0; font-size: 12px; background: #f7f7f2; padding: 6px 8px; border-radius: 4px;
+      white-space: pre-wrap; }
+.note { color: #6b747c; font-size: 13px; }
+code { background: #eef2f5; padding: 1px 5px; border-radius: 3px; }
+"""
+
+
+def _fmt(value: Any) -> str:
+    if value is None:
+        return "–"
+    if isinstance(value, float):
+        if math.isinf(value):
+            return "∞"
+        return f"{value:.4g}"
+    return str(value)
+
+
+def _img(png: bytes, alt: str) -> str:
+    data = base64.b64encode(png).decode("ascii")
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
+
+
+def _flatten(data: Any, prefix: str = "") -> dict[str, Any]:
+    if isinstance(data, dict):
+        out: dict[str, Any] = {}
+        for key, value in data.items():
+            out.update(_flatten(value, f"{prefix}.{key}" if prefix else str(key)))
+        return out
+    return {prefix: data}
+
+
+def _changes(old_toml: str, new_toml: str) -> list[str]:
+    """What a configuration version changed from the one before, as ``key: old -> new`` lines."""
+    try:
+        old, new = _flatten(tomllib.loads(old_toml)), _flatten(tomllib.loads(new_toml))
+    except tomllib.TOMLDecodeError:
+        return []
+    lines = []
+    for key in sorted(set(old) | set(new)):
+        if old.get(key) != new.get(key):
+            lines.append(f"{key}: {old.get(key, '(default)')} → {new.get(key, '(default)')}")
+    return lines
+
+
+def _section(title: str, body: str) -> str:
+    return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
+
+
+def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
+    """The report page of ``run`` as one HTML string (see the module docstring)."""
+    import pyarrow.compute as pc
+
+    from genr8_dist.history import _tables, pictures
+
+    store = open_run(run)
+    per_gen = _tables.per_generation(store)
+    name = getattr(store, "run_id", run_label(store))
+    gens = per_gen["generation"]
+    last = int(pc.max(gens).as_py())
+    islands = sorted(set(per_gen["island"].to_pylist()))
+    n_total = int(pc.sum(per_gen["n"]).as_py())
+    n_valid = int(pc.sum(per_gen["n_valid"]).as_py())
+    best = _tables.top(store, k, systems=True)
+    events = _tables.events(store)
+    configs = list(store.configs())
+    kinds = events["kind"].to_pylist()
+
+    facts = [("generations", last + 1), ("islands", len(islands)), ("individuals", f"{n_total:,}"),
+             ("valid", f"{100.0 * n_valid / max(n_total, 1):.1f}%"),
+             ("best fitness", _fmt(best["fitness"][0].as_py()) if best.num_rows else "–"),
+             ("best individual", best["id"][0].as_py() if best.num_rows else "–"),
+             ("interventions", kinds.count("intervention")),
+             ("configuration versions", len(configs))]
+    parts = ['<div class="facts">' + "".join(
+        f'<div class="fact"><b>{html.escape(str(v))}</b><span>{html.escape(t)}</span></div>'
+        for t, v in facts) + "</div>"]
+    parts.append(_section("Fitness over the generations", _img(
+        pictures.png_bytes(pictures.curves_figure(store, per_gen), dpi=90),
+        "fitness curves per island") + '<p class="note">Solid: the best individual of each island; '
+        "dashed: the median. Triangles along the axis mark migrations; vertical lines mark "
+        "interventions and resumptions. Lower fitness is better.</p>"))
+
+    try:
+        fig, info = pictures.gallery_figure_of(store, generation=last, k=gallery_k)
+        gallery = _img(pictures.png_bytes(fig, dpi=80), f"gallery: {info}")
+        gallery += f'<p class="note">{html.escape(info)}, regrown from the run\'s rows.</p>'
+    except Genr8Error as exc:
+        gallery = f'<p class="note">No gallery: {html.escape(str(exc))}</p>'
+    parts.append(_section(f"The best surfaces of generation {last}", gallery))
+
+    crits = [c[5:] for c in best.column_names if c.startswith("crit_")]
+    head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", "fitness",
+                                              *[c.replace("_", " ") for c in crits],
+                                              "made by", "rewrite system"])
+    rows = []
+    for r in best.to_pylist():
+        cells = [f'<td class="num">{r["rank"]}</td>', f"<td><code>{html.escape(r['id'])}</code></td>",
+                 f'<td class="num">{r["generation"]}</td>', f'<td class="num">{r["island"]}</td>',
+                 f'<td class="num"><b>{_fmt(r["fitness"])}</b></td>']
+        cells += [f'<td class="num">{_fmt(r[f"crit_{c}"])}</td>' for c in crits]
+        made = r["origin"] + (" of " + ", ".join(r["parents"]) if r["parents"] else "")
+        cells.append(f"<td>{html.escape(made)}</td>")
+        cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")
+        rows.append("<tr>" + "".join(cells) + "</tr>")
+    top_note = (f'<p class="note">Regrow and export any of them: <code>genr8 show '
+                f"{html.escape(str(run_label(store)))} ID -o surface.obj</code> (also .ply .stl .glb .3dm)."
+                "</p>")
+    parts.append(_section(f"The {best.num_rows} best individuals of the run",
+                          f"<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
+
+    rows = []
+    previous = None
+    for cv in configs:
+        change = _changes(previous.toml, cv.toml) if previous is not None else ["the run's start"]
+        rows.append(f'<tr><td class="num">{cv.version}</td><td class="num">{cv.effective_generation}</td>'
+                    f"<td>{html.escape(str(cv.created))}</td>"
+                    f"<td><pre>{html.escape(chr(10).join(change) or '(no change)')}</pre></td></tr>")
+        previous = cv
+    table = ("<table><tr><th>version</th><th>from generation</th><th>created</th><th>what changed</th>"
+             f"</tr>{''.join(rows)}</table>")
+    other = [e for e in events.to_pylist() if e["kind"] in ("intervention", "interrupt", "resume",
+                                                              "recovery")]
+    if other:
+        table += "<h2 style='margin-top:18px'>Interruptions, interventions, resumptions</h2><table>"
+        table += "<tr><th>generation</th><th>what</th><th>detail</th></tr>"
+        for e in other:
+            try:
+                detail = json.dumps(json.loads(e["detail"]), indent=1, sort_keys=True)
+            except ValueError:
+                detail = e["detail"]
+            table += (f'<tr><td class="num">{e["generation"]}</td><td>{html.escape(e["kind"])}</td>'
+                      f"<td><pre>{html.escape(detail)}</pre></td></tr>")
+        table += "</table>"
+    migrations = kinds.count("migration")
+    table += f'<p class="note">{migrations} migrations between islands.</p>'
+    parts.append(_section("Configuration versions and interventions", table))
+
+    title = f"genr8 run {name}"
+    subtitle = (f"{html.escape(str(run_label(store)))} · generations 0–{last} · "
+                f"{len(islands)} islands")
+    return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
+            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
+            f"<header><h1>{html.escape(title)}</h1><p>{subtitle}</p></header>"
+            f"<main>{''.join(parts)}</main></body></html>\n")
+
+
+def write_report(run: RunLike, path: str | os.PathLike, *, k: int = 10, gallery_k: int = 12) -> Path:
+    """Write ``report_html(run)`` to ``path`` atomically; returns the path."""
+    text = report_html(run, k=k, gallery_k=gallery_k)
+    atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
+    return Path(path)
