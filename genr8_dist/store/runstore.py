@@ -443,7 +443,7 @@ class RunStore:
             f"{self._fs.show(_manifest_rel(version))}: manifest is torn or altered; "
             f"the run is read from manifest {self.version}"
             for version in _list_manifests(self._fs)
-            if version > self.version
+            if version > self.version and _read_manifest(self._fs, version) is None
         ]
 
     def repair(self) -> list[str]:

@@ -112,3 +112,12 @@ def test_event_validation() -> None:
 def test_criterion_names_must_be_identifiers() -> None:
     with pytest.raises(StoreError, match="identifier"):
         individuals_schema(["soft boundary"])
+
+
+def test_the_public_names_are_exported() -> None:
+    import genr8_dist.store as store
+
+    for name in store.__all__:
+        assert getattr(store, name) is not None
+    assert {"RunStore", "SCHEMA_VERSION", "individuals_schema", "events_schema", "EVENT_KINDS", "Event",
+            "ConfigVersion", "write_synthetic_run"} <= set(store.__all__)
