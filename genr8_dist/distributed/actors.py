@@ -84,8 +84,10 @@ class IslandHost:
 
 
 def remote_host_class(num_cpus: float) -> Any:
-    """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), never restarted by
-    Ray itself: the coordinator replaces a dead host and reloads its islands from the store."""
+    """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), spread over the
+    cluster's nodes (a lost node takes few islands with it), never restarted by Ray itself: the
+    coordinator replaces a dead host and reloads its islands from the store."""
     import ray
 
-    return ray.remote(IslandHost).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0)
+    return ray.remote(IslandHost).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0,
+                                         scheduling_strategy="SPREAD")

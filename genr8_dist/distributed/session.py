@@ -73,13 +73,15 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
 
     import ray
 
+    if address is not None and address != "auto":
+        _probe(address)
     if ray.is_initialized():
         yield ray
         return
     if address is None:
         address = os.environ.get("RAY_ADDRESS") or None
-    if address is not None and address != "auto":
-        _probe(address)
+        if address is not None and address != "auto" and "://" not in address:
+            _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
     try:
         if address is None:

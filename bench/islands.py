@@ -1,0 +1,113 @@
+"""Island throughput and the overheads of distribution: one table, for 1, 2, 4 and 8 islands.
+
+    python bench/islands.py                 # default configuration, 10 generations, local Ray of 2 CPUs
+    python bench/islands.py --cpus 4 --islands 1 2 4 8 --generations 20
+
+For each island count it runs the default run configuration (``RunConfig()``: 30 individuals of 100
+codons per island, the default environment) on a local Ray and prints
+
+- generations/s: generations (every island) completed per second of the epoch loop;
+- individuals/s: individuals evaluated and committed per second;
+- coordinator %: the driver's own time (traffic, migration, bookkeeping), as a share of wall time;
+- store %: commits and reads of the run store, as a share of wall time;
+- bytes/individual: the run directory's size on disk divided by its individuals.
+
+Wall time is the coordinator's epoch loop (actor start-up excluded). The two targets it checks (and
+prints PASS/FAIL for): store + coordinator under 5% of wall time, and 2 islands at least 1.7x the
+individuals/s of 1 island when the local Ray has at least 2 CPUs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+
+def _dir_bytes(path: Path) -> int:
+    return sum(p.stat().st_size for p in path.rglob("*") if p.is_file())
+
+
+def run_once(n_islands: int, generations: int, workdir: Path, population: int | None) -> dict:
+    """One run of the default configuration with ``n_islands`` islands; its figures."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.distributed.coordinator import Coordinator
+    from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.store import RunStore
+
+    ea = {"generations": generations} | ({"population": population} if population else {})
+    config = RunConfig().replace(ea=ea, islands={"count": n_islands})
+    run_dir = workdir / f"islands-{n_islands}"
+    t0 = time.perf_counter()
+    hosts = HostPool(str(run_dir), n_islands)
+    started = time.perf_counter() - t0
+    try:
+        store = RunStore.create(run_dir, config.to_toml())
+        summary = Coordinator(store, hosts).run()
+    finally:
+        hosts.shutdown()
+    wall = summary.wall_seconds
+    individuals = summary.individuals
+    return {
+        "islands": n_islands,
+        "hosts": hosts.plan.hosts,
+        "startup_s": started,
+        "wall_s": wall,
+        "gens_per_s": summary.generations / wall,
+        "ind_per_s": individuals / wall,
+        "coordinator_pct": 100 * summary.coordinator_seconds / wall,
+        "store_pct": 100 * summary.store_seconds / wall,
+        "bytes_per_ind": _dir_bytes(run_dir) / max(individuals, 1),
+        "individuals": individuals,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--islands", type=int, nargs="+", default=[1, 2, 4, 8])
+    parser.add_argument("--generations", type=int, default=10)
+    parser.add_argument("--population", type=int, default=None, help="default: the configuration's (30)")
+    parser.add_argument("--cpus", type=int, default=2, help="CPUs of the local Ray (default 2)")
+    args = parser.parse_args(argv)
+
+    import logging
+
+    import ray
+
+    ray.init(num_cpus=args.cpus, include_dashboard=False, log_to_driver=False, logging_level=logging.WARNING)
+    results = []
+    try:
+        with tempfile.TemporaryDirectory(prefix="genr8-bench-") as tmp:
+            for n in args.islands:
+                results.append(run_once(n, args.generations, Path(tmp), args.population))
+                r = results[-1]
+                print(f"{r['islands']:>7} {r['hosts']:>5} {r['wall_s']:>7.1f} {r['gens_per_s']:>9.2f} "
+                      f"{r['ind_per_s']:>9.1f} {r['coordinator_pct']:>12.2f} {r['store_pct']:>7.2f} "
+                      f"{r['bytes_per_ind']:>10.0f}", file=sys.stderr, flush=True)
+    finally:
+        ray.shutdown()
+
+    print(f"# bench/islands.py: default configuration, {args.generations} generations, local Ray "
+          f"with {args.cpus} CPUs, {os.cpu_count()} cores on this machine")
+    print(f"{'islands':>7} {'hosts':>5} {'wall s':>7} {'gens/s':>9} {'ind/s':>9} "
+          f"{'coordinator%':>12} {'store%':>7} {'bytes/ind':>10}")
+    for r in results:
+        print(f"{r['islands']:>7} {r['hosts']:>5} {r['wall_s']:>7.1f} {r['gens_per_s']:>9.2f} "
+              f"{r['ind_per_s']:>9.1f} {r['coordinator_pct']:>12.2f} {r['store_pct']:>7.2f} "
+              f"{r['bytes_per_ind']:>10.0f}")
+    worst = max(r["coordinator_pct"] + r["store_pct"] for r in results)
+    print(f"store + coordinator share, worst case: {worst:.2f}% (target < 5%): "
+          f"{'PASS' if worst < 5 else 'FAIL'}")
+    by_n = {r["islands"]: r for r in results}
+    if 1 in by_n and 2 in by_n:
+        speedup = by_n[2]["ind_per_s"] / by_n[1]["ind_per_s"]
+        verdict = "PASS" if speedup >= 1.7 else ("FAIL" if args.cpus >= 2 else "n/a (1 CPU)")
+        print(f"2 islands vs 1: {speedup:.2f}x individuals/s (target >= 1.7x on 2 CPUs): {verdict}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

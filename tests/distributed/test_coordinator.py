@@ -1,0 +1,138 @@
+"""The coordinator on a real local Ray: complete runs, interruption and resumption, lost actors, edits,
+damaged files. Every comparison is row for row over every column except timings."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+from distributed_runs import drive_to_end, event_kinds, new_run, rows, stop_at, tiny_toml
+
+pytestmark = pytest.mark.usefixtures("ray_local")
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, ray_local):
+    """The uninterrupted 3-island run every other run is compared with."""
+    run_dir = tmp_path_factory.mktemp("ref") / "run"
+    new_run(run_dir, tiny_toml())
+    summary, log = drive_to_end(run_dir)
+    return run_dir, summary, log
+
+
+def test_three_islands_with_migration_complete_with_every_row(reference):
+    run_dir, summary, log = reference
+    got = rows(run_dir)
+    assert summary.status == "complete"
+    assert len(got) == 3 * 6 * 7                       # islands x population x generations 0..6
+    assert {(r["island"], r["generation"]) for r in got} == {(i, g) for i in range(3) for g in range(7)}
+    assert all(r["id"] == f"{r['island']}-{r['generation']}-{r['index']}" for r in got)
+    # migration after generations 2 and 4: one migrant arrives at 3 and 5 from the previous island
+    migrants = [r for r in got if r["origin"] == "migrant"]
+    assert sorted({r["generation"] for r in migrants}) == [3, 5]
+    for r in migrants:
+        (parent,) = r["parents"]
+        source_island, source_gen, _ = (int(x) for x in parent.split("-"))
+        assert (source_island + 1) % 3 == r["island"] and source_gen == r["generation"] - 1
+    kinds = event_kinds(run_dir)
+    assert kinds.count("migration") == 2 and kinds[-1] == "complete"
+    assert "gen 6/6" in log and "ind/s" in log
+
+
+@pytest.mark.parametrize("at", [0, 1, 3, 5])
+def test_interrupted_and_resumed_equals_uninterrupted(reference, tmp_path, at):
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    first, _ = drive_to_end(run_dir, on_generation=stop_at(at))
+    assert first.status == "interrupted"
+    assert min(first.committed.values()) >= at
+    assert "interrupt" in event_kinds(run_dir)
+    second, _ = drive_to_end(run_dir)
+    assert second.status == "complete"
+    assert rows(run_dir) == rows(reference[0])
+
+
+def test_killed_island_actor_is_rebuilt_and_the_rows_are_the_same(reference, tmp_path):
+    import ray
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    killed = []
+
+    def kill_island_1(coordinator, g):
+        if g == 3 and not killed:
+            killed.append(g)
+            ray.kill(coordinator.hosts.host_of(1), no_restart=True)
+
+    summary, log = drive_to_end(run_dir, on_generation=kill_island_1)
+    assert killed and summary.status == "complete"
+    assert summary.recoveries >= 1
+    assert "recovery" in event_kinds(run_dir)
+    assert "rebuilt from generation" in log
+    assert rows(run_dir) == rows(reference[0])
+
+
+def test_edit_takes_effect_from_its_generation_only(reference, tmp_path):
+    from genr8_dist.distributed.intervene import Edit, apply_edit
+    from genr8_dist.fitness import FitnessSpec
+    from genr8_dist.store import RunStore
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    drive_to_end(run_dir, on_generation=stop_at(2))
+    done = max(RunStore.open(run_dir).committed_generations().values())
+    edit = Edit(assignments=["fitness.size.weight=5", "fitness.weights.symmetry=0"], inject_copy=["1-1-0"])
+    result = apply_edit(str(run_dir), edit)
+    assert result.effective_generation == done + 1 and result.version == 2
+    drive_to_end(run_dir)
+
+    got, ref = rows(run_dir), rows(reference[0])
+    assert [r for r in got if r["generation"] <= done] == [r for r in ref if r["generation"] <= done]
+    after = [r for r in got if r["generation"] > done]
+    assert after and all(r["config_version"] == 2 for r in after)
+    spec = FitnessSpec.from_dict({"size": {"weight": 5}, "symmetry": {"weight": 0}})
+    valid = [r for r in after if r["valid"]]
+    assert valid
+    for r in valid:
+        raw = {k[len("crit_"):]: v for k, v in r.items() if k.startswith("crit_") and v is not None}
+        assert math.isclose(r["fitness"], spec.evaluate(raw), rel_tol=1e-12, abs_tol=1e-12)
+    injected = [r for r in got if r["origin"] == "injected"]
+    assert len(injected) == 1
+    (inj,) = injected
+    source = next(r for r in got if r["id"] == "1-1-0")
+    assert (inj["island"], inj["generation"], inj["genome"], inj["parents"]) == (
+        1, done + 1, source["genome"], ["1-1-0"])
+    events = RunStore.open(run_dir).events().to_pylist()
+    (intervention,) = [e for e in events if e["kind"] == "intervention"]
+    assert intervention["generation"] == done + 1
+    assert json.loads(intervention["detail"])["changes"]["fitness.size.weight"] == 5
+
+
+def test_truncated_parquet_is_named_and_the_run_resumes_from_the_last_intact_generation(reference, tmp_path):
+    from genr8_dist.store import RunStore
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    drive_to_end(run_dir, on_generation=stop_at(4))
+    store = RunStore.open(run_dir)
+    newest = store.individual_files()[-1]
+    with open(newest, "r+b") as f:
+        f.truncate(f.seek(0, 2) // 2)
+    problems = RunStore.open(run_dir).verify()
+    assert problems and any(newest.rsplit("/", 1)[-1] in p for p in problems)
+    summary, log = drive_to_end_after_repair(run_dir)
+    assert "damaged:" in log and newest.rsplit("/", 1)[-1] in log
+    assert summary.status == "complete"
+    assert rows(run_dir) == rows(reference[0])
+
+
+def drive_to_end_after_repair(run_dir):
+    """What ``genr8 resume`` does: report damage, repair, go on."""
+    import io
+
+    from genr8_dist.distributed.session import RunOptions, resume_run
+
+    out = io.StringIO()
+    summary = resume_run(str(run_dir), RunOptions(quiet=True), out=out)
+    return summary, out.getvalue()

@@ -1,0 +1,32 @@
+"""Sizing the island hosts: islands may outnumber CPUs; no free CPU is refused, not left waiting."""
+
+from __future__ import annotations
+
+import pytest
+
+from genr8_dist.distributed.hosts import plan_hosts
+from genr8_dist.errors import RunError
+
+
+def test_one_host_per_island_when_cpus_allow():
+    plan = plan_hosts(3, free_cpus=8)
+    assert (plan.hosts, plan.num_cpus) == (3, 1.0)
+
+
+def test_islands_outnumbering_cpus_share_hosts():
+    plan = plan_hosts(8, free_cpus=2)
+    assert (plan.hosts, plan.num_cpus) == (2, 1.0)
+
+
+def test_less_than_one_free_cpu_reserves_a_fraction():
+    plan = plan_hosts(4, free_cpus=0.5)
+    assert (plan.hosts, plan.num_cpus) == (1, 0.5)
+
+
+def test_max_hosts_caps_the_pool():
+    assert plan_hosts(4, free_cpus=16, max_hosts=1).hosts == 1
+
+
+def test_no_free_cpu_is_refused_with_a_message():
+    with pytest.raises(RunError, match="no free CPU for 3 island"):
+        plan_hosts(3, free_cpus=0)
