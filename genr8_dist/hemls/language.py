@@ -53,6 +53,7 @@ OPERATORS: tuple[str, ...] = ("+", "-", "&", "^", "/", "\\", "~")
 DEFAULT_ANGLE = 90.0
 DEFAULT_BRANCH_ANGLE = 30.0
 
+_COMMENT_RE = re.compile(r"(//|#)[^\n]*")
 _EDGE_RE = re.compile(r"^(?:Edge(?P<num>[0-9]+)|(?P<letter>[A-Z]))(?:_i(?P<off>[+-][0-9]+)?(?P<timed>))?$")
 
 
@@ -513,7 +514,7 @@ def parse(text: str, source: str = "<text>", *, name: str = "") -> RewriteSystem
     """Read a rewrite system; malformed text raises ParseError naming line, column and what was expected."""
     if not isinstance(text, str):
         raise TypeError(f"parse() needs a str, got {type(text).__name__}")
-    if not text.strip():
+    if not _COMMENT_RE.sub("", text).strip():
         raise ParseError("empty rewrite system (the first statement must be the axiom)", source=source)
     try:
         tree = _parser().parse(text)

@@ -1,0 +1,832 @@
+"""Growth: the derivation step (journal 4.3) applied to a map held as half-edge arrays.
+
+A derivation step is (1) increase size (``Environment.increase_size``), (2) apply the rewrite rules
+and (3) join branches. Rules are grouped by predecessor label and the groups are applied in the order
+of their first rule; every edge carrying the label when its group starts (including edges made
+earlier in the same step by other labels' rules or by joined branches) is rewritten by the first rule
+of the group whose context and condition match, one successor drawn by weight. The successor's
+template (genr8_dist.hemls.turtle) is placed on the edge's frame: heading along the edge, up along
+the surface normal (the mean normal of the regions on both sides). Branches join after each group
+(default) or once after all groups (``Sync``); unjoined branches are dropped at the end of the step.
+
+The map is a half-edge structure: edge e has half-edges 2e (start to end) and 2e+1 (end to start);
+``nxt``/``prv`` link the half-edges around each face, faces lying to the left of their half-edges
+(face 0 is the outside). Every operation is vectorized over all edges or joins of one kind, so a
+step costs a bounded number of passes over the arrays.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from genr8_dist.errors import GrowthError
+from genr8_dist.hemls.language import RewriteSystem
+from genr8_dist.hemls.surface import Surface
+from genr8_dist.hemls.turtle import AT_END, LEFT, RIGHT, Template, draw, sector_side
+from genr8_dist.rng import stream
+
+__all__ = ["GrowthResult", "StepStats", "grow", "seed_surface"]
+
+
+@dataclass(frozen=True)
+class StepStats:
+    """Size of the map after one derivation step and the seconds the step took."""
+
+    step: int
+    n_vertices: int
+    n_edges: int
+    n_regions: int
+    seconds: float
+
+
+@dataclass(frozen=True)
+class GrowthResult:
+    """The grown surface, per-step statistics, the cap that stopped growth early (``"edges"`` or
+    ``"time"``, else None), and with ``keep_steps`` the surface after each step (``history[0]`` is the
+    seed, ``history[i]`` the surface after step i)."""
+
+    surface: Surface
+    steps: list[StepStats]
+    capped: str | None = None
+    history: list[Surface] = field(default_factory=list)
+
+    @property
+    def seconds(self) -> float:
+        """Total seconds spent in derivation steps."""
+        return sum(s.seconds for s in self.steps)
+
+
+class _Capped(Exception):
+    def __init__(self, what: str) -> None:
+        super().__init__(what)
+        self.what = what
+
+
+# -- compiled rewrite systems -----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Group:
+    label: int
+    rules: tuple[_CompiledRule, ...]
+
+
+@dataclass(frozen=True)
+class _CompiledRule:
+    left: int | None
+    right: int | None
+    condition: object
+    templates: tuple[Template, ...]
+    cumulative: np.ndarray  # cumulative normalized weights
+
+
+@dataclass(frozen=True)
+class _Compiled:
+    groups: tuple[_Group, ...]
+    axiom_labels: np.ndarray
+    axiom_reversed: np.ndarray
+    labels: np.ndarray  # every label the system uses (for label noise)
+    max_label: int
+    cos_cone: float
+    sync: bool
+
+
+@functools.lru_cache(maxsize=256)
+def _compile(system: RewriteSystem) -> _Compiled:
+    ids = system.label_ids()
+    groups: dict[int, list[_CompiledRule]] = {}
+    for rule in system.rules:
+        templates = tuple(draw(s, system.turn_angle, ids) for s in rule.successors)
+        w = np.array(rule.weights, dtype=np.float64)
+        cum = np.cumsum(w / w.sum())
+        cum[-1] = 1.0
+        groups.setdefault(ids[rule.predecessor.name], []).append(_CompiledRule(
+            None if rule.left is None else ids[rule.left.name],
+            None if rule.right is None else ids[rule.right.name],
+            rule.condition, templates, cum))
+    labels = np.array(sorted(set(ids.values())), dtype=np.int64)
+    return _Compiled(
+        groups=tuple(_Group(label, tuple(rules)) for label, rules in groups.items()),
+        axiom_labels=np.array([ids[e.segment.name] for e in system.axiom], dtype=np.int64),
+        axiom_reversed=np.array([e.reversed for e in system.axiom], dtype=bool),
+        labels=labels,
+        max_label=int(labels.max()) if len(labels) else 0,
+        cos_cone=math.cos(math.radians(system.cone_angle)),
+        sync=system.sync,
+    )
+
+
+# -- the map ----------------------------------------------------------------------------------------
+
+class _Map:
+    """Growable half-edge arrays; see the module docstring."""
+
+    def __init__(self, positions: np.ndarray, masses: np.ndarray, labels: np.ndarray,
+                 reversed_: np.ndarray) -> None:
+        n = len(positions)
+        cap_v, cap_e = max(64, 4 * n), max(64, 4 * n)
+        self.pos = np.zeros((cap_v, 3))
+        self.mass = np.zeros(cap_v)
+        self.stopped = np.zeros(cap_v, dtype=bool)
+        self.pos[:n] = positions
+        self.mass[:n] = masses
+        self.nv = n
+        self.ev = np.zeros((cap_e, 2), dtype=np.int64)
+        self.label = np.zeros(cap_e, dtype=np.int64)
+        self.age = np.zeros(cap_e, dtype=np.int64)
+        self.alive = np.zeros(cap_e, dtype=bool)
+        self.nxt = np.full(2 * cap_e, -1, dtype=np.int64)
+        self.prv = np.full(2 * cap_e, -1, dtype=np.int64)
+        self.face = np.zeros(2 * cap_e, dtype=np.int64)
+        self.ne = n
+        k = np.arange(n)
+        a, b = k, (k + 1) % n
+        self.ev[:n, 0] = np.where(reversed_, b, a)
+        self.ev[:n, 1] = np.where(reversed_, a, b)
+        self.label[:n] = labels
+        self.alive[:n] = True
+        path = 2 * k + reversed_.astype(np.int64)  # half-edges along the polygon (counter-clockwise)
+        back = path ^ 1
+        self.nxt[path] = np.roll(path, -1)
+        self.nxt[back] = np.roll(back, 1)
+        self.face[path] = 1
+        self.face[back] = 0
+        self._relink_prev()
+        self.nf = 2  # face 0 = outside, face 1 = the seed polygon
+
+    # -- capacity ------------------------------------------------------------------------------
+    def reserve(self, nv: int, ne: int) -> None:
+        if nv > len(self.pos):
+            cap = max(nv, 2 * len(self.pos))
+            for name in ("pos", "mass", "stopped"):
+                old = getattr(self, name)
+                new = np.zeros((cap, *old.shape[1:]), dtype=old.dtype)
+                new[:self.nv] = old[:self.nv]
+                setattr(self, name, new)
+        if ne > len(self.ev):
+            cap = max(ne, 2 * len(self.ev))
+            for name in ("ev", "label", "age", "alive"):
+                old = getattr(self, name)
+                new = np.zeros((cap, *old.shape[1:]), dtype=old.dtype)
+                new[:self.ne] = old[:self.ne]
+                setattr(self, name, new)
+            for name, fill in (("nxt", -1), ("prv", -1), ("face", 0)):
+                old = getattr(self, name)
+                new = np.full(2 * cap, fill, dtype=np.int64)
+                new[:2 * self.ne] = old[:2 * self.ne]
+                setattr(self, name, new)
+
+    # -- derived ---------------------------------------------------------------------------------
+    def origin(self, h):
+        return self.ev[h >> 1, h & 1]
+
+    def dest(self, h):
+        return self.ev[h >> 1, 1 - (h & 1)]
+
+    def alive_halves(self) -> np.ndarray:
+        e = np.flatnonzero(self.alive[:self.ne])
+        return np.concatenate([2 * e, 2 * e + 1])
+
+    def _relink_prev(self) -> None:
+        h = self.alive_halves()
+        self.prv[self.nxt[h]] = h
+
+    def n_alive(self) -> int:
+        return int(np.count_nonzero(self.alive[:self.ne]))
+
+    def face_normals(self) -> np.ndarray:
+        """Unit area vector of every face (zero for the outside and for degenerate faces)."""
+        h = self.alive_halves()
+        f = self.face[h]
+        cr = np.cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
+        out = np.zeros((self.nf, 3))
+        for axis in range(3):
+            out[:, axis] = np.bincount(f, weights=cr[:, axis], minlength=self.nf)
+        out[0] = 0.0
+        norm = np.linalg.norm(out, axis=1)
+        ok = norm > 1e-300
+        out[ok] /= norm[ok, None]
+        out[~ok] = 0.0
+        return out
+
+    def perimeter_mask(self) -> np.ndarray:
+        h = self.alive_halves()
+        mask = np.zeros(self.nv, dtype=bool)
+        mask[self.origin(h[self.face[h] == 0])] = True
+        return mask
+
+    def edge_array(self) -> np.ndarray:
+        return self.ev[:self.ne][self.alive[:self.ne]]
+
+    # -- compaction and export --------------------------------------------------------------------
+    def compact(self) -> None:
+        """Drop dead edges and renumber, keeping the order of the living ones."""
+        alive = self.alive[:self.ne]
+        keep = np.flatnonzero(alive)
+        if len(keep) == self.ne:
+            return
+        new_of = np.full(self.ne, -1, dtype=np.int64)
+        new_of[keep] = np.arange(len(keep))
+        old_h = np.stack([2 * keep, 2 * keep + 1], axis=1).ravel()
+        hmap = np.full(2 * self.ne, -1, dtype=np.int64)
+        hmap[old_h] = np.arange(2 * len(keep))
+        nxt = hmap[self.nxt[old_h]]
+        face = self.face[old_h]
+        m = len(keep)
+        self.ev[:m] = self.ev[keep]
+        self.label[:m] = self.label[keep]
+        self.age[:m] = self.age[keep]
+        self.alive[:m] = True
+        self.alive[m:self.ne] = False
+        self.nxt[:2 * m] = nxt
+        self.face[:2 * m] = face
+        self.nxt[2 * m:2 * self.ne] = -1
+        self.ne = m
+        self._relink_prev()
+
+    def cycles(self, halves: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Walk the face cycles through ``halves``: (face of each cycle, offsets, origin vertices)."""
+        nxt = self.nxt
+        order = np.empty(len(halves), dtype=np.int64)
+        # pointer walk in lockstep from each face's smallest half-edge
+        face = self.face[halves]
+        order_f = np.argsort(face, kind="stable")
+        hs = halves[order_f]
+        fs = face[order_f]
+        first = np.ones(len(hs), dtype=bool)
+        first[1:] = fs[1:] != fs[:-1]
+        starts = hs[first]
+        faces = fs[first]
+        sizes = np.bincount(fs, minlength=self.nf)[faces]
+        offsets = np.zeros(len(starts) + 1, dtype=np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        cur = starts.copy()
+        longest = int(sizes.max()) if len(sizes) else 0
+        for i in range(longest):
+            active = i < sizes
+            order[offsets[:-1][active] + i] = cur[active]
+            cur[active] = nxt[cur[active]]
+        return faces, offsets, self.origin(order)
+
+    def surface(self) -> Surface:
+        h = self.alive_halves()
+        faces, offsets, verts = self.cycles(h)
+        inner = faces != 0
+        sizes = np.diff(offsets)
+        region_sizes = sizes[inner]
+        region_offsets = np.zeros(len(region_sizes) + 1, dtype=np.int64)
+        np.cumsum(region_sizes, out=region_offsets[1:])
+        mask = np.repeat(inner, sizes)
+        region_vertices = verts[mask]
+        outer = verts[np.repeat(~inner, sizes)]
+        perimeter = outer[::-1].copy()  # the outside face runs clockwise
+        alive = self.alive[:self.ne]
+        return Surface(self.pos[:self.nv].copy(), self.ev[:self.ne][alive], self.label[:self.ne][alive],
+                       self.age[:self.ne][alive], region_offsets, region_vertices, perimeter,
+                       masses=self.mass[:self.nv].copy(), stopped=self.stopped[:self.nv].copy())
+
+
+def _regular_polygon(n: int, length: float, centre) -> np.ndarray:
+    """A regular n-gon of side ``length``: first side along +x, counter-clockwise, centred."""
+    turns = np.arange(n) * (2.0 * math.pi / n)
+    steps = np.stack([np.cos(turns), np.sin(turns), np.zeros(n)], axis=1) * length
+    pts = np.vstack([np.zeros(3), np.cumsum(steps, axis=0)[:-1]])
+    return pts - pts.mean(axis=0) + np.asarray(centre, dtype=np.float64)
+
+
+def _seed_map(compiled: _Compiled, env) -> _Map:
+    n = len(compiled.axiom_labels)
+    if env.seed_polygon is not None:
+        pts = np.asarray(env.seed_polygon, dtype=np.float64)
+        if len(pts) != n:
+            raise GrowthError(f"{env.source}: seed_polygon has {len(pts)} points but the axiom has "
+                              f"{n} edges; give one point per axiom edge")
+    else:
+        pts = _regular_polygon(n, env.start_length, env.start_position)
+    masses = np.full(n, env.vertex_mass)
+    if getattr(env, "seed_masses", None) is not None:
+        masses = np.asarray(env.seed_masses, dtype=np.float64)
+    return _Map(pts, masses, compiled.axiom_labels, compiled.axiom_reversed)
+
+
+def seed_surface(system: RewriteSystem, env=None) -> Surface:
+    """The seed polygon of ``system`` in ``env`` as a surface (before any derivation step)."""
+    from genr8_dist.environment import Environment
+
+    env = Environment() if env is None else env
+    return _seed_map(_compile(system), env).surface()
+
+
+# -- the derivation step ------------------------------------------------------------------------------
+
+class _Branches:
+    """Pending branches of the current step: vertex, corner half-edge (leaving the vertex into the
+    region the branch points into; -1 when it points nowhere), label, age, heading, reversed, and the
+    surface normal it was drawn with."""
+
+    def __init__(self) -> None:
+        self.parts: list[tuple[np.ndarray, ...]] = []
+        self._cat: tuple[np.ndarray, ...] | None = None
+
+    def add(self, vertex, corner, label, age, heading, reversed_, normal) -> None:
+        if len(vertex):
+            self._flush_cat()
+            self.parts.append((vertex, corner, label, age, heading, reversed_, normal))
+
+    def _flush_cat(self) -> None:
+        if self._cat is not None:
+            self.parts = [self._cat]
+            self._cat = None
+
+    def arrays(self) -> tuple[np.ndarray, ...]:
+        if self._cat is None:
+            if not self.parts:
+                self._cat = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                             np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros(0, bool),
+                             np.zeros((0, 3)))
+            else:
+                self._cat = tuple(np.concatenate([p[i] for p in self.parts]) for i in range(7))
+            self.parts = []
+        return self._cat
+
+    def keep(self, mask: np.ndarray) -> None:
+        self._cat = tuple(a[mask] for a in self.arrays())
+
+    def remap_corners(self, repl: np.ndarray) -> None:
+        arrs = list(self.arrays())
+        c = arrs[1]
+        ok = c >= 0
+        c = c.copy()
+        c[ok] = repl[c[ok]]
+        arrs[1] = c
+        self._cat = tuple(arrs)
+
+    def __len__(self) -> int:
+        return len(self.arrays()[0])
+
+
+def _frames(m: _Map, idx: np.ndarray, normals: np.ndarray):
+    """Start, length and (heading, left, up) of edges ``idx``; up follows the surface normal."""
+    s, t = m.ev[idx, 0], m.ev[idx, 1]
+    p, q = m.pos[s], m.pos[t]
+    d = q - p
+    length = np.linalg.norm(d, axis=1)
+    safe = np.where(length > 1e-300, length, 1.0)
+    h = d / safe[:, None]
+    h[length <= 1e-300] = (1.0, 0.0, 0.0)
+    n = normals[m.face[2 * idx]] + normals[m.face[2 * idx + 1]]
+    for fallback in ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
+        u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
+        un = np.linalg.norm(u, axis=1)
+        bad = un < 1e-9
+        if not np.any(bad):
+            break
+        n = n.copy()
+        n[bad] = fallback
+    u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
+    un = np.linalg.norm(u, axis=1)
+    u = u / np.where(un > 1e-300, un, 1.0)[:, None]
+    left = np.cross(u, h)
+    return s, t, p, length, h, left, u
+
+
+class _Grower:
+    def __init__(self, system: RewriteSystem, env, rng: np.random.Generator, deadline: float) -> None:
+        self.c = _compile(system)
+        self.env = env
+        self.rng = rng
+        self.deadline = deadline
+        self.m = _seed_map(self.c, env)
+        self.max_edges = int(env.max_edges)
+
+    # -- step ------------------------------------------------------------------------------------
+    def step(self, step: int) -> None:
+        m = self.m
+        inc = self.env.increase_size(m.pos[:m.nv].copy(), step=step, masses=m.mass[:m.nv].copy(),
+                                     stopped=m.stopped[:m.nv].copy(), perimeter=m.perimeter_mask(),
+                                     edges=m.edge_array(), rng=self.rng)
+        m.pos[:m.nv] = inc.positions
+        m.stopped[:m.nv] = inc.stopped
+        max_dist = self.env.max_branch_distance(step)
+        pending = _Branches()
+        try:
+            for group in self.c.groups:
+                self._check_time()
+                self._rewrite_group(group, pending)
+                if not self.c.sync:
+                    self._join(pending, max_dist)
+            if self.c.sync:
+                self._join(pending, max_dist)
+        finally:
+            m.compact()
+
+    def _check_time(self) -> None:
+        if time.perf_counter() > self.deadline:
+            raise _Capped("time")
+
+    # -- rewriting -------------------------------------------------------------------------------
+    def _context_ok(self, idx: np.ndarray, end: int, label: int | None) -> np.ndarray:
+        """Whether some other edge at the start (end=0) or end (end=1) vertex of ``idx`` has ``label``."""
+        m = self.m
+        live = np.flatnonzero(m.alive[:m.ne])
+        width = self.c.max_label + 1
+        keys = np.concatenate([m.ev[live, 0], m.ev[live, 1]]) * width + np.tile(m.label[live], 2)
+        keys.sort()
+        v = m.ev[idx, end]
+        want = v * width + label
+        count = np.searchsorted(keys, want, side="right") - np.searchsorted(keys, want, side="left")
+        own = (m.label[idx] == label).astype(np.int64)  # the edge itself sits at that vertex too
+        return count - own > 0
+
+    def _rewrite_group(self, group: _Group, pending: _Branches) -> None:
+        m = self.m
+        idx = np.flatnonzero(m.alive[:m.ne] & (m.label[:m.ne] == group.label))
+        if not len(idx):
+            return
+        choice = np.full(len(idx), -1, dtype=np.int64)
+        for r, rule in enumerate(group.rules):
+            free = choice < 0
+            if not np.any(free):
+                break
+            ok = free.copy()
+            if rule.condition is not None:
+                ok &= rule.condition.holds(m.age[idx])
+            if rule.left is not None:
+                ok[ok] = self._context_ok(idx[ok], 0, rule.left)
+            if rule.right is not None:
+                ok[ok] = self._context_ok(idx[ok], 1, rule.right)
+            choice[ok] = r
+        batches: list[tuple[np.ndarray, Template]] = []
+        grow_edges = 0
+        for r, rule in enumerate(group.rules):
+            sel = idx[choice == r]
+            if not len(sel):
+                continue
+            if len(rule.templates) == 1:
+                which = np.zeros(len(sel), dtype=np.int64)
+            else:
+                which = np.searchsorted(rule.cumulative, self.rng.random(len(sel)), side="right")
+                which = np.minimum(which, len(rule.templates) - 1)
+            for j, tpl in enumerate(rule.templates):
+                part = sel[which == j]
+                if len(part):
+                    batches.append((part, tpl))
+                    grow_edges += len(part) * (tpl.n_segments - 1)
+        if m.n_alive() + grow_edges > self.max_edges:
+            raise _Capped("edges")
+        normals = m.face_normals()
+        for part, tpl in batches:
+            self._rewrite(part, tpl, normals, pending)
+
+    def _noisy(self, labels: np.ndarray) -> np.ndarray:
+        p = self.env.label_noise
+        if p <= 0 or not len(labels):
+            return labels
+        hit = self.rng.random(len(labels)) < p
+        out = labels.copy()
+        out[hit] = self.rng.choice(self.c.labels, size=int(hit.sum()))
+        return out
+
+    def _rewrite(self, idx: np.ndarray, tpl: Template, normals: np.ndarray, pending: _Branches) -> None:
+        m = self.m
+        n, k = len(idx), tpl.n_segments
+        s, t, p, length, h, left, up = _frames(m, idx, normals)
+        pts = tpl.points
+        world = (p[:, None, :] + length[:, None, None]
+                 * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
+                    + pts[None, :, 2, None] * up[:, None, :]))
+        nv0, ne0 = m.nv, m.ne
+        m.reserve(nv0 + n * (k - 1), ne0 + n * k)
+        new_v = nv0 + np.arange(n * (k - 1), dtype=np.int64).reshape(n, k - 1)
+        m.pos[nv0:nv0 + n * (k - 1)] = world[:, 1:k, :].reshape(-1, 3)
+        m.mass[nv0:nv0 + n * (k - 1)] = self.env.vertex_mass
+        m.stopped[nv0:nv0 + n * (k - 1)] = False
+        m.nv = nv0 + n * (k - 1)
+        chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
+        new_e = ne0 + np.arange(n * k, dtype=np.int64).reshape(n, k)
+        rev = tpl.main_reversed
+        a, b = chain[:, :k], chain[:, 1:]
+        m.ev[new_e, 0] = np.where(rev, b, a)
+        m.ev[new_e, 1] = np.where(rev, a, b)
+        m.label[new_e] = self._noisy(np.broadcast_to(tpl.main_labels, (n, k)).ravel()).reshape(n, k)
+        old_age = m.age[idx]
+        ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
+        m.age[new_e] = np.maximum(ages, 0)
+        m.alive[new_e] = True
+        m.ne = ne0 + n * k
+        # half-edges along the main line (start to end) and back
+        fwd = 2 * new_e + rev.astype(np.int64)
+        bwd = fwd ^ 1
+        ho, ht = 2 * idx, 2 * idx + 1
+        next_ho, next_ht = m.nxt[ho].copy(), m.nxt[ht].copy()
+        repl = np.arange(2 * m.ne, dtype=np.int64)
+        repl[ho] = fwd[:, 0]
+        repl[ht] = bwd[:, k - 1]
+        upto = 2 * ne0
+        m.nxt[:upto] = repl[m.nxt[:upto]]
+        m.nxt[fwd[:, k - 1]] = repl[next_ho]
+        m.nxt[bwd[:, 0]] = repl[next_ht]
+        if k > 1:
+            m.nxt[fwd[:, :-1]] = fwd[:, 1:]
+            m.nxt[bwd[:, 1:]] = bwd[:, :-1]
+        m.face[fwd] = m.face[ho][:, None]
+        m.face[bwd] = m.face[ht][:, None]
+        m.alive[idx] = False
+        m.nxt[ho] = -1
+        m.nxt[ht] = -1
+        m._relink_prev()
+        pending.remap_corners(repl)
+        # branches
+        nb = tpl.n_branches
+        if nb == 0:
+            return
+        j = tpl.branch_vertex
+        bvert = chain[:, j]  # (n, nb)
+        hd = tpl.branch_heading
+        heading = (hd[None, :, 0, None] * h[:, None, :] + hd[None, :, 1, None] * left[:, None, :]
+                   + hd[None, :, 2, None] * up[:, None, :])
+        corner = np.full((n, nb), -1, dtype=np.int64)
+        side = tpl.branch_side
+        for b in range(nb):
+            if side[b] == LEFT:
+                corner[:, b] = fwd[:, j[b]]
+            elif side[b] == RIGHT:
+                corner[:, b] = bwd[:, j[b] - 1]
+            elif side[b] == AT_END:
+                start_half = fwd[:, 0] if j[b] == 0 else bwd[:, k - 1]
+                for r in range(n):
+                    corner[r, b] = self._corner_at(int(start_half[r]), heading[r, b], up[r])
+        blabels = self._noisy(np.broadcast_to(tpl.branch_labels, (n, nb)).ravel())
+        bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
+                                    tpl.branch_ages), 0).ravel()
+        pending.add(bvert.ravel(), corner.ravel(), blabels, bages, heading.reshape(-1, 3),
+                    np.broadcast_to(tpl.branch_reversed, (n, nb)).ravel().copy(),
+                    np.repeat(up, nb, axis=0))
+
+    def _corner_at(self, h0: int, heading: np.ndarray, normal: np.ndarray) -> int:
+        """The half-edge leaving the vertex of ``h0`` into the region ``heading`` points into."""
+        m = self.m
+        v = int(m.origin(h0))
+        helper = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(normal, helper)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(normal, e1)
+
+        def flat(vec):
+            return np.array([vec @ e1, vec @ e2])
+
+        hflat = flat(heading)
+        here = m.pos[v]
+        h = h0
+        for _ in range(m.ne * 2):
+            forward = flat(m.pos[m.dest(h)] - here)
+            backward = flat(m.pos[m.origin(int(m.prv[h]))] - here)
+            if sector_side(forward, backward, hflat) == LEFT:
+                return h if m.face[h] != 0 else -1
+            h = int(m.prv[h]) ^ 1
+            if h == h0:
+                break
+        return -1
+
+    # -- joining -------------------------------------------------------------------------------------
+    def _join(self, pending: _Branches, max_dist: float) -> None:
+        if len(pending) < 2:
+            return
+        m = self.m
+        vert, corner, label, age, heading, rev, normal = pending.arrays()
+        n = len(vert)
+        ok = corner >= 0
+        face = np.where(ok, m.face[np.maximum(corner, 0)], 0)
+        ok &= face != 0
+        cand = np.flatnonzero(ok)
+        if len(cand) < 2:
+            return
+        key = face[cand] * (self.c.max_label + 1) + label[cand]
+        order = np.argsort(key, kind="stable")
+        cand = cand[order]
+        key = key[order]
+        first = np.ones(len(cand), dtype=bool)
+        first[1:] = key[1:] != key[:-1]
+        starts = np.flatnonzero(first)
+        sizes = np.diff(np.append(starts, len(cand)))
+        pi_all, pj_all = [], []
+        for size in np.unique(sizes):
+            size = int(size)
+            if size < 2:
+                continue
+            gs = starts[sizes == size]
+            if size <= 64:
+                ti, tj = np.triu_indices(size, 1)
+                pi = cand[(gs[:, None] + ti).ravel()]
+                pj = cand[(gs[:, None] + tj).ravel()]
+                keep = self._pair_ok(pi, pj, vert, heading, max_dist)
+                pi_all.append(pi[keep])
+                pj_all.append(pj[keep])
+            else:
+                for g in gs:
+                    members = cand[g:g + size]
+                    for x in range(size - 1):
+                        self._check_time()
+                        pi = np.full(size - x - 1, members[x])
+                        pj = members[x + 1:]
+                        keep = self._pair_ok(pi, pj, vert, heading, max_dist)
+                        pi_all.append(pi[keep])
+                        pj_all.append(pj[keep])
+        if not pi_all:
+            return
+        pi = np.concatenate(pi_all)
+        pj = np.concatenate(pj_all)
+        if not len(pi):
+            return
+        d = m.pos[vert[pj]] - m.pos[vert[pi]]
+        dist = np.linalg.norm(d, axis=1)
+        ci = np.einsum("ij,ij->i", heading[pi], d) / dist
+        cj = -np.einsum("ij,ij->i", heading[pj], d) / dist
+        score = -np.round(ci + cj, 9)
+        order = np.lexsort((pj, pi, np.round(dist, 9), score))
+        pi, pj = pi[order], pj[order]
+        used = np.zeros(n, dtype=bool)
+        live = np.ones(len(pi), dtype=bool)
+        while True:
+            self._check_time()
+            fi = m.face[corner[pi]]
+            fj = m.face[corner[pj]]
+            live &= ~used[pi] & ~used[pj] & (fi == fj) & (fi != 0)
+            at = np.flatnonzero(live)
+            if not len(at):
+                break
+            # one join per face per round (a join splits its face), best pair first
+            _, firsts = np.unique(fi[at], return_index=True)
+            chosen = at[np.sort(firsts)]
+            a, b = pi[chosen], pj[chosen]
+            adjacent = self._adjacent(corner[a], vert[b])
+            live[chosen[adjacent]] = False
+            chosen, a, b = chosen[~adjacent], a[~adjacent], b[~adjacent]
+            if not len(chosen):
+                continue
+            # one new edge per vertex pair per round
+            u, w = vert[a], vert[b]
+            pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
+            _, uniq = np.unique(pair_key, return_index=True)
+            if len(uniq) != len(chosen):
+                keep = np.zeros(len(chosen), dtype=bool)
+                keep[uniq] = True
+                chosen, a, b = chosen[keep], a[keep], b[keep]
+            room = self.max_edges - m.n_alive()
+            capped = len(chosen) > room
+            if capped:
+                chosen, a, b = chosen[:room], a[:room], b[:room]
+            if len(chosen):
+                used[a] = True
+                used[b] = True
+                live[chosen] = False
+                self._split(a, b, vert, corner, label, age, rev, used, heading, normal)
+            if capped:
+                pending.keep(~used)
+                raise _Capped("edges")
+        pending.keep(~used)
+
+    def _pair_ok(self, pi, pj, vert, heading, max_dist) -> np.ndarray:
+        m = self.m
+        cos_cone = self.c.cos_cone - 1e-9
+        d = m.pos[vert[pj]] - m.pos[vert[pi]]
+        dist = np.linalg.norm(d, axis=1)
+        ok = (vert[pi] != vert[pj]) & (dist > 1e-300) & (dist <= max_dist)
+        safe = np.where(dist > 1e-300, dist, 1.0)
+        ci = np.einsum("ij,ij->i", heading[pi], d) / safe
+        cj = -np.einsum("ij,ij->i", heading[pj], d) / safe
+        return ok & (ci >= cos_cone) & (cj >= cos_cone)
+
+    def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
+        """For each half-edge leaving u, whether u already has an edge to the matching target."""
+        m = self.m
+        found = np.zeros(len(start_halves), dtype=bool)
+        cur = start_halves.copy()
+        active = np.ones(len(cur), dtype=bool)
+        while np.any(active):
+            c = cur[active]
+            found[active] |= m.dest(c) == targets[active]
+            nxt = m.prv[c] ^ 1
+            cur[active] = nxt
+            active[active] = nxt != start_halves[active]
+        return found
+
+    def _split(self, a, b, vert, corner, label, age, rev, used, heading, normal) -> None:
+        """Join branch pairs (a, b): a new edge between their vertices splits each one's face; the
+        other pending branches at those corners move to the part of the corner they point into."""
+        m = self.m
+        j = len(a)
+        ne0 = m.ne
+        m.reserve(m.nv, ne0 + j)
+        e = ne0 + np.arange(j, dtype=np.int64)
+        u, w = vert[a], vert[b]
+        flip = rev[a]
+        m.ev[e, 0] = np.where(flip, w, u)
+        m.ev[e, 1] = np.where(flip, u, w)
+        m.label[e] = label[a]
+        m.age[e] = age[a]
+        m.alive[e] = True
+        m.ne = ne0 + j
+        x = 2 * e + flip.astype(np.int64)  # u -> w
+        y = x ^ 1  # w -> u
+        ha, hb = corner[a], corner[b]
+        pa, pb = m.prv[ha], m.prv[hb]
+        f = m.face[ha]
+        m.nxt[pa] = x
+        m.prv[x] = pa
+        m.nxt[x] = hb
+        m.prv[hb] = x
+        m.nxt[pb] = y
+        m.prv[y] = pb
+        m.nxt[y] = ha
+        m.prv[ha] = y
+        # walk both new cycles in lockstep; the shorter one becomes the new face
+        cx, cy = m.nxt[x], m.nxt[y]
+        open_ = np.ones(j, dtype=bool)
+        shorter_is_x = np.zeros(j, dtype=bool)
+        while np.any(open_):
+            done_x = open_ & (cx == x)
+            done_y = open_ & (cy == y) & ~done_x
+            shorter_is_x |= done_x
+            open_ &= ~(done_x | done_y)
+            cx = np.where(open_, m.nxt[cx], cx)
+            cy = np.where(open_, m.nxt[cy], cy)
+        new_face = m.nf + np.arange(j, dtype=np.int64)
+        m.nf += j
+        m.face[x] = f
+        m.face[y] = f
+        start = np.where(shorter_is_x, x, y)
+        cur = start.copy()
+        active = np.ones(j, dtype=bool)
+        while np.any(active):
+            m.face[cur[active]] = new_face[active]
+            cur[active] = m.nxt[cur[active]]
+            active &= cur != start
+        # pending branches whose corner was split: keep ha (sector from ha's direction round to the
+        # new edge) or move to the new edge's half leaving the same vertex
+        lookup = np.full(2 * m.ne, -1, dtype=np.int64)
+        lookup[ha] = np.arange(j)
+        lookup[hb] = j + np.arange(j)
+        waiting = np.flatnonzero(~used & (corner >= 0))
+        hit = waiting[lookup[corner[waiting]] >= 0]
+        if not len(hit):
+            return
+        slot = lookup[corner[hit]]
+        at_a = slot < j
+        pair = np.where(at_a, slot, slot - j)
+        here = m.pos[vert[hit]]
+        other = np.where(at_a[:, None], m.pos[w[pair]], m.pos[u[pair]])
+        old = corner[hit]
+        along = m.pos[m.dest(old)] - here
+        inside = _in_sweep(along, other - here, heading[hit], normal[hit])
+        corner[hit] = np.where(inside, old, np.where(at_a, x[pair], y[pair]))
+
+
+def _in_sweep(a: np.ndarray, b: np.ndarray, v: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Whether v lies strictly inside the counter-clockwise (about n) sweep from a to b, row-wise."""
+    def rel(p, q):
+        return np.arctan2(np.einsum("ij,ij->i", np.cross(p, q), n), np.einsum("ij,ij->i", p, q))
+
+    two_pi = 2.0 * np.pi
+    sweep = np.mod(rel(a, b), two_pi)
+    ang = np.mod(rel(a, v), two_pi)
+    return (ang > 1e-9) & (ang < sweep - 1e-9)
+
+
+def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int | None = None,
+         keep_steps: bool = False) -> GrowthResult:
+    """Grow ``system`` in ``env`` (default: the empty environment) for ``steps`` derivation steps
+    (default ``env.steps``) from ``seed`` (default ``env.seed``). Growth stops early, with
+    ``capped`` set, when the map would exceed ``env.max_edges`` or time passes ``env.max_seconds``;
+    the surface is then the valid map reached so far."""
+    from genr8_dist.environment import Environment
+
+    env = Environment() if env is None else env
+    n_steps = env.steps if steps is None else int(steps)
+    if n_steps < 0:
+        raise GrowthError(f"steps must be >= 0, got {n_steps}")
+    rng = stream(env.seed if seed is None else int(seed), "growth")
+    deadline = time.perf_counter() + env.max_seconds
+    grower = _Grower(system, env, rng, deadline)
+    history = [grower.m.surface()] if keep_steps else []
+    stats: list[StepStats] = []
+    capped = None
+    for step in range(1, n_steps + 1):
+        t0 = time.perf_counter()
+        try:
+            grower.step(step)
+        except _Capped as cap:
+            capped = cap.what
+        m = grower.m
+        n_regions = m.nf - 1  # faces are only ever split, never merged
+        stats.append(StepStats(step, m.nv, m.ne, n_regions, time.perf_counter() - t0))
+        if keep_steps:
+            history.append(m.surface())
+        if capped:
+            break
+    surface = history[-1] if keep_steps else grower.m.surface()
+    return GrowthResult(surface, stats, capped, history)

@@ -1,0 +1,279 @@
+"""Growth: the counts DESIGN.md promises, valid maps after every step, the Koch curves, caps and
+determinism, and the rule semantics (context, time, conditions, weights, branches)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from genr8_dist.environment import Environment
+from genr8_dist.hemls import grow, load_system, parse
+
+FLAT = Environment(scale=1.0)
+
+
+def _counts(result):
+    return [(s.n_vertices, s.n_edges, s.n_regions) for s in result.steps]
+
+
+@pytest.mark.parametrize("name", ["four_sided_tiles", "square"])
+def test_four_sided_tiles_counts_for_n_1_to_6(name):
+    result = grow(load_system(name), steps=6, keep_steps=True)
+    assert result.capped is None
+    expected = [((2**n + 1) ** 2, 2 * 2**n * (2**n + 1), 4**n) for n in range(1, 7)]
+    assert _counts(result) == expected
+    for surface in result.history:
+        assert surface.validate() == []
+    assert all(len(r) == 4 for r in result.surface.regions)
+
+
+def test_three_sided_tiles_counts_for_n_1_to_6():
+    result = grow(load_system("three_sided_tiles"), steps=6, keep_steps=True)
+    expected = []
+    for n in range(1, 7):
+        m = 2**n
+        expected.append(((m + 1) * (m + 2) // 2, 3 * m * (m + 1) // 2, 4**n))
+    assert _counts(result) == expected
+    for surface in result.history:
+        assert surface.validate() == []
+    assert all(len(r) == 3 for r in result.surface.regions)
+
+
+def test_four_sided_tiles_without_scaling_is_the_regular_grid():
+    n = 3
+    surface = grow(load_system("four_sided_tiles"), FLAT, steps=n).surface
+    side = 1.0 / 2**n
+    grid = np.round((surface.vertices[:, :2] + 0.5) / side).astype(int)
+    assert np.allclose(grid * side - 0.5, surface.vertices[:, :2], atol=1e-9)
+    assert np.all(surface.vertices[:, 2] == 0.0)
+    assert len({tuple(p) for p in grid}) == (2**n + 1) ** 2
+    lengths = np.linalg.norm(surface.vertices[surface.edges[:, 0]] - surface.vertices[surface.edges[:, 1]],
+                             axis=1)
+    assert np.allclose(lengths, side)
+
+
+def test_seed_is_a_centred_counter_clockwise_regular_polygon():
+    env = Environment(start_length=2.0, start_position=(1.0, 2.0, 3.0))
+    surface = grow(load_system("koch"), env, steps=0).surface
+    v = surface.vertices
+    assert np.allclose(v.mean(axis=0), (1.0, 2.0, 3.0))
+    assert np.allclose(v[1] - v[0], (2.0, 0.0, 0.0))  # first side along +x
+    assert np.allclose(np.linalg.norm(v - np.roll(v, -1, axis=0), axis=1), 2.0)
+    area_z = np.cross(v - v.mean(axis=0), np.roll(v, -1, axis=0) - v.mean(axis=0))[:, 2].sum()
+    assert area_z > 0  # counter-clockwise seen from +z: '+' turns left
+
+
+def _koch(points: np.ndarray, levels: int) -> np.ndarray:
+    """The Koch snowflake construction, independent of the turtle: bumps outside a CCW polygon."""
+    rot = np.array([[math.cos(-math.pi / 3), -math.sin(-math.pi / 3)],
+                    [math.sin(-math.pi / 3), math.cos(-math.pi / 3)]])
+    for _ in range(levels):
+        out = []
+        for p, q in zip(points, np.roll(points, -1, axis=0), strict=True):
+            d = (q - p) / 3
+            a = p + d
+            out += [p, a, a + rot @ d, p + 2 * d]
+        points = np.array(out)
+    return points
+
+
+def _quadratic_koch(points: np.ndarray, levels: int) -> np.ndarray:
+    steps = [(1, 0), (1, 1), (2, 1), (2, 0), (2, -1), (3, -1), (3, 0)]
+    for _ in range(levels):
+        out = []
+        for p, q in zip(points, np.roll(points, -1, axis=0), strict=True):
+            u = (q - p) / 4
+            v = np.array([-u[1], u[0]])  # u turned left
+            out.append(p)
+            out += [p + a * u + b * v for a, b in steps]
+        points = np.array(out)
+    return points
+
+
+def _perimeter_from_first(surface):
+    per = surface.perimeter()
+    start = int(np.flatnonzero(per == 0)[0])
+    return surface.vertices[np.roll(per, -start)][:, :2]
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4])
+def test_koch_curve_is_drawn_on_the_perimeter(n):
+    system = load_system("koch")
+    seed = grow(system, FLAT, steps=0).surface.vertices[:, :2]
+    surface = grow(system, FLAT, steps=n).surface
+    assert surface.n_vertices == 3 * 4**n and surface.n_regions == 1
+    assert surface.validate() == []
+    assert np.allclose(_perimeter_from_first(surface), _koch(seed, n), atol=1e-9)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_quadratic_koch_curve_is_drawn_on_the_perimeter(n):
+    system = load_system("quadratic_koch")
+    seed = grow(system, FLAT, steps=0).surface.vertices[:, :2]
+    surface = grow(system, FLAT, steps=n).surface
+    assert surface.n_vertices == 4 * 8**n and surface.n_regions == 1
+    assert surface.validate() == []
+    assert np.allclose(_perimeter_from_first(surface), _quadratic_koch(seed, n), atol=1e-9)
+
+
+def test_koch_with_scaling_is_the_scaled_curve():
+    system = load_system("koch")
+    flat = grow(system, FLAT, steps=3).surface.vertices
+    scaled = grow(system, steps=3).surface.vertices
+    centre = flat.mean(axis=0)
+    assert np.allclose((flat - centre) * 1.5**3 + centre, scaled, atol=1e-9)
+
+
+def test_sync_added_and_removed_still_gives_valid_maps():
+    four = load_system("four_sided_tiles")
+    four_sync = parse(four.to_text() + "Sync\n")
+    three = load_system("three_sided_tiles")
+    three_async = parse(three.to_text().replace("Sync\n", ""))
+    for system in (four_sync, three_async):
+        result = grow(system, steps=4, keep_steps=True)
+        assert result.capped is None
+        for surface in result.history:
+            assert surface.validate() == []
+    # joining once after all rules: the second pair of branches meets a face already split
+    assert _counts(grow(four_sync, steps=1))[0] == (8, 9, 2)
+
+
+def test_same_seed_same_bytes_and_seed_matters_for_weighted_rules():
+    system = parse("Edge0 + ~ Edge1 + ~ Edge0 + Edge1\n"
+                   "Edge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0 Weight 1\n"
+                   "  -> Edge0 - Edge0 + + Edge0 - Edge0\n"
+                   "Edge1 -> Edge1 [ [ + Edge0 ] - Edge0 ] Edge1\nAngle 90\n")
+    a = grow(system, steps=4, seed=7).surface
+    b = grow(system, steps=4, seed=7).surface
+    assert a.digest() == b.digest()
+    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.edges, b.edges)
+    digests = {grow(system, steps=4, seed=s).surface.digest() for s in range(5)}
+    assert len(digests) > 1
+
+
+def test_weights_choose_successors():
+    never = parse("Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 Edge0 Weight 1 -> Edge0 Weight 0\n")
+    assert grow(never, FLAT, steps=3).surface.n_edges == 3 * 2**3
+    both = parse("Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 Edge0 Weight 1 -> Edge0 Weight 1\n")
+    sizes = {grow(both, FLAT, steps=4, seed=s).surface.n_edges for s in range(6)}
+    assert len(sizes) > 1 and all(3 < n < 3 * 2**4 for n in sizes)
+
+
+def test_timed_edges_and_conditions_with_a_fallback_rule():
+    system = parse("Edge0 + Edge0 + Edge0\nEdge0_i -> Edge0_i+1 Edge0_i+1 If i < 2\n"
+                   "Edge0_i -> Edge0_i+1\n")
+    result = grow(system, FLAT, steps=4)
+    assert [s.n_edges for s in result.steps] == [6, 12, 12, 12]
+    assert np.all(result.surface.ages == 4)
+
+
+def test_plain_successor_edges_start_at_age_zero_and_ages_never_go_negative():
+    system = parse("Edge0 + Edge0 + Edge0\nEdge0_i -> Edge0_i-1 Edge0\n")
+    surface = grow(system, FLAT, steps=2).surface
+    assert surface.ages.min() == 0 and surface.ages.max() == 0
+
+
+def test_context_matches_edges_at_the_start_and_end_vertices():
+    # Edge0 runs v0->v1 with Edge2 at v0 and Edge1 at v1; Edge1 runs v1->v2 with Edge2 at v2
+    system = parse("Edge0 + Edge1 + Edge2\nEdge2 < Edge0 > Edge1 -> Edge0 Edge0\n"
+                   "Edge0 < Edge1 > Edge0 -> Edge1 Edge1\nEdge1 < Edge2 -> Edge2 Edge2 Edge2\n")
+    surface = grow(system, FLAT, steps=1).surface
+    assert np.bincount(surface.labels).tolist() == [2, 1, 3]
+
+
+def test_first_matching_rule_wins_within_a_label():
+    system = parse("Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 Edge0 Edge0\nEdge0 -> Edge0 Edge0\n")
+    assert grow(system, FLAT, steps=1).surface.n_edges == 9
+
+
+def test_edges_made_by_an_earlier_rule_are_rewritten_by_a_later_one_in_the_same_step():
+    system = parse("Edge0 + Edge0 + Edge0\nEdge0 -> Edge1 Edge1\nEdge1 -> Edge1 Edge1\n")
+    assert grow(system, FLAT, steps=1).surface.n_edges == 12
+
+
+def test_branch_distance_limit_stops_joins():
+    env = Environment(branch_length=0.1)
+    surface = grow(load_system("four_sided_tiles"), env, steps=3).surface
+    assert surface.n_regions == 1 and surface.n_edges == 4 * 2**3
+    assert surface.validate() == []
+
+
+def test_branch_angle_zero_still_joins_exactly_aligned_branches():
+    system = parse(load_system("four_sided_tiles").to_text() + "BranchAngle 0\n")
+    assert grow(system, steps=3).surface.n_regions == 64
+
+
+def test_branches_pointing_out_of_the_surface_never_join():
+    # every branch points outwards (right of a counter-clockwise polygon): nothing joins
+    system = parse("Edge0 + Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 [ - Edge0 ] Edge0\nAngle 90\n"
+                   "BranchAngle 90\n")
+    surface = grow(system, steps=2).surface
+    assert surface.n_regions == 1 and surface.n_edges == 16
+
+
+def test_label_noise_uses_the_systems_labels():
+    env = Environment(label_noise=1.0)
+    surface = grow(load_system("three_sided_tiles"), env, steps=3).surface
+    assert set(np.unique(surface.labels)) <= {0, 1, 2}
+    assert surface.validate() == []
+
+
+def test_edge_cap_stops_growth_and_says_so():
+    env = Environment(max_edges=100)
+    result = grow(load_system("four_sided_tiles"), env, steps=6)
+    assert result.capped == "edges"
+    assert result.surface.n_edges <= 100
+    assert result.surface.validate() == []
+    assert len(result.steps) < 6
+
+
+def test_time_cap_stops_growth_and_says_so():
+    env = Environment(max_seconds=1e-6)
+    result = grow(load_system("four_sided_tiles"), env, steps=8)
+    assert result.capped == "time"
+    assert result.surface.validate() == []
+
+
+def test_user_seed_polygon_replaces_the_regular_polygon():
+    square = ((0.0, 0.0, 0.0), (3.0, 0.0, 0.0), (3.0, 1.0, 0.0), (0.0, 1.0, 0.0))
+    env = Environment(seed_polygon=square, scale=1.0)
+    surface = grow(load_system("four_sided_tiles"), env, steps=2).surface
+    assert surface.n_regions == 16 and surface.validate() == []
+    assert np.allclose(surface.vertices.min(axis=0), (0, 0, 0))
+    assert np.allclose(surface.vertices.max(axis=0), (3, 1, 0))
+
+
+def test_seed_polygon_must_match_the_axiom():
+    from genr8_dist.errors import GrowthError
+
+    env = Environment(seed_polygon=((0, 0, 0), (1, 0, 0), (0, 1, 0)))
+    with pytest.raises(GrowthError, match="3 points but the axiom has 4"):
+        grow(load_system("four_sided_tiles"), env, steps=1)
+
+
+def test_three_dimensional_turtle_leaves_the_plane_and_keeps_a_valid_map():
+    system = parse("Edge0 + Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 & Edge0 ^ ^ Edge0 & Edge0\n"
+                   "Angle 45\n")
+    surface = grow(system, FLAT, steps=2).surface
+    assert np.ptp(surface.vertices[:, 2]) > 0.1
+    assert surface.validate() == []
+
+
+def test_keep_steps_history_starts_with_the_seed():
+    result = grow(load_system("square"), steps=2, keep_steps=True)
+    assert [h.n_regions for h in result.history] == [1, 4, 16]
+    assert result.history[-1].digest() == result.surface.digest()
+
+
+@pytest.mark.slow
+def test_four_sided_tiles_seven_steps_is_fast():
+    import time
+
+    system = load_system("four_sided_tiles")
+    grow(system, steps=2)
+    t0 = time.perf_counter()
+    result = grow(system, steps=7)
+    assert time.perf_counter() - t0 < 2.0
+    assert result.steps[-1].n_regions == 16384

@@ -1,0 +1,159 @@
+"""The HEMLS parser: every construct of the language, printing back, and located errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from genr8_dist.errors import ParseError
+from genr8_dist.hemls import PREDEFINED, Branch, Condition, Segment, load_system, parse
+
+AA_WEIGHTED = """Edge0 + ~ Edge1 + ~ Edge0 + Edge1
+Edge0 -> Edge0 [ [ + + Edge1 ] - - Edge1 ] Edge0    Weight 2
+     -> Edge0 - Edge0 + + Edge0 - Edge0
+Edge1 -> Edge1 [ [ + + Edge0 ] - - Edge0 ] Edge1    Weight 4
+     -> Edge1 \\ Edge1 / / Edge1 \\ Edge1
+Angle 90
+"""
+
+AA_TIMED = """Edge0 + ~ Edge1 + ~ Edge0 + Edge1
+Edge0_i -> Edge0_i+1 [ [ + Edge1_i ] - Edge1_i ] Edge0_i+1 If i < 3
+Edge0_i -> Edge0_i+1
+Edge1_i -> Edge1_i+1 [ [ + Edge0_i ] - Edge0_i ] Edge1_i+1 If i < 1
+Edge1_i -> Edge1_i+1
+Angle 90
+"""
+
+
+@pytest.mark.parametrize("name", PREDEFINED)
+def test_predefined_systems_parse_and_print_back(name):
+    system = load_system(name)
+    assert system.name == name
+    assert parse(system.to_text()) == system
+    assert len(system.axiom) >= 3 and system.rules
+
+
+def test_canonical_text_prints_back_unchanged():
+    text = ("Edge0 + ~ Edge1 + Edge2\n"
+            "Edge2 < Edge0 > Edge1 -> Edge0 [ [ + Edge1 ] - Edge1 ] ~ Edge0 Weight 3 -> Edge0 Weight 1\n"
+            "Edge1_i -> Edge1_i+1 & Edge2_i-1 ^ Edge1_i If i < 2\n"
+            "Edge2 -> Edge2\n"
+            "Angle 45\nSync\nBranchAngle 15.5\n")
+    assert parse(text).to_text() == text
+
+
+def test_manual_example_with_comments_and_single_brackets():
+    text = """Edge0 + Edge1 + Edge2 + Edge3
+// This is a comment, the parser ignores this text
+Edge0 -> Edge3 [ + Edge0 ] Edge1
+Edge1 -> Edge1
+Edge2 -> Edge1 [ + Edge0 ] Edge1
+Edge3 -> Edge2
+# Another comment
+Angle 90
+Sync
+BranchAngle 30
+"""
+    s = parse(text)
+    assert len(s.rules) == 4 and s.sync and s.angle == 90 and s.branch_angle == 30
+    assert s.rules[0].successors[0].symbols == (
+        Segment("Edge3"), Branch(("+", Segment("Edge0"))), Segment("Edge1"))
+
+
+def test_continuation_lines_and_weights():
+    s = parse(AA_WEIGHTED)
+    r0 = s.rules[0]
+    assert len(s.rules) == 2 and len(r0.successors) == 2
+    assert r0.weights == (2.0, 1.0)
+    assert s.rules[1].weights == (4.0, 1.0)
+    assert "\\" in s.rules[1].successors[1].symbols
+    # the one-line form is the same system
+    one_line = AA_WEIGHTED.replace("    Weight 2\n     ->", " Weight 2 ->").replace(
+        "    Weight 4\n     ->", " Weight 4 ->")
+    assert parse(one_line) == s
+
+
+def test_timed_rules_and_conditions():
+    s = parse(AA_TIMED)
+    r0 = s.rules[0]
+    assert r0.predecessor == Segment("Edge0", 0)
+    assert r0.condition == Condition("<", 3)
+    assert r0.successors[0].symbols[0] == Segment("Edge0", 1)
+    assert s.rules[1].condition is None
+    assert str(Segment("Edge2", -1)) == "Edge2_i-1"
+
+
+def test_semicolons_separate_statements_like_newlines():
+    text = "Edge0 + Edge1 + Edge2; Edge0 -> Edge0 Edge0; Angle 60; Sync"
+    s = parse(text)
+    assert s.angle == 60 and s.sync and len(s.rules) == 1
+    assert parse(s.to_text()) == s
+
+
+def test_context_forms():
+    s = parse("Edge0 + Edge1 + Edge2\nEdge1 < Edge0 -> Edge0\nEdge0 > Edge2 -> Edge0\n"
+              "Edge1 < Edge0 > Edge2 -> Edge0\n")
+    assert [(r.left, r.right) for r in s.rules] == [
+        (Segment("Edge1"), None), (None, Segment("Edge2")), (Segment("Edge1"), Segment("Edge2"))]
+
+
+def test_journal_letter_labels():
+    s = parse("A + B + A + B\nA -> A [ [ + B ] - B ] A\nB -> B [ [ + A ] - A ] B\nAngle 90\n"
+              "BranchAngle 90\n")
+    assert s.label_ids() == {"A": 0, "B": 1}
+    assert s.to_text().startswith("A + B + A + B\n")
+
+
+def test_axiom_reverse_either_side_of_plus():
+    a = parse("Edge0 + ~ Edge1 + Edge2")
+    b = parse("Edge0 ~ + Edge1 + Edge2")
+    assert a == b
+    assert [e.reversed for e in a.axiom] == [False, True, False]
+    assert parse("~ Edge0 + Edge1 + Edge2").axiom[0].reversed
+
+
+def test_defaults():
+    s = parse("Edge0 + Edge0 + Edge0")
+    assert s.angle is None and s.turn_angle == 90 and s.cone_angle == 30 and not s.sync
+    assert s.to_text() == "Edge0 + Edge0 + Edge0\n"
+
+
+@pytest.mark.parametrize(("text", "line", "column", "words"), [
+    ("Edge0 + Edge1", 1, 1, "at least 3 edges"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 => Edge1", 2, 7, "unexpected '='"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 -> Edge1 Weight\n", 2, 22, "expected a number"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 -> [ + Edge1 ]", 2, 10, "main line"),
+    ("Edge0 + Edge1 + Edge2\nAngle 400", 2, 7, "between 0 and 360"),
+    ("Edge0 + Edge1 + Edge2\nBranchAngle 95", 2, 13, "between 0 and 90"),
+    ("Edge0 + Edge1 + Edge2\n-> Edge1", 2, 1, "must follow a rewrite rule"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 -> Edge1 $", 2, 16, "unexpected character '$'"),
+    ("Edge0 - Edge1 + Edge2", 1, 7, "with '+' only"),
+    ("Edge0 + Edge1 + Edge2\nAngle 30\nAngle 40", 3, 1, "given twice"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 -> Edge1 [ + Edge2", 2, 25, "expected"),
+    ("Edge0 + Edge1 + Edge2\nEdge0_i+1 -> Edge1", 2, 1, "only be timed as Edge0_i"),
+    ("Edge0 + Edge1 + Edge2\nEdge0 -> Edge1 Weight 0 -> Edge0 Weight 0", 2, 1, "add up to 0"),
+])
+def test_errors_name_line_column_and_what_was_expected(text, line, column, words):
+    with pytest.raises(ParseError) as info:
+        parse(text, source="sys.hemls")
+    err = info.value
+    assert (err.line, err.column) == (line, column), str(err)
+    assert words in str(err)
+    assert str(err).startswith(f"sys.hemls:{line}:{column}: ")
+    assert "\n" not in str(err)
+
+
+def test_empty_text_is_an_error():
+    with pytest.raises(ParseError, match="empty"):
+        parse("   \n")
+    with pytest.raises(ParseError, match="empty"):
+        parse("// only a comment\n")
+
+
+def test_load_system_errors_and_files(tmp_path):
+    with pytest.raises(ParseError, match="not a file"):
+        load_system(tmp_path / "missing.hemls")
+    path = tmp_path / "mine.hemls"
+    path.write_text("Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 - Edge0 + + Edge0 - Edge0\nAngle 60\n")
+    assert load_system(path) == load_system("koch")
+    assert load_system(path).name == "mine"
+    assert load_system("four-sided-tiles") == load_system("four_sided_tiles")
