@@ -1,0 +1,416 @@
+"""Compile a universe's Lark grammar into flat tables the GE mapper and its inverse share.
+
+Lark's own grammar loader reads the ``.lark`` file (so a malformed file fails exactly as Lark would
+fail, with its line and column); this module then walks Lark's EBNF tree once per rule and turns it
+into a small tree of plain tuples (the *IR*), classifies every terminal by the naming conventions of
+``grammars/README.md`` (labelled edges, predecessor edges, bound ``EdgeX/Y/Z`` edges, line breaks,
+literals), reads the ``//@`` directives (repetition bias, repair rule, description), and precomputes
+each alternative's minimum depth so that the mapper can keep every derivation within ``max_depth``.
+
+IR nodes (tuples, first item the kind):
+
+``("lit", text)``                         emit ``text`` (``"\\n"`` ends a line)
+``("edge", kind, template, letter)``      kind ``"L"`` labelled, ``"P"`` predecessor, ``"C"`` context,
+                                          ``"B"`` bound (``letter`` X, Y or Z)
+``("rule", name)``                        expand another rule one level deeper (reads a codon)
+``("seq", (node, ...))``                  one after the other
+``("choice", (node, ...), group_id)``     an inline group ``( a | b )``: reads a codon, same depth
+``("rep", body, X, plus, rep_id)``        ``x*`` (``plus``: ``x+``), stop test ``codon mod (c+X) <= c``
+``("opt", body)``                         ``[x]`` / ``x?``: emit when ``codon mod 2 == 1``
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from genr8_dist.errors import UniverseError, located
+
+__all__ = ["CompiledGrammar", "EdgeTemplate", "compile_grammar"]
+
+_DIRECTIVE = re.compile(r"^\s*//@\s*(\S+)\s*(.*?)\s*$")
+_BOUND = re.compile(r"^EDGE_([XYZ])(?:_\w+)?$")
+_PRED = re.compile(r"^PRED(?:_\w+)?$")
+_CTX = re.compile(r"^CTX(?:_\w+)?$")
+_LABELLED = re.compile(r"^EDGE(?:_\w+)?$")
+_HOLE = re.compile(r"(\[0-9\]\+|\\d\+)")
+_META = set(".^$*+?{}[]|()")
+MAX_MAX_DEPTH = 100
+
+
+@dataclass(frozen=True, slots=True)
+class EdgeTemplate:
+    """How one edge terminal prints and reads: ``prefix + label + suffix`` (e.g. ``Edge`` ``3`` ``_i+1``)."""
+
+    terminal: str
+    prefix: str
+    suffix: str
+
+    def text(self, label: int) -> str:
+        """The token for ``label``."""
+        return f"{self.prefix}{label}{self.suffix}"
+
+    def regex(self) -> re.Pattern[str]:
+        """A pattern matching this terminal's tokens, the label as group 1."""
+        return re.compile(re.escape(self.prefix) + r"([0-9]+)" + re.escape(self.suffix))
+
+
+@dataclass(frozen=True)
+class CompiledGrammar:
+    """A universe's grammar as IR plus the tables the mapper and inverse need."""
+
+    source: str
+    text: str
+    rules: dict[str, tuple]            # rule name -> tuple of alternative IR nodes
+    need: dict[int, int]               # id(node) -> minimum height below the current rule
+    min_depth: dict[str, int]          # rule -> minimum height of its expansion (itself counts 1)
+    templates: tuple[EdgeTemplate, ...]
+    repair_rule: str | None
+    repair_depth: int                  # the depth at which the repair rule is expanded
+    description: str
+    start: str = "start"
+
+    def alt_need(self, node: tuple) -> int:
+        """Minimum height (in rule levels) that ``node`` adds below the rule it sits in."""
+        return self.need[id(node)]
+
+
+class _Ctx:
+    def __init__(self, source: str, text: str) -> None:
+        self.source = source
+        self.text = text
+
+    def fail(self, message: str, name: str | None = None) -> UniverseError:
+        line, col = _find(self.text, name) if name else (0, 0)
+        return UniverseError(located(message, self.source, line, col))
+
+
+def _find(text: str, name: str) -> tuple[int, int]:
+    """Line and column of the first non-comment occurrence of ``name`` in ``text`` (1-based)."""
+    pattern = re.compile(r"(?<![\w.])" + re.escape(name) + r"(?!\w)")
+    for lineno, line in enumerate(text.splitlines(), 1):
+        code = line.split("//", 1)[0]
+        m = pattern.search(code)
+        if m:
+            return lineno, m.start() + 1
+    return 0, 0
+
+
+def _lark_error(exc: Exception, ctx: _Ctx) -> UniverseError:
+    message = str(exc).strip()
+    first = message.splitlines()[0] if message else type(exc).__name__
+    m = re.search(r"at line (\d+) column (\d+)", message)
+    if m:
+        first = re.sub(r",?\s*at line \d+ column \d+.*", "", first)
+        return UniverseError(located(first, ctx.source, int(m.group(1)), int(m.group(2))))
+    line = getattr(exc, "line", 0) or 0
+    column = getattr(exc, "column", 0) or 0
+    if not line:
+        m = re.search(r"'([A-Za-z_]\w*)'", first)
+        if m:
+            line, column = _find(ctx.text, m.group(1))
+    return UniverseError(located(first, ctx.source, line, column))
+
+
+def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]], str | None, str]:
+    bias: dict[str, dict[int | None, int]] = {}
+    repair: str | None = None
+    description = ""
+    for lineno, line in enumerate(text.splitlines(), 1):
+        m = _DIRECTIVE.match(line)
+        if not m:
+            continue
+        word, rest = m.group(1), m.group(2)
+        where = (ctx.source, lineno, line.index("//@") + 1)
+        if word == "bias":
+            parts = rest.split()
+            bm = re.fullmatch(r"([A-Za-z_]\w*)(?:#([1-9][0-9]*))?", parts[0]) if len(parts) == 2 else None
+            if not bm or not parts[1].isdigit() or int(parts[1]) < 2:
+                raise UniverseError(located(
+                    f"bad directive '//@ bias {rest}': write '//@ bias RULE X' or '//@ bias RULE#K X' "
+                    "with X an integer >= 2", *where))
+            which = int(bm.group(2)) if bm.group(2) else None
+            bias.setdefault(bm.group(1), {})[which] = int(parts[1])
+        elif word == "repair":
+            if not re.fullmatch(r"[A-Za-z_]\w*", rest):
+                raise UniverseError(located(
+                    f"bad directive '//@ repair {rest}': write '//@ repair RULE'", *where))
+            repair = rest
+        elif word == "description":
+            description = rest
+        else:
+            raise UniverseError(located(
+                f"unknown directive '//@ {word}' (known: bias, repair, description)", *where))
+    return bias, repair, description
+
+
+def _literal(token, ctx: _Ctx, owner: str) -> tuple[str, str]:
+    """('lit', text) for a string literal, ('re', body) for a regular expression."""
+    value = str(token)
+    if token.type == "STRING":
+        body = value.rstrip("i")
+        try:
+            return "lit", ast.literal_eval(body)
+        except (ValueError, SyntaxError) as exc:
+            raise ctx.fail(f"cannot read string literal {value} in {owner}", owner) from exc
+    if token.type == "REGEXP":
+        return "re", value[1:value.rindex("/")]
+    raise ctx.fail(f"unsupported literal {value} in {owner}", owner)
+
+
+def _template(name: str, body: str, ctx: _Ctx) -> EdgeTemplate:
+    holes = list(_HOLE.finditer(body))
+    bad = ctx.fail(
+        f"edge terminal {name} must be written /PREFIX[0-9]+SUFFIX/ with literal text around one "
+        f"label hole, got /{body}/", name)
+    if len(holes) != 1:
+        raise bad
+    hole = holes[0]
+
+    def unescape(part: str) -> str:
+        out, i = [], 0
+        while i < len(part):
+            ch = part[i]
+            if ch == "\\":
+                if i + 1 >= len(part) or part[i + 1].isalnum():
+                    raise bad
+                out.append(part[i + 1])
+                i += 2
+                continue
+            if ch in _META:
+                raise bad
+            out.append(ch)
+            i += 1
+        return "".join(out)
+
+    prefix, suffix = unescape(body[:hole.start()]), unescape(body[hole.end():])
+    if not prefix or any(c.isspace() for c in prefix + suffix):
+        raise bad
+    return EdgeTemplate(name, prefix, suffix)
+
+
+def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
+    """Compile the Lark grammar ``text`` (read from ``source``) into a :class:`CompiledGrammar`."""
+    from lark.exceptions import LarkError
+    from lark.lexer import Token
+    from lark.load_grammar import GrammarBuilder
+    from lark.tree import Tree
+
+    ctx = _Ctx(source, text)
+    bias, repair_rule, description = _directives(text, ctx)
+    try:
+        builder = GrammarBuilder()
+        builder.load_grammar(text, source)
+        grammar = builder.build()
+    except LarkError as exc:
+        raise _lark_error(exc, ctx) from None
+
+    # Terminals: resolve each named terminal to a literal, an edge template or "unusable".
+    term_trees = {str(name): tree for name, (tree, _prio) in grammar.term_defs}
+    templates: dict[str, EdgeTemplate] = {}
+    term_kind: dict[str, tuple] = {}
+
+    def term_value(tree) -> tuple[str, str] | None:
+        node = tree
+        while isinstance(node, Tree) and node.data in ("expansions", "expansion", "value") \
+                and len(node.children) == 1:
+            node = node.children[0]
+        if isinstance(node, Tree) and node.data == "literal":
+            return _literal(node.children[0], ctx, "terminal")
+        return None
+
+    def classify(name: str) -> tuple:
+        if name in term_kind:
+            return term_kind[name]
+        if name not in term_trees:
+            raise ctx.fail(f"terminal {name} is used but not defined", name)
+        value = term_value(term_trees[name])
+        bound, pred, labelled = _BOUND.match(name), _PRED.match(name), _LABELLED.match(name)
+        context = _CTX.match(name)
+        if bound or pred or labelled or context:
+            if value is None or value[0] != "re":
+                raise ctx.fail(f"edge terminal {name} must be defined by a regular expression "
+                               "such as /Edge[0-9]+/", name)
+            templates.setdefault(name, _template(name, value[1], ctx))
+            index = list(templates).index(name)
+            if bound:
+                kind = ("edge", "B", index, bound.group(1))
+            else:
+                kind = ("edge", "P" if pred else "C" if context else "L", index, None)
+        elif value is not None and value[0] == "lit":
+            kind = ("lit", value[1])
+        else:
+            raise ctx.fail(f"terminal {name} cannot be generated: only string literals and edge "
+                           "terminals (EDGE*, PRED*, CTX*, EDGE_X/Y/Z) can appear in a universe's rules",
+                           name)
+        term_kind[name] = kind
+        return kind
+
+    rule_names = [str(name) for name, *_ in grammar.rule_defs]
+    rules: dict[str, tuple] = {}
+    rep_counter = [0]
+    group_counter = [0]
+
+    def convert(node, rule: str, reps: list[int]) -> tuple:
+        from lark.grammar import NonTerminal, Terminal
+
+        if isinstance(node, Terminal):
+            return classify(str(node.name))
+        if isinstance(node, NonTerminal):
+            if str(node.name) not in rule_names:
+                raise ctx.fail(f"rule {node.name} is used but not defined", str(node.name))
+            return ("rule", str(node.name))
+        if isinstance(node, Token):
+            raise ctx.fail(f"unexpected token {node!s} in rule {rule}", rule)
+        data = node.data
+        if data == "expansions":
+            alts = tuple(convert(child, rule, reps) for child in node.children)
+            if len(alts) == 1:
+                return alts[0]
+            group_counter[0] += 1
+            return ("choice", alts, group_counter[0])
+        if data == "alias":
+            return convert(node.children[0], rule, reps)
+        if data == "expansion":
+            items = tuple(convert(child, rule, reps) for child in node.children)
+            return items[0] if len(items) == 1 else ("seq", items)
+        if data == "value":
+            return convert(node.children[0], rule, reps)
+        if data == "literal":
+            kind, value = _literal(node.children[0], ctx, f"rule {rule}")
+            if kind != "lit":
+                raise ctx.fail(f"rule {rule} uses the regular expression /{value}/ directly; define "
+                               "an edge terminal (EDGE: /Edge[0-9]+/) instead", rule)
+            return ("lit", value)
+        if data == "maybe":
+            return ("opt", convert(node.children[0], rule, reps))
+        if data == "expr":
+            body, op = node.children[0], str(node.children[1])
+            if len(node.children) > 2 or op not in ("*", "+", "?"):
+                raise ctx.fail(f"rule {rule} uses the repetition range '~'; universes support "
+                               "only ?, [], *, + and groups", rule)
+            inner = convert(body, rule, reps)
+            if op == "?":
+                return ("opt", inner)
+            reps.append(0)
+            rep_counter[0] += 1
+            rule_bias = bias.get(rule, {})
+            x = rule_bias.get(len(reps), rule_bias.get(None, 2))
+            return ("rep", inner, x, op == "+", rep_counter[0])
+        raise ctx.fail(f"rule {rule} uses the Lark construct '{data}', which universes do not "
+                       "support (no templates, ranges or lookarounds)", rule)
+
+    for raw_name, params, tree, _options in grammar.rule_defs:
+        name = str(raw_name)
+        if params:
+            raise ctx.fail(f"rule {name} is a template; universes do not support templates", name)
+        reps: list[int] = []
+        top = tree
+        if isinstance(top, Tree) and top.data == "expansions":
+            alts = tuple(convert(child, name, reps) for child in top.children)
+        else:
+            alts = (convert(top, name, reps),)
+        rules[name] = alts
+        for which in bias.get(name, {}):
+            if which is not None and which > len(reps):
+                raise ctx.fail(f"'//@ bias {name}#{which}': rule {name} has only {len(reps)} "
+                               "repetition(s)", name)
+    for name in bias:
+        if name not in rules:
+            raise ctx.fail(f"'//@ bias {name}' names no rule of this universe", name)
+    if "start" not in rules:
+        raise UniverseError(located("a universe needs a rule named 'start'", source, 1, 1))
+
+    min_depth, need = _min_depths(rules, ctx)
+    repair_depth = 0
+    if repair_rule is not None:
+        if repair_rule not in rules:
+            raise ctx.fail(f"'//@ repair {repair_rule}' names no rule of this universe", repair_rule)
+        repair_depth = _reach_depth(rules, repair_rule)
+        if repair_depth == 0:
+            raise ctx.fail(f"repair rule {repair_rule} is not reachable from start", repair_rule)
+    return CompiledGrammar(source=source, text=text, rules=rules, need=need, min_depth=min_depth,
+                           templates=tuple(templates.values()), repair_rule=repair_rule,
+                           repair_depth=repair_depth, description=description)
+
+
+def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dict[int, int]]:
+    """Fixpoint of each rule's minimum derivation height, and every IR node's minimum need."""
+    md = {name: math.inf for name in rules}
+
+    def need(node) -> float:
+        kind = node[0]
+        if kind in ("lit", "edge"):
+            return 0
+        if kind == "rule":
+            return md[node[1]]
+        if kind == "seq":
+            return max((need(child) for child in node[1]), default=0)
+        if kind == "choice":
+            return min(need(child) for child in node[1])
+        if kind == "rep":
+            return need(node[1]) if node[3] else 0
+        return 0  # opt
+
+    changed = True
+    while changed:
+        changed = False
+        for name, alts in rules.items():
+            value = 1 + min(need(alt) for alt in alts)
+            if value < md[name]:
+                md[name] = value
+                changed = True
+    for name, value in md.items():
+        if value == math.inf:
+            raise ctx.fail(f"rule {name} can never finish: every alternative expands it again", name)
+
+    table: dict[int, int] = {}
+
+    def fill(node) -> None:
+        table[id(node)] = int(need(node))
+        if node[0] == "seq" or node[0] == "choice":
+            for child in node[1]:
+                fill(child)
+        elif node[0] in ("rep", "opt"):
+            fill(node[1])
+            table[id(node[1])] = int(need(node[1]))
+
+    for alts in rules.values():
+        for alt in alts:
+            fill(alt)
+    return {k: int(v) for k, v in md.items()}, table
+
+
+def _reach_depth(rules: dict[str, tuple], target: str) -> int:
+    """The shallowest depth (start = 1) at which ``target`` is expanded, 0 when unreachable."""
+    depth = {"start": 1}
+    frontier = ["start"]
+    while frontier:
+        nxt: list[str] = []
+        for name in frontier:
+            stack = list(rules[name])
+            while stack:
+                node = stack.pop()
+                if node[0] == "rule":
+                    if node[1] not in depth:
+                        depth[node[1]] = depth[name] + 1
+                        nxt.append(node[1])
+                elif node[0] in ("seq", "choice"):
+                    stack.extend(node[1])
+                elif node[0] in ("rep", "opt"):
+                    stack.append(node[1])
+        frontier = nxt
+    return depth.get(target, 0)
+
+
+def read_grammar_file(path: Path) -> str:
+    """The text of a ``.lark`` file; a missing or unreadable file is a :class:`UniverseError`."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise UniverseError(f"{path}: cannot read universe file: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise UniverseError(f"{path}: universe file is not UTF-8: {exc.reason}") from None

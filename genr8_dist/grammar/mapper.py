@@ -1,0 +1,366 @@
+"""The GE mapper: a universe's compiled grammar turned into one specialised Python function.
+
+Walking the grammar per codon is slow in Python, so each universe is compiled once into source code
+(one nested function per rule, literals merged into single ``extend`` calls, alternatives chosen
+through precomputed eligibility tables) and ``exec``'d; the result is cached per ``max_depth``.
+The semantics are Genr8's (``../shared/DESIGN.md``, thesis Appendix B, journal 5.1):
+
+* every rule expansion reads one codon, even with one alternative; the alternative is
+  ``codon mod n`` among the ``n`` alternatives that still fit in ``max_depth``;
+* a repetition reads a codon before each round and stops when ``codon mod (c + X) <= c``
+  (``c`` rounds so far, ``X`` the bias, default 2); ``x+`` emits one ``x`` first;
+* an option emits its body when ``codon mod 2 == 1``;
+* a labelled edge takes ``codon mod (count + 1)`` (a new label is born when it equals ``count``),
+  a predecessor edge ``codon mod count``; ``EdgeX/Y/Z`` bind within one rule expansion;
+* the genome wraps at most ``max_wraps`` times; reading past that raises ``StopIteration``, which
+  :class:`~genr8_dist.grammar.universe.Universe` turns into an invalid result with its reason.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from genr8_dist.grammar.compiler import CompiledGrammar
+
+__all__ = ["CompiledMapper", "build_source", "compile_mapper", "eligible"]
+
+_PRESIZE = 256
+
+
+def eligible(cg: CompiledGrammar, alts: tuple, depth: int, max_depth: int) -> tuple[int, ...]:
+    """Indices of ``alts`` that can finish within ``max_depth`` when expanded at ``depth``.
+
+    When none can (the universe is deeper than ``max_depth`` allows), the shallowest ones are
+    eligible, so that no genome is ever invalid because of depth.
+    """
+    needs = [cg.alt_need(alt) for alt in alts]
+    fit = tuple(i for i, n in enumerate(needs) if depth + n <= max_depth)
+    if fit:
+        return fit
+    low = min(needs)
+    return tuple(i for i, n in enumerate(needs) if n == low)
+
+
+class _Writer:
+    """Emits the Python source of one mapping function (main derivation or repair).
+
+    Rules that are not recursive are inlined, and where the depth is known when generating the code
+    (everything outside recursive rules) the eligible alternatives are decided here, not per codon.
+    A depth is ``(var, offset)``: ``(None, 3)`` is the constant 3, ``("d", 1)`` is ``d + 1``.
+    """
+
+    def __init__(self, cg: CompiledGrammar, max_depth: int, birth: bool, suffix: str) -> None:
+        self.cg = cg
+        self.maxd = max_depth
+        self.birth = birth
+        self.suffix = suffix
+        self.recursive = _recursive_rules(cg)
+        self.functions: dict[str, list[str]] = {}
+        self.pending: list[str] = []
+        self.counter = 0
+        self.draws = False
+
+    def fresh(self, stem: str) -> str:
+        self.counter += 1
+        return f"{stem}{self.counter}"
+
+    @staticmethod
+    def dexpr(dep: tuple) -> str:
+        var, off = dep
+        if var is None:
+            return str(off)
+        return f"{var} + {off}" if off else var
+
+    def body(self, root: str, depth: int) -> list[str]:
+        """Code (at indentation 0) expanding ``root`` at ``depth``, then every function it needs."""
+        self.draws = False
+        main: list[str] = []
+        self.rule_ref(root, main, 0, (None, depth))
+        main_draws = self.draws
+        while self.pending:
+            name = self.pending.pop()
+            self.draws = False
+            lines = [f"def r_{name}{self.suffix}(d):"]
+            self.inline_rule(name, lines, 1, ("d", 0))
+            if self.draws and self.birth:
+                lines.insert(1, "    nonlocal count")
+            self.functions[name] = lines
+        self.draws = main_draws
+        out: list[str] = []
+        for lines in self.functions.values():
+            out.extend(lines)
+        out.extend(main)
+        return out
+
+    def rule_ref(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
+        if name in self.recursive:
+            if name not in self.functions and name not in self.pending:
+                self.functions[name] = []
+                self.pending.append(name)
+            out.append(f"{'    ' * ind}r_{name}{self.suffix}({self.dexpr(dep)})")
+        else:
+            self.inline_rule(name, out, ind, dep)
+
+    def choose(self, alts: tuple, table: str, out: list[str], ind: int, dep: tuple,
+               scope: dict, bound: frozenset) -> None:
+        """Read a codon and run the chosen alternative among those eligible at ``dep``."""
+        pad = "    " * ind
+        if len(alts) == 1:
+            out.append(f"{pad}nxt()")
+            self.node(alts[0], out, ind, dep, scope, bound)
+            return
+        top = max(self.maxd, max(self.cg.min_depth.values())) + 2
+        if dep[0] is None:
+            sets = {eligible(self.cg, alts, dep[1], self.maxd)}
+        else:
+            sets = {eligible(self.cg, alts, d + dep[1], self.maxd) for d in range(1, top + 1)}
+        if len(sets) == 1:
+            elig = next(iter(sets))
+            if len(elig) == 1:
+                out.append(f"{pad}nxt()")
+                self.node(alts[elig[0]], out, ind, dep, scope, bound)
+                return
+            k = self.fresh("k")
+            out.append(f"{pad}{k} = nxt() % {len(elig)}")
+            for j, i in enumerate(elig):
+                out.append(f"{pad}{'if' if j == 0 else 'elif'} {k} == {j}:" if j < len(elig) - 1
+                           else f"{pad}else:")
+                self.block(alts[i], out, ind + 1, dep, scope, bound)
+            return
+        k, e = self.fresh("k"), self.fresh("e")
+        out.append(f"{pad}{e} = {table}[{self.dexpr(dep)}]")
+        out.append(f"{pad}{k} = {e}[nxt() % len({e})]")
+        used = sorted(set().union(*sets))
+        for j, i in enumerate(used):
+            out.append(f"{pad}{'if' if j == 0 else 'elif'} {k} == {i}:" if j < len(used) - 1
+                       else f"{pad}else:")
+            self.block(alts[i], out, ind + 1, dep, scope, bound)
+
+    def block(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
+              bound: frozenset) -> frozenset:
+        before = len(out)
+        result = self.node(node, out, ind, dep, scope, bound)
+        if len(out) == before:
+            out.append("    " * ind + "pass")
+        return result
+
+    def inline_rule(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
+        alts = self.cg.rules[name]
+        scope = {letter: self.fresh(f"b{letter}") for letter in sorted(_bound_letters(alts))}
+        for var in scope.values():
+            out.append(f"{'    ' * ind}{var} = -1")
+        self.choose(alts, f"EL_{name}", out, ind, dep, scope, frozenset())
+
+    def fits(self, need: int, dep: tuple) -> bool | str:
+        """True/False when known now, else the runtime test (as code) that the body fits."""
+        if need == 0:
+            return True
+        if dep[0] is None:
+            return dep[1] + need <= self.maxd
+        return f"{self.dexpr(dep)} + {need} <= {self.maxd}"
+
+    def node(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
+             bound: frozenset) -> frozenset:
+        """Append code for ``node``; returns the bound letters known to be drawn afterwards."""
+        pad = "    " * ind
+        kind = node[0]
+        if kind == "lit":
+            out.append(f"{pad}app({node[1]!r})")
+            return bound
+        if kind == "edge":
+            return self.edge(node, out, pad, scope, bound)
+        if kind == "rule":
+            self.rule_ref(node[1], out, ind, (dep[0], dep[1] + 1))
+            return bound
+        if kind == "seq":
+            items = list(node[1])
+            i = 0
+            while i < len(items):
+                if items[i][0] == "lit":
+                    j = i
+                    while j < len(items) and items[j][0] == "lit":
+                        j += 1
+                    if j - i > 1:
+                        texts = tuple(item[1] for item in items[i:j])
+                        out.append(f"{pad}ext_({texts!r})")
+                        i = j
+                        continue
+                bound = self.node(items[i], out, ind, dep, scope, bound)
+                i += 1
+            return bound
+        if kind == "choice":
+            self.choose(node[1], f"EG_{node[2]}", out, ind, dep, scope, bound)
+            return bound
+        if kind == "opt":
+            fit = self.fits(self.cg.alt_need(node[1]), dep)
+            if fit is False:
+                out.append(f"{pad}nxt()")
+                return bound
+            test = "nxt() & 1" if fit is True else f"nxt() & 1 and {fit}"
+            out.append(f"{pad}if {test}:")
+            self.block(node[1], out, ind + 1, dep, scope, bound)
+            return bound
+        if kind == "rep":
+            inner, x, plus = node[1], node[2], node[3]
+            if plus:
+                bound = self.node(inner, out, ind, dep, scope, bound)
+            fit = self.fits(self.cg.alt_need(inner), dep)
+            if fit is False:
+                out.append(f"{pad}nxt()")
+                return bound
+            c = self.fresh("c")
+            out.append(f"{pad}{c} = 0")
+            extra = "" if fit is True else f" and {fit}"
+            out.append(f"{pad}while nxt() % ({c} + {x}) > {c}{extra}:")
+            self.node(inner, out, ind + 1, dep, scope, bound)
+            out.append(f"{pad}    {c} += 1")
+            return bound
+        raise AssertionError(kind)
+
+    def draw(self, target: str, out: list[str], pad: str) -> None:
+        """Code that draws a labelled edge's label into ``target``."""
+        if not self.birth:
+            out.append(f"{pad}{target} = nxt() % count")
+            return
+        self.draws = True
+        out.append(f"{pad}{target} = nxt() % (count + 1)")
+        out.append(f"{pad}if {target} == count:")
+        out.append(f"{pad}    count += 1")
+        out.append(f"{pad}    if count >= len(ES0):")
+        out.append(f"{pad}        grow(count)")
+
+    def edge(self, node: tuple, out: list[str], pad: str, scope: dict, bound: frozenset) -> frozenset:
+        _, mode, template, letter = node
+        table = f"ES{template}"
+        if mode == "P" and self.birth:
+            out.append(f"{pad}lab = nxt() % count")
+            out.append(f"{pad}has_rule(lab)")
+            out.append(f"{pad}app({table}[lab])")
+            return bound
+        if mode in ("P", "C"):
+            out.append(f"{pad}app({table}[nxt() % count])")
+            return bound
+        if mode == "L":
+            self.draw("lab", out, pad)
+            out.append(f"{pad}app({table}[lab])")
+            return bound
+        var = scope[letter]
+        if letter not in bound:
+            out.append(f"{pad}if {var} < 0:")
+            self.draw(var, out, pad + "    ")
+        out.append(f"{pad}app({table}[{var}])")
+        return bound | {letter}
+
+
+def _recursive_rules(cg: CompiledGrammar) -> set[str]:
+    """Rules that can expand themselves again (directly or through others)."""
+    calls = {name: {n[1] for alt in alts for n in _walk(alt) if n[0] == "rule"}
+             for name, alts in cg.rules.items()}
+    result = set()
+    for name in calls:
+        seen, stack = set(), list(calls[name])
+        while stack:
+            cur = stack.pop()
+            if cur == name:
+                result.add(name)
+                break
+            if cur not in seen:
+                seen.add(cur)
+                stack.extend(calls[cur])
+    return result
+
+
+def _walk(node: tuple):
+    yield node
+    if node[0] in ("seq", "choice"):
+        for child in node[1]:
+            yield from _walk(child)
+    elif node[0] in ("rep", "opt"):
+        yield from _walk(node[1])
+
+
+def _bound_letters(alts: tuple) -> set[str]:
+    return {n[3] for alt in alts for n in _walk(alt) if n[0] == "edge" and n[1] == "B"}
+
+
+def build_source(cg: CompiledGrammar, max_depth: int) -> str:
+    """The Python source of the factory ``make(EL, EG, ES, grow)`` for this grammar and depth."""
+    lines = ["def make(EL, EG, ES, grow):"]
+    for name in cg.rules:
+        lines.append(f"    EL_{name} = EL[{name!r}]")
+    for gid in _group_ids(cg):
+        lines.append(f"    EG_{gid} = EG[{gid}]")
+    for i in range(max(1, len(cg.templates))):
+        lines.append(f"    ES{i} = ES[{i}]")
+    main = _Writer(cg, max_depth, birth=True, suffix="")
+    code = main.body(cg.start, 1)
+    lines.append("    def derive(nxt, out, has_rule):")
+    lines.append("        app = out.append")
+    lines.append("        ext_ = out.extend")
+    lines.append("        count = 2")
+    lines.extend("        " + line for line in code)
+    lines.append("        return count")
+    if cg.repair_rule is not None:
+        rep = _Writer(cg, max_depth, birth=False, suffix="_r")
+        code = rep.body(cg.repair_rule, cg.repair_depth)
+        lines.append("    def repair(nxt, out, count):")
+        lines.append("        app = out.append")
+        lines.append("        ext_ = out.extend")
+        lines.extend("        " + line for line in code)
+    else:
+        lines.append("    repair = None")
+    lines.append("    return derive, repair")
+    return "\n".join(lines) + "\n"
+
+
+def _group_ids(cg: CompiledGrammar) -> list[int]:
+    return sorted({n[2] for alts in cg.rules.values() for alt in alts for n in _walk(alt)
+                   if n[0] == "choice"})
+
+
+def _groups(cg: CompiledGrammar) -> dict[int, tuple]:
+    return {n[2]: n[1] for alts in cg.rules.values() for alt in alts for n in _walk(alt)
+            if n[0] == "choice"}
+
+
+@dataclass(frozen=True)
+class CompiledMapper:
+    """The mapping functions of one universe at one ``max_depth``.
+
+    ``derive(nxt, out, has_rule) -> count`` runs the main derivation, appending tokens to ``out``,
+    reading codons with ``nxt()`` and calling ``has_rule(label)`` for every ``PRED`` edge;
+    ``repair(nxt, out, count)`` expands the repair rule once with no new labels
+    (``None`` when the universe has no repair rule). ``tables`` holds each template's token strings.
+    """
+
+    derive: Callable
+    repair: Callable | None
+    tables: tuple[list[str], ...]
+    labels: dict[str, int]             # every edge token in ``tables`` -> its label
+    max_depth: int
+
+
+def compile_mapper(cg: CompiledGrammar, max_depth: int) -> CompiledMapper:
+    """Build the mapping functions of ``cg`` for ``max_depth``."""
+    code = build_source(cg, max_depth)
+    top = max(max_depth, max(cg.min_depth.values())) + 2
+    el = {name: tuple(eligible(cg, alts, d, max_depth) for d in range(top + 1))
+          for name, alts in cg.rules.items()}
+    eg = {gid: tuple(eligible(cg, alts, d, max_depth) for d in range(top + 1))
+          for gid, alts in _groups(cg).items()}
+    templates = cg.templates
+    tables: tuple[list[str], ...] = tuple(
+        [t.text(i) for i in range(_PRESIZE)] for t in templates) or ([],)
+    labels = {tok: i for table in tables for i, tok in enumerate(table)}
+
+    def grow(count: int) -> None:
+        for t, table in zip(templates, tables, strict=False):
+            start = len(table)
+            table.extend(t.text(i) for i in range(start, 2 * count + 1))
+            labels.update((table[i], i) for i in range(start, len(table)))
+
+    namespace: dict = {}
+    exec(compile(code, f"<universe {cg.source}>", "exec"), namespace)
+    derive, repair = namespace["make"](el, eg, tables, grow)
+    return CompiledMapper(derive=derive, repair=repair, tables=tables, labels=labels, max_depth=max_depth)

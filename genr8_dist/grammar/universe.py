@@ -1,0 +1,240 @@
+"""A universe: a Lark grammar (plus optional hooks) that maps genomes to rewrite systems and back.
+
+``Universe.map`` is Genr8's GE mapping (see :mod:`genr8_dist.grammar.mapper` for the exact rules);
+``Universe.invert`` is the thesis's *regn8* (see :mod:`genr8_dist.grammar.inverse`). A universe is
+compiled once, and its mapping function once per ``max_depth``; both are cached.
+"""
+
+from __future__ import annotations
+
+import re
+import threading
+from array import array
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from operator import length_hint
+from pathlib import Path
+from types import ModuleType
+
+from genr8_dist.errors import GenomeError, UniverseError
+from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
+from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
+from genr8_dist.grammar.mapper import CompiledMapper, _walk, compile_mapper
+
+__all__ = ["MapResult", "Universe", "check_genome"]
+
+
+@dataclass(frozen=True, slots=True)
+class MapResult:
+    """The outcome of mapping one genome.
+
+    ``text`` is the rewrite system (``None`` when invalid), ``reason`` says why a genome is invalid,
+    ``codons_used`` counts codons read (wrapping included) and ``wraps`` how often the genome wrapped.
+    """
+
+    text: str | None
+    valid: bool
+    reason: str | None
+    codons_used: int
+    wraps: int
+
+
+def check_genome(genome: Iterable[int]) -> list[int] | tuple[int, ...]:
+    """``genome`` as a list or tuple of non-negative ``int``; :class:`GenomeError` otherwise."""
+    if type(genome) is list or type(genome) is tuple:
+        if genome:
+            try:
+                array("Q", genome)  # C-speed check: ints only, none negative
+                return genome
+            except (TypeError, OverflowError):
+                pass
+        seq = genome
+    elif hasattr(genome, "dtype") and hasattr(genome, "tolist"):
+        kind = getattr(genome.dtype, "kind", "?")
+        if kind not in "iu" or getattr(genome, "ndim", 1) != 1:
+            raise GenomeError(f"a genome is a 1-D array of integers, got an array of dtype {genome.dtype} "
+                              f"with shape {getattr(genome, 'shape', '?')}")
+        seq = genome.tolist()
+    elif isinstance(genome, (list, tuple)):
+        seq = genome
+    elif isinstance(genome, (str, bytes)) or not isinstance(genome, Iterable):
+        raise GenomeError(f"a genome is a sequence of non-negative integers, got {type(genome).__name__}")
+    else:
+        seq = list(genome)
+    if not seq:
+        raise GenomeError("the genome is empty: it needs at least one codon")
+    if not set(map(type, seq)) <= {int}:
+        fixed = []
+        for i, value in enumerate(seq):
+            if isinstance(value, bool) or not hasattr(value, "__index__"):
+                raise GenomeError(f"codon {i} is {value!r}: codons are non-negative integers")
+            fixed.append(value.__index__())
+        seq = fixed
+    if min(seq) < 0:
+        i = next(i for i, v in enumerate(seq) if v < 0)
+        raise GenomeError(f"codon {i} is {seq[i]}: codons are non-negative integers")
+    return seq
+
+
+def _render(tokens: list[str]) -> str:
+    text = " ".join(tokens).replace(" \n ", "\n")
+    if text.endswith(" \n"):
+        text = text[:-2] + "\n"
+    return text
+
+
+class Universe:
+    """One universe of rewrite systems: its grammar, where it came from, its hooks.
+
+    ``name``: how it is looked up; ``origin``: ``"built-in"``, ``"plugin:<folder>"``, ``"path"`` or
+    ``"entry point:<dist>"``; ``path``: its ``.lark`` file.
+    """
+
+    def __init__(self, name: str, origin: str, path: Path, text: str,
+                 hooks: ModuleType | None = None) -> None:
+        self.name = name
+        self.origin = origin
+        self.path = path
+        self.grammar: CompiledGrammar = compile_grammar(text, str(path))
+        self.description = self.grammar.description
+        self.hooks = hooks
+        self._mappers: dict[int, CompiledMapper] = {}
+        self._lock = threading.Lock()
+        self._repair_hook: Callable[[RepairContext], None] | None = None
+        if hooks is not None and hasattr(hooks, "repair"):
+            self._repair_hook = hooks.repair
+        elif self.grammar.repair_rule is not None:
+            self._repair_hook = hemls_repair
+        if self._repair_hook is not None and self.grammar.repair_rule is None:
+            raise UniverseError(f"{path}: hooks.py defines repair() but the universe names no repair "
+                                "rule; add '//@ repair RULE'")
+        templates = self.grammar.templates
+        pred = [t for t in templates if t.terminal.startswith("PRED")] or list(templates)
+        self._pred_template = pred[0] if pred else None
+        self._has_pred = any(n[0] == "edge" and n[1] == "P" for alts in self.grammar.rules.values()
+                             for alt in alts for n in _walk(alt))
+        self._edge_res = [t.regex() for t in templates]
+        self._labels: dict[str, int | None] = {}
+        self._parser = None
+
+    def __repr__(self) -> str:
+        return f"Universe({self.name!r}, origin={self.origin!r}, path='{self.path}')"
+
+    # ----------------------------------------------------------------------------- mapping
+
+    def mapper(self, max_depth: int = 5) -> CompiledMapper:
+        """The compiled mapping functions for ``max_depth`` (built once, then cached)."""
+        m = self._mappers.get(max_depth)
+        if m is None:
+            if isinstance(max_depth, bool) or not isinstance(max_depth, int) \
+                    or not 1 <= max_depth <= MAX_MAX_DEPTH:
+                raise ValueError(f"max_depth must be an integer from 1 to {MAX_MAX_DEPTH}, got {max_depth!r}")
+            with self._lock:
+                m = self._mappers.get(max_depth)
+                if m is None:
+                    m = compile_mapper(self.grammar, max_depth)
+                    self._mappers[max_depth] = m
+        return m
+
+    def label_of(self, token: str) -> int | None:
+        """The label of an edge token of this universe (``Edge3_i+1`` -> 3), ``None`` otherwise."""
+        labels = self._labels
+        if token in labels:
+            return labels[token]
+        label = None
+        for regex in self._edge_res:
+            m = regex.fullmatch(token)
+            if m:
+                label = int(m.group(1))
+                break
+        if len(labels) < 100_000:
+            labels[token] = label
+        return label
+
+    def map(self, genome: Iterable[int], max_depth: int = 5, max_wraps: int = 2) -> MapResult:
+        """Map ``genome`` to a rewrite system; invalid genomes come back ``valid=False`` with a reason.
+
+        Raises :class:`GenomeError` only when ``genome`` is not a non-empty sequence of non-negative
+        integers, and ``ValueError`` for a ``max_depth`` or ``max_wraps`` out of range.
+        """
+        seq = check_genome(genome)
+        m = self._mappers.get(max_depth) or self.mapper(max_depth)
+        if type(max_wraps) is not int or max_wraps < 0:
+            raise ValueError(f"max_wraps must be a non-negative integer, got {max_wraps!r}")
+        # Most genomes finish without wrapping: try the genome itself first, and only build the
+        # wrapped copy (max_wraps + 1 repetitions) when the first pass runs out.
+        n = len(seq)
+        for ext in (seq, seq * (max_wraps + 1)) if max_wraps else (seq,):
+            it = iter(ext)
+            nxt = it.__next__
+            out: list[str] = []
+            has: set[int] = set()
+            try:
+                count = m.derive(nxt, out, has.add)
+                text = _render(out)
+                if self._repair_hook is not None:
+                    text = self._run_repair(m, nxt, out, text, count, has)
+            except StopIteration:
+                continue
+            used = len(ext) - length_hint(it)
+            return MapResult(text, True, None, used, (used - 1) // n if used else 0)
+        return MapResult(None, False,
+                         f"genome exhausted: {n} codons read {max_wraps + 1} times "
+                         f"(max_wraps={max_wraps}) without finishing the derivation",
+                         n * (max_wraps + 1), max_wraps)
+
+    def _run_repair(self, m: CompiledMapper, nxt: Callable[[], int], out: list[str], text: str,
+                    count: int, has: set[int]) -> str:
+        """Run the repair hook over ``text``; returns the repaired text."""
+        tokens = set(out)
+        occurring = set(range(2, count))
+        for table in m.tables:
+            if table[0] in tokens:
+                occurring.add(0)
+            if table[1] in tokens:
+                occurring.add(1)
+        if not self._has_pred:
+            has = rule_predecessors(text, self.label_of)
+        hook = self._repair_hook
+        if hook is hemls_repair and occurring <= has:
+            return text
+        repair = m.repair
+
+        def expand() -> list[str]:
+            successor: list[str] = []
+            repair(nxt, successor, count)
+            return successor
+
+        get = m.labels.get
+
+        def labels_in(tokens: list[str]) -> set[int]:
+            found = set(map(get, tokens))
+            found.discard(None)
+            return found
+
+        template = self._pred_template
+        ctx = RepairContext(text=text, expand=expand, occurring=occurring, has_rule=has,
+                            label_of=self.label_of, edge=template.text if template else str,
+                            count=count, labels_in=labels_in)
+        hook(ctx)
+        return ctx.text
+
+    # ----------------------------------------------------------------------------- inverse
+
+    def parser(self):
+        """A Lark Earley parser for this universe's rewrite systems (built once)."""
+        if self._parser is None:
+            from lark import Lark
+
+            text = self.grammar.text
+            if not re.search(r"^%ignore", text, re.MULTILINE):
+                text += '\n%ignore /[ \\t]+/\n'
+            self._parser = Lark(text, parser="earley", lexer="dynamic", keep_all_tokens=True,
+                                propagate_positions=False)
+        return self._parser
+
+    def invert(self, text: str, max_depth: int = 5) -> tuple[int, ...]:
+        """A genome that maps to ``text`` (labels renamed to birth order); :class:`InversionError` else."""
+        from genr8_dist.grammar.inverse import invert
+
+        return invert(self, text, max_depth=max_depth)
