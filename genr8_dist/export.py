@@ -198,8 +198,9 @@ def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any) -> np.ndar
     return colours
 
 
-def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray) -> None:
-    """Boundaries as light wireframes, attractors (green) and repellers (red) as dots, gravity an arrow."""
+def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray,
+                      vertices: np.ndarray | None = None) -> None:
+    """Boundaries as light wireframes, attractors (green dots) and repellers (red crosses)."""
     from genr8_dist.environment import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
 
     style = {"color": "0.45", "linewidth": 0.5, "alpha": 0.6, "zorder": 0}
@@ -241,14 +242,40 @@ def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray)
                                                  zorder=0))
     for force, colour, marker in ([(a, "tab:green", "o") for a in env.attractors]
                                   + [(r, "tab:red", "X") for r in env.repellers]):
-        ax.scatter(*np.asarray(force.position)[:, None], color=colour, marker=marker, s=70, depthshade=False,
-                   edgecolors="black", linewidths=0.6, zorder=5)
+        where = np.asarray(force.position)
+        # a charge under the surface is drawn before it (hidden where the surface covers it)
+        below = vertices is not None and len(vertices) and where[2] < _height_at(vertices, where)
+        ax.scatter(*where[:, None], color=colour, marker=marker, s=70, depthshade=False,
+                   edgecolors="black", linewidths=0.6, zorder=0.5 if below else 5)
+
+
+def _height_at(vertices: np.ndarray, point: np.ndarray) -> float:
+    """z of the surface vertex nearest ``point`` in plan (x, y)."""
+    nearest = int(np.argmin(np.sum((vertices[:, :2] - point[:2]) ** 2, axis=1)))
+    return float(vertices[nearest, 2])
+
+
+def _legend(env: Environment) -> str:
+    """One line naming what the environment holds (drawn under the picture)."""
+    parts = []
     g = np.asarray(env.gravity)
     if np.any(g):
-        top = np.array([lo[0], lo[1], hi[2]])
-        arrow = g / np.linalg.norm(g) * 0.2 * float(np.max(hi - lo))
-        ax.quiver(*top, *arrow, color="tab:blue", linewidth=2.0, arrow_length_ratio=0.3, zorder=5)
-        ax.text(*top, "  gravity", color="tab:blue", fontsize=8, zorder=5)
+        parts.append("gravity (" + ", ".join(f"{v:g}" for v in g) + ")/step")
+    if env.attractors:
+        parts.append(f"● {len(env.attractors)} attractor{'s' if len(env.attractors) > 1 else ''}")
+    if env.repellers:
+        parts.append(f"✖ {len(env.repellers)} repeller{'s' if len(env.repellers) > 1 else ''}")
+    for b in env.boundaries:
+        side = "inside" if b.allowed_inside else "outside"
+        parts.append(f"{b.kind} boundary ({b.behaviour}, {side} allowed)")
+    flags = [name.replace("_", " ") for name in ("fixed_perimeter", "fixed_centre", "uniform_cells")
+             if getattr(env, name)]
+    if env.repelling_points:
+        flags.append("repelling points")
+    if env.position_noise:
+        flags.append(f"position noise {env.position_noise:g}")
+    parts.extend(flags)
+    return "   ".join(parts)
 
 
 def _scene_bounds(env: Environment, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -278,8 +305,9 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
                size: tuple[float, float] = (8.0, 7.0), dpi: int = 120) -> Path:
     """Draw the surface (shaded regions, edges, axes, ``title``) into a PNG at ``path``; returns the path.
 
-    The subtitle gives the vertex, edge and region counts. With ``env`` the environment's boundaries,
-    attractors (green), repellers (red) and gravity (blue arrow) are drawn too.
+    The subtitle gives the vertex, edge and region counts. With ``env`` the environment's boundaries
+    (grey wireframes), attractors (green dots) and repellers (red crosses) are drawn too, and a line
+    under the picture lists gravity, boundaries and the internal forces in use.
     """
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -311,7 +339,10 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
                                                  zorder=2))
         if env is not None:
             lo, hi = _scene_bounds(env, lo, hi)
-            _draw_environment(ax, env, lo, hi)
+            _draw_environment(ax, env, lo, hi, vertices)
+            legend = _legend(env)
+            if legend:
+                fig.text(0.5, 0.02, legend, ha="center", va="bottom", fontsize=8, color="0.25")
         centre = (lo + hi) / 2
         extent = np.maximum(hi - lo, 0.08 * float(np.max(hi - lo)) if np.any(hi > lo) else 1.0)
         ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)

@@ -18,6 +18,10 @@ the per-axis scale ``s``, in this order:
 7. boundaries, in the order listed, resolve the move ``p_i -> q_i`` (see environment.boundaries);
    a final pass puts any vertex still on the wrong side of a hard boundary back at ``p_i`` (when
    ``p_i`` was allowed), so hard boundaries are never crossed.
+
+Before all this, a vertex that *starts* on the wrong side of a hard boundary (rewriting put it
+there: a new vertex on an edge that is a chord through a sphere) is first moved to the nearest
+allowed point of that boundary (and stopped there if the boundary is cut-off).
 """
 
 from __future__ import annotations
@@ -84,6 +88,9 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
     if n == 0:
         return SizeIncrease(p.copy(), stopped.copy())
 
+    stopped = stopped.copy()
+    if env.boundaries:
+        p = _repair(env, p, stopped)
     centre = p.mean(axis=0)
     move = (p - centre) * (np.asarray(env.scale) - 1.0)
     length = 0.0
@@ -118,6 +125,30 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
         q, new_stopped = _apply_boundaries(env, p, q, new_stopped)
     q[stopped] = p[stopped]
     return SizeIncrease(q, new_stopped)
+
+
+def _repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
+    """Bring vertices that start on the wrong side of a hard boundary back to its nearest allowed point.
+
+    Rewriting places new vertices along the turtle's lines, and a new edge between two vertices that
+    slid along a curved wall cuts through it (a chord of a sphere): its new vertex is then inside.
+    Such a vertex goes to the nearest point of the wall (the way it is most likely to have come
+    in); against a cut-off wall it also stops there. ``stopped`` is updated in place; vertices
+    already stopped never move.
+    """
+    hard = [b for b in env.boundaries if b.behaviour != "soft"]
+    if not hard:
+        return p
+    p = p.copy()
+    extent = float(np.max(np.abs(p)))
+    for _ in range(2):
+        for b in hard:
+            bad = np.flatnonzero((b.violation(p) > 0.0) & ~stopped)
+            if len(bad):
+                p[bad] = b.project(p[bad], extent)
+                if b.behaviour == "cut-off":
+                    stopped[bad] = True
+    return p
 
 
 def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: np.ndarray
