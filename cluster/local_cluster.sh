@@ -97,6 +97,9 @@ cmd_stop() {
   done
   for pid in "${pids[@]}"; do kill -0 "$pid" 2>/dev/null && kill -KILL "$pid" 2>/dev/null || true; done
   rm -f "$STATE"/*.pid
+  # `ray start` recorded this cluster as the machine's current one; forget it, as `ray stop` does
+  local current="${TMPDIR:-/tmp}/ray/ray_current_cluster"
+  if [[ -f "$current" ]] && grep -q ":$PORT\$" "$current"; then rm -f "$current"; fi
   echo "stopped ${#pids[@]} Ray node(s)"
 }
 

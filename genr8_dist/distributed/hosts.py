@@ -13,6 +13,7 @@ generation from the run store.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -50,13 +51,11 @@ class HostPool:
 
     def __init__(self, run_dir: str, n_islands: int, *, max_hosts: int | None = None,
                  timeout: float = 60.0) -> None:
-        import ray
 
         self.run_dir = run_dir
         self.n_islands = n_islands
         self.timeout = timeout
-        free = float(ray.available_resources().get("CPU", 0.0))
-        self.plan = plan_hosts(n_islands, free, max_hosts)
+        self.plan = plan_hosts(n_islands, self._free_cpus(n_islands), max_hosts)
         self._hosts: list[Any] = []
         self._alive: list[bool] = []
         self.placement: dict[int, int] = {}
@@ -67,6 +66,20 @@ class HostPool:
             self._alive.append(True)
         for island in range(n_islands):
             self.placement[island] = island % self.plan.hosts
+
+    @staticmethod
+    def _free_cpus(wanted: int, settle: float = 5.0) -> float:
+        """The cluster's free CPUs; waits up to ``settle`` seconds while fewer than ``wanted`` (and than
+        the cluster has) are free, since the CPUs of hosts killed just before take a moment to return."""
+        import ray
+
+        deadline = time.monotonic() + settle
+        while True:
+            free = float(ray.available_resources().get("CPU", 0.0))
+            total = float(ray.cluster_resources().get("CPU", 0.0))
+            if free >= min(wanted, math.floor(total)) or time.monotonic() >= deadline:
+                return free
+            time.sleep(0.1)
 
     def _new_host(self, num_cpus: float) -> Any:
         from genr8_dist.distributed.actors import remote_host_class

@@ -82,10 +82,11 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
         address = os.environ.get("RAY_ADDRESS") or None
         if address is not None and address != "auto" and "://" not in address:
             _probe(address)
-    kwargs: dict[str, Any] = {"logging_level": logging.WARNING, "log_to_driver": False}
+    kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
     try:
         if address is None:
-            ray.init(num_cpus=num_cpus, include_dashboard=False, **kwargs)
+            # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file)
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)
         else:
             ray.init(address=address, **kwargs)
     except (ConnectionError, TimeoutError, RuntimeError) as exc:
