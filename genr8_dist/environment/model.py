@@ -271,6 +271,22 @@ class Environment:
         return increase_size(self, positions, step=step, masses=masses, stopped=stopped, perimeter=perimeter,
                              edges=edges, rng=rng)
 
+    def constrain(self, positions: np.ndarray, *, stopped: np.ndarray) -> SizeIncrease:
+        """Bring vertices on the wrong side of a hard boundary to its nearest allowed point.
+
+        ``increase_size`` does this first thing each step; call it after rewriting too when the
+        surface must honour the boundaries exactly (new vertices on an edge that is a chord of a
+        curved wall lie inside it). Against a cut-off wall the vertex also stops. Returns the new
+        positions and the cumulative stop mask; inputs are not modified.
+        """
+        from genr8_dist.environment.physics import repair
+
+        points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+        mask = np.asarray(stopped, dtype=bool).copy()
+        if not self.boundaries or len(points) == 0:
+            return SizeIncrease(points.copy(), mask)
+        return SizeIncrease(repair(self, points, mask), mask)
+
     def count_soft_violations(self, positions: np.ndarray) -> int:
         """How many vertices lie on the wrong side of at least one soft boundary (the fitness uses it)."""
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)

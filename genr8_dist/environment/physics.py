@@ -35,7 +35,7 @@ from genr8_dist.errors import GrowthError
 if TYPE_CHECKING:
     from genr8_dist.environment.model import Environment, SizeIncrease
 
-__all__ = ["increase_size", "mean_edge_length", "neighbour_average"]
+__all__ = ["increase_size", "mean_edge_length", "neighbour_average", "repair"]
 
 
 def mean_edge_length(positions: np.ndarray, edges: np.ndarray, fallback: float) -> float:
@@ -90,7 +90,7 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
 
     stopped = stopped.copy()
     if env.boundaries:
-        p = _repair(env, p, stopped)
+        p = repair(env, p, stopped)
     centre = p.mean(axis=0)
     move = (p - centre) * (np.asarray(env.scale) - 1.0)
     length = 0.0
@@ -127,7 +127,7 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
     return SizeIncrease(q, new_stopped)
 
 
-def _repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
+def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
     """Bring vertices that start on the wrong side of a hard boundary back to its nearest allowed point.
 
     Rewriting places new vertices along the turtle's lines, and a new edge between two vertices that
