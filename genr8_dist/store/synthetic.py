@@ -142,9 +142,13 @@ def synthetic_epoch(
 
     origin, parents = _provenance(rng, island, generation, index, n_islands, pop)
     n_vertices = np.where(valid, rng.integers(8, 4000, size=n), 0).astype(np.int32)
-    digests = rng.integers(0, 2**63 - 1, size=(n, 2), dtype=np.int64)
-    digest = [f"{a:016x}{b:016x}" if v else None
-              for (a, b), v in zip(digests.tolist(), valid.tolist(), strict=True)]
+    digest_bytes = rng.integers(0, 256, size=(n, 16), dtype=np.uint8)
+    hex_chars = np.frombuffer(b"0123456789abcdef", dtype=np.uint8)
+    digest_hex = np.empty((n, 32), dtype=np.uint8)
+    digest_hex[:, 0::2] = hex_chars[digest_bytes >> 4]
+    digest_hex[:, 1::2] = hex_chars[digest_bytes & 15]
+    digest = pc.if_else(pa.array(valid), pa.array(digest_hex.view("S32").ravel()).cast(pa.string()),
+                        pa.scalar(None, pa.string()))
     timing = rng.gamma(2.0, 0.02, size=(4, n))
 
     ids = pc.binary_join_element_wise(
@@ -173,7 +177,7 @@ def synthetic_epoch(
         "n_regions": np.where(valid, n_vertices // 3, 0).astype(np.int32),
         "steps_done": np.where(valid, rng.integers(1, 9, size=n), 0).astype(np.int32),
         "capped": pa.array(np.where(valid & (n_vertices > 3800), "vertices", None), pa.string()),
-        "surface_digest": pa.array(digest, pa.string()),
+        "surface_digest": digest,
         "eval_seconds": timing.sum(axis=0),
         "map_seconds": timing[0],
         "grow_seconds": timing[1] + timing[2],
