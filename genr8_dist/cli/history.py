@@ -55,6 +55,8 @@ def register(subparsers: Any) -> None:
     _run_arg(p)
     p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
     p.add_argument("--depth", type=int, help="only this many generations back")
+    p.add_argument("--all", action="store_true",
+                   help="list every ancestor (default: the main line and 12 per generation)")
     p.add_argument("--png", metavar="OUT.png", help="also draw the ancestry to this PNG")
     p.set_defaults(handler=_lineage)
 
@@ -169,7 +171,7 @@ def _lineage(args: argparse.Namespace) -> int:
 
     store = history.open_run(args.run)
     table = history.lineage(store, args.id, depth=args.depth)
-    _print(_text.lineage_text(table, args.id))
+    _print(_text.lineage_text(table, args.id, per_generation=None if args.all else 12))
     if args.png:
         from genr8_dist.history import pictures
 

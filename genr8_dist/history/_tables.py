@@ -8,7 +8,6 @@ and rewrite-system texts are read only for the rows that are shown.
 
 from __future__ import annotations
 
-import heapq
 import math
 from typing import Any
 
@@ -230,13 +229,35 @@ def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Ta
     return rows.slice(0, 1)
 
 
+def _parse_ids(ids: pa.Array | pa.ChunkedArray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``"I-G-N"`` strings -> (island, generation, index) int64 arrays; -1 where a string is not an
+    id of this form (e.g. an individual injected from another run)."""
+    parts = pc.split_pattern(ids, "-")
+    ok = pc.fill_null(pc.equal(pc.list_value_length(parts), 3), False)
+    out = []
+    for k in range(3):
+        part = pc.list_element(pc.if_else(ok, parts, pa.scalar(["x", "x", "x"], parts.type)), k)
+        digits = pc.fill_null(pc.match_substring_regex(part, r"^[0-9]{1,9}$"), False)
+        ok = pc.and_(ok, digits)
+        out.append(part)
+    okn = ok.to_numpy(zero_copy_only=False)
+    arrays = []
+    for part in out:
+        clean = pc.if_else(ok, part, pa.scalar("0"))
+        values = pc.cast(clean, pa.int64()).to_numpy(zero_copy_only=False).copy()
+        values[~okn] = -1
+        arrays.append(values)
+    return arrays[0], arrays[1], arrays[2]
+
+
 def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     """The ancestry of individual ``id``: itself and every ancestor back to the first generation (or
     ``depth`` generations back), with how each was made (``origin``) and from whom (``parents``).
 
     ``main_line`` marks the chain that follows each individual's first parent (the one its genome
     starts from); ``missing`` lists parent ids the run does not hold (e.g. injected from another
-    run). Rows are sorted by generation (latest first), then island and index.
+    run). Rows are sorted by generation (latest first), then island and index. The walk is
+    vectorised over whole generations, so even an ancestry of a million individuals takes seconds.
     """
     store = open_run(run)
     data = dataset(store)
@@ -246,61 +267,69 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     columns = ["id", "generation", "island", "index", "origin", "parents", "fitness", "valid"]
     filt = (pc.field("generation") <= g0) & (pc.field("generation") >= lowest)
     table = data.to_table(columns=columns, filter=filt)
-    table = table.take(pc.sort_indices(table["generation"]))
-    gens = as_numpy(table["generation"], -1).astype(np.int64)
-    starts, counts = _groups(gens)
-    bounds = {int(gens[s]): (int(s), int(s + c)) for s, c in zip(starts, counts, strict=True)}
+    table = table.take(pc.sort_indices(table, sort_keys=[("generation", "ascending"),
+                                                         ("island", "ascending"),
+                                                         ("index", "ascending")]))
+    n = table.num_rows
+    gen = as_numpy(table["generation"], -1).astype(np.int64)
+    isl = as_numpy(table["island"], -1).astype(np.int64)
+    idx = as_numpy(table["index"], -1).astype(np.int64)
+    n_isl, n_idx = int(isl.max()) + 1, int(idx.max()) + 1
 
-    pending: dict[int, set[str]] = {g0: {str(id)}}
-    heap = [-g0]
-    found: list[int] = []
-    seen: set[str] = set()
-    missing: list[str] = []
-    while heap:
-        g = -heapq.heappop(heap)
-        wanted = pending.pop(g, set()) - seen
-        if not wanted:
-            continue
-        seen |= wanted
-        lo, hi = bounds.get(g, (0, 0))
-        part = table.slice(lo, hi - lo)
-        hits = np.flatnonzero(pc.is_in(part["id"], value_set=pa.array(sorted(wanted))).to_numpy(
-            zero_copy_only=False))
-        got = set(part["id"].take(pa.array(hits, pa.int64())).to_pylist())
-        missing.extend(sorted(wanted - got))
-        found.extend(int(lo + h) for h in hits)
-        for parents in part["parents"].take(pa.array(hits, pa.int64())).to_pylist():
-            for parent in parents or ():
-                where = parse_id(parent)
-                pg = where[1] if where is not None else -1
-                if where is None or pg < lowest or pg > g0:
-                    if where is None or pg > g0:
-                        missing.append(parent)
-                    continue
-                if parent in seen:
-                    continue
-                if pg not in pending:
-                    heapq.heappush(heap, -pg)
-                pending.setdefault(pg, set()).add(parent)
+    def key(i: np.ndarray, g: np.ndarray, k: np.ndarray) -> np.ndarray:
+        return ((g - lowest) * n_isl + i) * n_idx + k
 
-    result = table.take(pa.array(sorted(found), pa.int64()))
-    order = pc.sort_indices(result, sort_keys=[("generation", "descending"), ("island", "ascending"),
-                                               ("index", "ascending")])
-    result = result.take(order)
+    lookup = np.full((g0 - lowest + 1) * n_isl * n_idx, -1, dtype=np.int64)
+    lookup[key(isl, gen, idx)] = np.arange(n)
 
-    line: set[str] = set()
-    parents_of = dict(zip(result["id"].to_pylist(), result["parents"].to_pylist(), strict=True))
-    current: str | None = str(id)
-    while current is not None and current in parents_of and current not in line:
-        line.add(current)
-        first = parents_of[current] or []
-        current = first[0] if first else None
-    result = result.append_column(
-        "main_line", pa.array([i in line for i in result["id"].to_pylist()], pa.bool_()))
-    absent = set(missing)
+    parents = table["parents"].combine_chunks()
+    offsets = parents.offsets.to_numpy().astype(np.int64)
+    offsets = offsets - offsets[0]
+    flat = parents.flatten()
+    p_isl, p_gen, p_idx = _parse_ids(flat)
+    inside = (p_gen >= lowest) & (p_gen <= g0) & (p_isl >= 0) & (p_isl < n_isl) & (p_idx >= 0) & (
+        p_idx < n_idx)
+    parent_row = np.full(len(flat), -1, dtype=np.int64)
+    parent_row[inside] = lookup[key(p_isl[inside], p_gen[inside], p_idx[inside])]
+    beyond = (p_gen >= 0) & (p_gen < lowest)  # older than asked for: not missing, just not shown
+    missing_flat = (parent_row < 0) & ~beyond
+
+    starts, counts = _groups(gen)
+    start_row = int(np.flatnonzero(pc.equal(table["id"], str(id)).to_numpy(zero_copy_only=False))[0])
+    marked = np.zeros(n, dtype=bool)
+    marked[start_row] = True
+    for s, c in zip(starts[::-1], counts[::-1], strict=True):
+        lo, hi = int(offsets[s]), int(offsets[s + c])
+        owner = np.repeat(np.arange(s, s + c), np.diff(offsets[s:s + c + 1]))
+        while True:  # parents in the same generation (if any) are marked before moving on
+            chosen = parent_row[lo:hi][marked[owner]]
+            chosen = chosen[chosen >= 0]
+            fresh = chosen[~marked[chosen]]
+            if not len(fresh):
+                break
+            marked[fresh] = True
+            if not np.any((fresh >= s) & (fresh < s + c)):
+                break
+
+    line = np.zeros(n, dtype=bool)
+    current = start_row
+    while current >= 0 and not line[current]:
+        line[current] = True
+        first = offsets[current]
+        current = int(parent_row[first]) if offsets[current + 1] > first else -1
+
+    rows = np.flatnonzero(marked)
+    order = np.lexsort((idx[rows], isl[rows], -gen[rows]))
+    rows = rows[order]
+    result = table.take(pa.array(rows, pa.int64()))
+    result = result.append_column("main_line", pa.array(line[rows], pa.bool_()))
+    owner_all = np.repeat(np.arange(n), np.diff(offsets))
+    missing_rows = np.unique(owner_all[missing_flat & marked[owner_all]])
+    flat_text = flat.to_pylist() if len(missing_rows) else []
+    missing: dict[int, list[str]] = {int(r): [flat_text[j] for j in range(offsets[r], offsets[r + 1])
+                                              if missing_flat[j]] for r in missing_rows}
     result = result.append_column("missing", pa.array(
-        [[p for p in (ps or []) if p in absent] for ps in result["parents"].to_pylist()],
-        pa.list_(pa.string())))
+        [missing.get(int(r), []) for r in rows], pa.list_(pa.string())))
     return result
 
 

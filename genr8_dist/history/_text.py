@@ -93,38 +93,60 @@ def _how(origin: str, parents: list[str], island: int) -> str:
     return origin
 
 
-def lineage_text(table: pa.Table, id: str) -> str:
-    """The ancestry table from ``history.lineage`` as text: a summary, the main line, then every
-    ancestor by generation (``*`` marks the main line)."""
-    rows = table.to_pylist()
-    if not rows:
+def lineage_text(table: pa.Table, id: str, *, per_generation: int | None = 12) -> str:
+    """The ancestry table from ``history.lineage`` as text: a summary, the main line, then the
+    ancestors by generation (``*`` marks the main line), at most ``per_generation`` of each generation
+    besides the main line (``None``: all of them)."""
+    import numpy as np
+    import pyarrow.compute as pc
+
+    if table.num_rows == 0:
         return f"no ancestry for {id}"
-    me = next(r for r in rows if r["id"] == id)
-    origins: dict[str, int] = {}
-    for r in rows:
-        origins[r["origin"]] = origins.get(r["origin"], 0) + 1
-    gens = sorted({r["generation"] for r in rows})
-    founders = sum(1 for r in rows if r["generation"] == 0)
-    missing = sorted({p for r in rows for p in r["missing"]})
+    me = table.filter(pc.equal(table["id"], id)).to_pylist()[0]
+    origins = dict(zip(*[c.to_pylist() for c in pc.value_counts(table["origin"]).flatten()],
+                       strict=True))
+    gens = table["generation"].to_numpy()
+    n_gens = len(np.unique(gens))
+    founders = int((gens == 0).sum())
+    missing = sorted({p for ps in table.filter(pc.greater(pc.list_value_length(table["missing"]), 0))[
+        "missing"].to_pylist() for p in ps})
     summary = (f"ancestry of {id} (generation {me['generation']}, island {me['island']}, fitness "
-               f"{format_value(me['fitness'])}): {len(rows) - 1} ancestors over {len(gens)} generations; "
-               f"{origins.get('migrant', 0)} migrants, {origins.get('injected', 0)} injected, "
-               f"{founders} in generation 0")
+               f"{format_value(me['fitness'])}): {table.num_rows - 1} ancestors over {n_gens} "
+               f"generations; {origins.get('migrant', 0)} migrants, {origins.get('injected', 0)} "
+               f"injected, {founders} in generation 0")
     lines = [summary]
     if missing:
         lines.append(f"parents not in this run: {', '.join(missing)}")
-    chain = [r for r in rows if r["main_line"]]
-    chain.sort(key=lambda r: -r["generation"])
-    lines.append("main line (first parents): " + " <- ".join(
-        f"{r['id']} ({r['origin']}, {format_value(r['fitness'])})" for r in chain))
-    width = max(len(r["id"]) for r in rows)
+    chain = table.filter(table["main_line"]).to_pylist()
+    import textwrap
+
+    lines.extend(textwrap.wrap(" <- ".join(
+        f"{r['id']} ({r['origin']}, {format_value(r['fitness'])})" for r in chain),
+        width=110, initial_indent="main line (first parents): ", subsequent_indent="    ",
+        break_long_words=False, break_on_hyphens=False))
+    change = np.r_[True, gens[1:] != gens[:-1]]
+    group_start = np.maximum.accumulate(np.where(change, np.arange(len(gens)), 0))
+    position = np.arange(len(gens)) - group_start
+    size = np.bincount(gens - gens.min())[gens - gens.min()]
+    line = table["main_line"].to_numpy(zero_copy_only=False)
+    keep = line | (position < per_generation) if per_generation is not None else np.ones(len(gens), bool)
+    shown = table.filter(pa.array(keep)).to_pylist()
+    hidden = {int(g): int(size[i] - keep[i:i + size[i]].sum())
+              for i, g in enumerate(gens) if change[i]}
+    width = max(len(r["id"]) for r in shown)
     current = None
-    for r in rows:
+    for r in shown:
         if r["generation"] != current:
+            if current is not None and hidden[current]:
+                lines.append(f"   ... and {hidden[current]} more in generation {current}")
             current = r["generation"]
             lines.append(f"generation {current}")
         mark = "*" if r["main_line"] else " "
         fitness = format_value(r["fitness"]) if r["valid"] else "invalid"
         lines.append(f" {mark} {r['id'].ljust(width)}  fitness {fitness:>9}  "
                      f"{_how(r['origin'], r['parents'], r['island'])}")
+    if current is not None and hidden[current]:
+        lines.append(f"   ... and {hidden[current]} more in generation {current}")
+    if per_generation is not None and any(hidden.values()):
+        lines.append(f"({sum(hidden.values())} ancestors not listed; --all lists every one)")
     return "\n".join(lines)

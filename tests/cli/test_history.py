@@ -116,7 +116,7 @@ def test_top_by_criterion(capsys, run_dir):
 
 
 def test_lineage_text_and_png(capsys, run_dir, rows, tmp_path):
-    code, out, _ = _run(capsys, "lineage", run_dir, "3-49-10", "--png", tmp_path / "l.png")
+    code, out, _ = _run(capsys, "lineage", run_dir, "3-49-10", "--all", "--png", tmp_path / "l.png")
     assert code == 0
     parents = dict(zip(rows["id"].to_pylist(), rows["parents"].to_pylist(), strict=True))
     seen, todo = set(), ["3-49-10"]
@@ -132,6 +132,9 @@ def test_lineage_text_and_png(capsys, run_dir, rows, tmp_path):
     assert listed == seen
     assert "migrant from island" in out
     assert _is_png_with_content(tmp_path / "l.png")
+    code, short, _ = _run(capsys, "lineage", run_dir, "3-49-10")
+    assert code == 0 and short.splitlines()[:3] == out.splitlines()[:3]
+    assert "more in generation 0" in short and short.count("\n") < out.count("\n")
 
 
 def test_query_prints_and_writes(capsys, run_dir, rows, tmp_path):
