@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import re
 from pathlib import Path
 
 import numpy as np
@@ -127,8 +128,7 @@ def test_lineage_text_and_png(capsys, run_dir, rows, tmp_path):
             todo.extend(parents[current])
     assert out.splitlines()[0].startswith("ancestry of 3-49-10 (generation 49, island 3, fitness ")
     assert f": {len(seen) - 1} ancestors over 50 generations" in out.splitlines()[0]
-    listed = {line.split()[1] if line.startswith(" *") else line.split()[0]
-              for line in out.splitlines() if line.startswith("  ") or line.startswith(" *")}
+    listed = {m.group(1) for m in re.finditer(r"^ [ *] (\S+) +fitness ", out, re.MULTILINE)}
     assert listed == seen
     assert "migrant from island" in out
     assert _is_png_with_content(tmp_path / "l.png")
