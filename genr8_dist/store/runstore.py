@@ -346,11 +346,8 @@ class RunStore:
 
         key = str(island)
         entries = self._entries_holding(key, generation)
-        if not entries and generation > self._m["generations"].get(key, -1):
-            newest = _latest_manifest(self._fs)
-            if newest is not None and newest["version"] > self.version:
-                self._m = newest
-                entries = self._entries_holding(key, generation)
+        if not entries and generation > self._m["generations"].get(key, -1) and self._refreshed():
+            entries = self._entries_holding(key, generation)
         if not entries:
             done = self._m["generations"].get(key)
             held = f"its last committed generation is {done}" if done is not None else "it has none"
@@ -361,7 +358,12 @@ class RunStore:
         if cols is not None and "index" not in cols:
             cols.append("index")
         flt = (pc.field("island") == island) & (pc.field("generation") == generation)
-        table = self._read_entries(entries, columns=cols, filter=flt)
+        try:
+            table = self._read_entries(entries, columns=cols, filter=flt)
+        except StoreError:
+            if not self._refreshed():  # an old snapshot whose files compaction has since removed
+                raise
+            return self.generation_table(island, generation, columns)
         table = table.sort_by("index")
         if columns is not None and "index" not in columns:
             table = table.drop_columns(["index"])
@@ -386,18 +388,35 @@ class RunStore:
             for name in columns:
                 if name not in schema.names:
                     raise StoreError(f"{self._fs.show()}: no column {name!r} in individuals")
-        return self._read_entries(self._m["individuals"], columns=columns, filter=filter)
+        try:
+            return self._read_entries(self._m["individuals"], columns=columns, filter=filter)
+        except StoreError:
+            if not self._refreshed():
+                raise
+            return self.individuals(columns, filter)
+
+    def _refreshed(self) -> bool:
+        """Load the newest manifest if there is a newer one than this store's; whether there was."""
+        newest = _latest_manifest(self._fs)
+        if newest is None or newest["version"] <= self.version:
+            return False
+        self._m = newest
+        return True
 
     def dataset(self) -> ds.Dataset:
         """The committed individuals files as one pyarrow dataset (DuckDB can scan it)."""
         import pyarrow.dataset as ds
 
-        return ds.dataset(
-            [self._fs.full(e["path"]) for e in self._m["individuals"]],
-            schema=self.schema,
-            format="parquet",
-            filesystem=self._fs.fs,
-        )
+        try:
+            return ds.dataset(self.individual_files(), schema=self.schema, format="parquet",
+                              filesystem=self._fs.fs)
+        except OSError as exc:
+            if self._refreshed():
+                return self.dataset()
+            for e in self._m["individuals"]:
+                if self._check_entry(e, deep=False) is not None:
+                    raise self._read_error(e, exc) from None
+            raise StoreError(f"{self._fs.show()}: cannot read individuals: {exc}") from None
 
     def individual_files(self) -> list[str]:
         """The committed individuals files, as paths inside ``self.filesystem`` (local: absolute paths)."""
@@ -691,9 +710,9 @@ class RunStore:
         import pyarrow as pa
         import pyarrow.dataset as ds
 
-        dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.schema,
-                             format="parquet", filesystem=self._fs.fs)
         try:
+            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.schema,
+                                 format="parquet", filesystem=self._fs.fs)
             return dataset.to_table(columns=list(columns) if columns is not None else None, filter=filter)
         except (pa.ArrowException, OSError) as exc:
             for e in entries:

@@ -148,6 +148,20 @@ def test_a_reader_finds_generations_committed_after_it_opened(store: RunStore) -
     assert reader.verify() == []  # a newer intact manifest is not a problem
 
 
+def test_an_old_snapshot_still_reads_after_its_files_were_compacted_away(tmp_path: Path) -> None:
+    store = RunStore.create(tmp_path / "run", CONFIG, compact_every=None)
+    for g in range(4):
+        store.commit(epoch(range(g, g + 1)))
+    reader = RunStore.open(store.path)
+    store.compact(target_rows=1000)
+    for g in range(4, 4 + KEEP_MANIFESTS):
+        store.commit(epoch(range(g, g + 1)))
+    store.collect_garbage()
+    assert not (Path(store.path) / "individuals" / "part-0000000002.parquet").exists()
+    assert reader.load_generation(0, 1) == generation(0, 1)
+    assert reader.individuals().num_rows == (4 + KEEP_MANIFESTS) * 10
+
+
 def test_commits_must_follow_each_islands_last_generation(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     with pytest.raises(StoreError, match=r"island 0: .*generations \[1\].*next one to commit is 2"):
@@ -348,6 +362,17 @@ def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
     victim.write_bytes(bytes(data))
     problems = RunStore.open(store.path).verify()
     assert problems == [f"{victim}: corrupt: its sha256 differs from the one the manifest recorded"]
+
+
+def test_a_missing_individuals_file_is_named_by_every_reader(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    store.commit(epoch(range(2, 4)))
+    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    victim.unlink()
+    for read in (store.dataset, store.individuals, lambda: store.load_generation(1, 3)):
+        with pytest.raises(StoreError, match=r"part-0000000003\.parquet: missing \(the manifest names it\)"):
+            read()
+    assert store.load_generation(1, 1) == generation(1, 1)  # the intact commit still reads
 
 
 def test_a_missing_events_file_is_repaired_too(store: RunStore) -> None:
