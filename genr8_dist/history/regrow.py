@@ -77,15 +77,16 @@ def regrow(run: RunLike, id: str) -> Regrown:
     result = grow(system, config.environment)
     surface = result.surface
     digest = surface.digest()
-    counts = (len(surface.vertices), len(surface.edges), len(surface.regions))
-    recorded = (row["n_vertices"], row["n_edges"], row["n_regions"])
+    steps = len(result.steps) if hasattr(result.steps, "__len__") else int(result.steps)
+    counts = (len(surface.vertices), len(surface.edges), len(surface.regions), steps)
+    recorded = (row["n_vertices"], row["n_edges"], row["n_regions"], row["steps_done"])
     if digest != row["surface_digest"] or counts != recorded:
         raise HistoryError(
             f"regrowing {id} did not reproduce the recorded surface: digest {digest} vs "
             f"{row['surface_digest']}, "
-            f"(vertices, edges, regions) {counts} vs {recorded}; was the run made by another version "
+            f"(vertices, edges, regions, steps) {counts} vs {recorded}; was the run made by another version "
             f"of genr8_dist?")
-    return Regrown(row, config, system, surface, int(result.steps), digest, text_matches)
+    return Regrown(row, config, system, surface, steps, digest, text_matches)
 
 
 def _need_surface(result: Regrown, what: str) -> Any:
