@@ -1,0 +1,51 @@
+"""Hooks of the ``timed`` plugin universe: a repair that knows about conditions.
+
+A rule with a condition (``... If i < 2``) stops applying once its edges are old enough, so a label
+whose only rules are conditioned would freeze. This repair gives every label that occurs without an
+*unconditioned* rule one more rule, ``EdgeL_i -> <successor>``, expanded from the next codons with
+no new labels (the built-in HEMLS repair counts conditioned rules too).
+"""
+
+from __future__ import annotations
+
+from genr8_dist.grammar.hooks import RepairContext
+
+
+def _unconditioned(text: str, label_of) -> tuple[set[int], int]:
+    """Labels with a rule that has no condition, and the character offset after the last rule line."""
+    has: set[int] = set()
+    end = 0
+    offset = 0
+    for line in text.splitlines(keepends=True):
+        offset += len(line)
+        if "->" not in line:
+            continue
+        end = offset
+        if " If " in line:
+            continue
+        pred = line.split("->", 1)[0]
+        if "<" in pred:
+            pred = pred.split("<", 1)[1]
+        words = pred.split()
+        label = label_of(words[0]) if words else None
+        if label is not None:
+            has.add(label)
+    return has, end
+
+
+def repair(ctx: RepairContext) -> None:
+    """Add ``EdgeL_i -> successor`` for every occurring label L without an unconditioned rule."""
+    has, end = _unconditioned(ctx.text, ctx.label_of)
+    occurring = set(ctx.occurring)
+    missing = occurring - has
+    if not missing or not end:
+        return
+    new = []
+    while missing:
+        label = min(missing)
+        successor = ctx.expand()
+        new.append(" ".join([ctx.edge(label), "->", *successor]))
+        has.add(label)
+        occurring |= ctx.labels_in(successor)
+        missing = occurring - has
+    ctx.text = ctx.text[:end] + "\n".join(new) + "\n" + ctx.text[end:]
