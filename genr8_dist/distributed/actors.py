@@ -1,13 +1,14 @@
 """The island host: a Ray actor that keeps one or several islands and advances them a generation at a time.
 
 ``IslandHost`` is a plain class (testable without Ray); ``remote_host_class()`` wraps it as a Ray actor.
-An actor holds only each island's latest generation, to avoid sending it back and forth: the coordinator
-sends the generation number, the configuration in effect, the incoming migrants and any injected
-individuals, and receives the new generation. A host that lacks the generation before the one asked for
-(it was just created to replace a dead actor, or it adopted an island from one) reads it from the run
-store: per-generation traffic stays small, and a restarted actor rebuilds its state from the last
-commit. Because ``Island.step`` is a pure function of its inputs, the rebuilt island produces exactly
-what the lost one would have.
+An actor holds each island's latest generation and the configuration versions it was sent, so they are
+not sent back and forth: per generation the coordinator sends the generation number, the configuration
+version in force (the configuration itself only the first time), the incoming migrants and any injected
+individuals, and receives the new generation (genomes, criteria, provenance; never surfaces). A host
+that lacks the generation before the one asked for (it was just created to replace a dead actor, or
+it adopted an island from one) reads it from the run store: per-generation traffic stays small, and a
+restarted actor rebuilds its state from the last commit. Because ``Island.step`` is a pure function of
+its inputs, the rebuilt island produces exactly what the lost one would have.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ class IslandHost:
     def __init__(self, run_dir: str) -> None:
         self.run_dir = run_dir
         self._islands: dict[tuple[int, int], Any] = {}
+        self._configs: dict[int, Any] = {}
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
         self._store: Any = None
 
@@ -38,10 +40,14 @@ class IslandHost:
     def _island(self, island: int, config: Any, config_version: int) -> Any:
         from genr8_dist.evolution.island import Island
 
+        if config is not None:
+            self._configs[config_version] = config
         key = (island, config_version)
         found = self._islands.get(key)
         if found is None:
-            found = Island(config, island, config_version=config_version)
+            if config_version not in self._configs:
+                raise RuntimeError(f"island host was not sent configuration version {config_version}")
+            found = Island(self._configs[config_version], island, config_version=config_version)
             self._islands[key] = found
         return found
 
@@ -64,7 +70,10 @@ class IslandHost:
         migrants: Sequence[Individual] = (),
         injected: Sequence[Any] = (),
     ) -> list[Individual]:
-        """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest."""
+        """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
+
+        ``config`` is the configuration version ``config_version``; the coordinator sends it once per
+        host and version, and ``None`` afterwards (the host keeps it)."""
         model = self._island(island, config, config_version)
         if generation == 0:
             population = list(model.initial())

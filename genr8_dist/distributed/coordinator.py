@@ -150,6 +150,7 @@ class Coordinator:
         self._migrated = {e.generation for e in self._events() if e.kind == "migration"}
         self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
         self._pending_events: list[Any] = []
+        self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
 
     # -- reading the store ----------------------------------------------------------------------
 
@@ -275,7 +276,10 @@ class Coordinator:
                     migrants_after[g - 1] = self._migrants(g - 1, config)
                 migrants = migrants_after[g - 1][island]
             injected = self._injections.get((g, island), ())
-            ref = self.hosts.host_of(island).advance.remote(island, g, config, version, migrants, injected)
+            host = self.hosts.host_of(island)
+            send = (id(host), version) not in self._sent
+            self._sent.add((id(host), version))
+            ref = host.advance.remote(island, g, config if send else None, version, migrants, injected)
             pending[ref] = (island, g)
 
         def recover(island: int, exc: BaseException) -> None:
