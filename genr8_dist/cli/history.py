@@ -181,7 +181,8 @@ def _lineage(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from genr8_dist.history import _text, regrow
+    from genr8_dist.history import _regrow as regrow
+    from genr8_dist.history import _text
 
     result = regrow.regrow(args.run, args.id)
     row = result.row

@@ -6,6 +6,9 @@ gets the same data the ``genr8 history / top / lineage / query`` commands print.
 
 from __future__ import annotations
 
+from genr8_dist.history import pictures, report
+from genr8_dist.history._regrow import EXPORT_FORMATS, Regrown, export, regrow, save_text
+from genr8_dist.history._regrow import picture as surface_png
 from genr8_dist.history._run import HistoryError, open_run, write_table
 from genr8_dist.history._tables import (
     configs,
@@ -19,15 +22,23 @@ from genr8_dist.history._tables import (
 )
 
 __all__ = [
+    "EXPORT_FORMATS",
     "HistoryError",
+    "Regrown",
     "configs",
     "events",
+    "export",
     "individual",
     "interventions",
     "lineage",
     "open_run",
     "per_generation",
+    "pictures",
     "query",
+    "regrow",
+    "report",
+    "save_text",
+    "surface_png",
     "top",
     "write_table",
 ]

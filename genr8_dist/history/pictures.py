@@ -328,9 +328,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     """The contact sheet of the ``k`` best valid individuals of ``generation`` (negative counts back
     from the last; ``None``: the whole run), of one ``island``, or the best ``k`` of each island with
     ``per_island``; each regrown from its row. Returns the figure and a one-line description."""
+    from genr8_dist.history._regrow import regrow
     from genr8_dist.history._run import dataset
     from genr8_dist.history._tables import _resolve_generation, top
-    from genr8_dist.history.regrow import regrow
 
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")

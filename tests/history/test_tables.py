@@ -255,3 +255,23 @@ def test_accepts_an_open_store(history_run):
     store = RunStore.open(history_run)
     assert history.top(store, 3).equals(history.top(history_run, 3))
     assert math.isfinite(history.per_generation(store)["best"][0].as_py())
+
+
+def test_the_documented_example_queries_run(history_run):
+    """Every ```sql block of docs/history.md runs on a real run and returns rows."""
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "history.md").read_text(encoding="utf-8")
+    queries = re.findall(r"```sql\n(.*?)```", doc, re.DOTALL)
+    assert len(queries) == 3
+    for sql in queries:
+        assert history.query(history_run, sql).num_rows > 0, sql
+
+
+def test_public_names():
+    import genr8_dist.history as module
+
+    for name in module.__all__:
+        assert getattr(module, name) is not None
+    assert callable(module.regrow) and callable(module.export)
