@@ -134,10 +134,18 @@ class RunFS:
                 fh.write(data)
             return
         tmp = self._write_temp(rel, data)
+        final = self._local(rel)
         try:
-            os.link(tmp, self._local(rel))
+            os.link(tmp, final)
+        except FileExistsError:
+            raise
+        except OSError:  # a filesystem without hard links: check, then rename (racy, but atomic)
+            if os.path.exists(final):
+                raise FileExistsError(final) from None
+            os.replace(tmp, final)
         finally:
-            os.unlink(tmp)
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
         self._sync_dir(rel)
 
     def delete(self, rel: str) -> None:

@@ -481,3 +481,20 @@ def test_other_pyarrow_filesystems_work(tmp_path: Path, kind: str) -> None:
     assert reopened.verify() == []
     with pytest.raises(StoreError, match="already holds run"):
         RunStore.create("runs/exp", CONFIG, filesystem=fs)
+
+
+def test_manifests_are_published_where_hard_links_are_not_supported(
+    store: RunStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def no_links(src: str, dst: str) -> None:
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(os, "link", no_links)
+    store.commit(epoch(range(2)))
+    other = RunStore.open(store.path)
+    store.commit(epoch(range(2, 3)))
+    with pytest.raises(StoreError, match="another process committed"):
+        other.commit(epoch(range(2, 3)))
+    monkeypatch.undo()
+    assert RunStore.open(store.path).committed_generations() == {0: 2, 1: 2}
+    assert not [n for n in os.listdir(Path(store.path) / "_manifest") if n.startswith(".tmp")]

@@ -121,3 +121,17 @@ def test_the_public_names_are_exported() -> None:
         assert getattr(store, name) is not None
     assert {"RunStore", "SCHEMA_VERSION", "individuals_schema", "events_schema", "EVENT_KINDS", "Event",
             "ConfigVersion", "write_synthetic_run"} <= set(store.__all__)
+
+
+@given(st.lists(individuals(), min_size=1, max_size=6))
+def test_individuals_round_trip_through_a_run(tmp_path_factory: pytest.TempPathFactory,
+                                              inds: list[Individual]) -> None:
+    from dataclasses import replace
+
+    from genr8_dist.store import RunStore
+
+    # one generation of one island, indexed in order, as a commit requires
+    rows = [replace(ind, island=3, generation=0, index=k) for k, ind in enumerate(inds)]
+    store = RunStore.create(tmp_path_factory.mktemp("run") / "r", "[run]\n")
+    store.commit(rows)
+    assert RunStore.open(store.path).load_generation(3, 0) == rows
