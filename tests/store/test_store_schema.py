@@ -6,7 +6,7 @@ import math
 
 import pyarrow as pa
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from genr8_dist.errors import StoreError
@@ -123,6 +123,7 @@ def test_the_public_names_are_exported() -> None:
             "ConfigVersion", "write_synthetic_run"} <= set(store.__all__)
 
 
+@settings(max_examples=20)  # each example creates a run on disk
 @given(st.lists(individuals(), min_size=1, max_size=6))
 def test_individuals_round_trip_through_a_run(tmp_path_factory: pytest.TempPathFactory,
                                               inds: list[Individual]) -> None:
