@@ -40,7 +40,7 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment._meshgeom import closest_on_triangles, winding_numbers
+from genr8_dist.environment._meshgeom import TriangleMesh
 from genr8_dist.errors import ConfigError, GrowthError
 
 __all__ = [
@@ -254,16 +254,17 @@ class SphereBoundary(Boundary):
 class MeshBoundary(Boundary):
     """A triangle mesh read by trimesh from ``path`` (OBJ, STL, PLY, GLB, OFF...), scaled then translated.
 
-    A watertight mesh has an inside (decided by its winding number, whatever its face orientation);
-    an open mesh (a terrain, a wall) has the side its face normals point to as the outside.
+    A watertight mesh has an inside (its faces are re-oriented outwards if they wind the other way);
+    an open mesh (a terrain, a wall) has the side its face normals point to as the outside. Queries
+    are exact (closest point, angle-weighted pseudo-normals) and use a k-d tree, so meshes of many
+    thousands of triangles are fine.
     """
 
     kind: ClassVar[str] = "mesh"
     path: str = ""
     scale: float = 1.0
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    _triangles: np.ndarray | None = field(default=None, init=False, compare=False, repr=False)
-    _normals: np.ndarray | None = field(default=None, init=False, compare=False, repr=False)
+    _mesh: TriangleMesh | None = field(default=None, init=False, compare=False, repr=False)
     _watertight: bool = field(default=False, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -290,23 +291,30 @@ class MeshBoundary(Boundary):
         faces = getattr(mesh, "faces", None)
         if faces is None or len(faces) == 0:
             raise GrowthError(f"{self.path}: boundary mesh has no triangles")
-        triangles = np.asarray(mesh.triangles, dtype=np.float64) * self.scale + np.asarray(self.translate)
-        edge1 = triangles[:, 1] - triangles[:, 0]
-        edge2 = triangles[:, 2] - triangles[:, 0]
-        normals = np.cross(edge1, edge2)
-        area = np.linalg.norm(normals, axis=1)
-        keep = area > 1e-14 * max(1.0, float(np.max(area)))
-        triangles = triangles[keep]
-        normals = normals[keep] / area[keep, None]
-        object.__setattr__(self, "_triangles", triangles)
-        object.__setattr__(self, "_normals", normals)
-        object.__setattr__(self, "_watertight", bool(mesh.is_watertight))
+        mesh.update_faces(mesh.nondegenerate_faces())
+        mesh.remove_unreferenced_vertices()
+        if len(mesh.faces) == 0:
+            raise GrowthError(f"{self.path}: boundary mesh has only degenerate triangles")
+        watertight = bool(mesh.is_watertight)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        if watertight and float(mesh.volume) < 0.0:
+            faces = faces[:, ::-1]  # normals pointed inwards
+        vertices = np.asarray(mesh.vertices, dtype=np.float64) * self.scale + np.asarray(self.translate)
+        object.__setattr__(self, "_mesh", TriangleMesh(vertices, faces))
+        object.__setattr__(self, "_watertight", watertight)
+
+    @property
+    def mesh(self) -> TriangleMesh:
+        """The prepared triangle mesh, in scene coordinates."""
+        if self._mesh is None:  # pragma: no cover - __post_init__ always loads it
+            self._load()
+        assert self._mesh is not None
+        return self._mesh
 
     @property
     def triangles(self) -> np.ndarray:
         """The mesh's triangles (T, 3, 3) in scene coordinates."""
-        assert self._triangles is not None
-        return self._triangles
+        return self.mesh.triangles
 
     @property
     def watertight(self) -> bool:
@@ -314,16 +322,11 @@ class MeshBoundary(Boundary):
         return self._watertight
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
-        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        closest, distance, index = closest_on_triangles(points, self.triangles)
-        if self._watertight:
-            inside = np.abs(winding_numbers(points, self.triangles)) > 0.5
-        else:
-            inside = np.einsum("ij,ij->i", points - closest, self._normals[index]) < 0.0
+        _, distance, inside = self.mesh.query(points)
         return np.where(inside, -distance, distance)
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
-        return closest_on_triangles(np.asarray(points, dtype=np.float64).reshape(-1, 3), self.triangles)[0]
+        return self.mesh.query(points)[0]
 
 
 _KINDS: dict[str, type[Boundary]] = {

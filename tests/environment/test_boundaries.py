@@ -221,3 +221,46 @@ def test_hard_boundaries_are_never_crossed(boundaries, gravity, scale, steps):
         p, stopped = step_once(env, p, stopped, step)
         for b in env.boundaries:
             assert np.all(b.violation(p[allowed_at_start]) <= 0), b
+
+
+def _brute_closest(points, triangles):
+    """Closest distance to a triangle soup, by dense sampling-free brute force over every triangle."""
+    from genr8_dist.environment._meshgeom import _closest_pairs
+
+    n, t = len(points), len(triangles)
+    p = np.repeat(points, t, axis=0)
+    tri = np.tile(triangles, (n, 1, 1))
+    closest, _ = _closest_pairs(p, tri[:, 0], tri[:, 1], tri[:, 2])
+    return np.linalg.norm(closest - p, axis=1).reshape(n, t).min(axis=1)
+
+
+@pytest.mark.parametrize("shape", ["box", "torus", "inverted box"])
+def test_mesh_queries_are_exact_on_sharp_and_concave_meshes(tmp_path, shape):
+    import trimesh
+
+    from genr8_dist.environment._meshgeom import TriangleMesh
+
+    rng = np.random.default_rng(3)  # test data only
+    points = rng.uniform(-2.5, 2.5, size=(400, 3))
+    if shape == "torus":
+        mesh = trimesh.creation.torus(major_radius=1.5, minor_radius=0.6, major_sections=48,
+                                      minor_sections=24)
+        ring = np.hypot(points[:, 0], points[:, 1]) - 1.5
+        truth = ring ** 2 + points[:, 2] ** 2 < 0.6 ** 2
+        clear = np.abs(np.sqrt(ring ** 2 + points[:, 2] ** 2) - 0.6) > 0.05  # away from the facets' sag
+    else:
+        mesh = trimesh.creation.box(extents=(2, 3, 1.5))
+        if shape == "inverted box":
+            mesh.invert()
+        truth = np.all(np.abs(points) < [1.0, 1.5, 0.75], axis=1)
+        clear = np.ones(len(points), dtype=bool)
+    path = tmp_path / "shape.stl"
+    mesh.export(path)
+    env = Environment(start_position=(0, 0, 10), boundaries=(MeshBoundary(path=str(path)),))
+    boundary = env.boundaries[0]
+    assert boundary.watertight and boundary.allowed_inside is False
+    inside = boundary.outside_distance(points) < 0
+    assert np.array_equal(inside[clear], truth[clear])
+    geometry = TriangleMesh(mesh.vertices, mesh.faces)
+    _, distance, _ = geometry.query(points)
+    np.testing.assert_allclose(distance, _brute_closest(points, geometry.triangles), atol=1e-12)
