@@ -177,6 +177,11 @@ class RunStore:
                     f"{rfs.show()}: exists and is not empty (holds {foreign[0]!r}); "
                     "a new run needs a new or empty directory"
                 )
+            if rfs.listdir("individuals") or rfs.listdir("events"):
+                raise StoreError(
+                    f"{rfs.show()}: holds a damaged run (data files but no intact manifest in "
+                    f"{MANIFEST_DIR}/); a new run needs a new or empty directory"
+                )
             for folder in sorted(_LAYOUT & set(rfs.listdir())):  # a creation that crashed half-way
                 for name in rfs.listdir(folder):
                     rfs.delete(f"{folder}/{name}")

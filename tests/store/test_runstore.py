@@ -90,6 +90,23 @@ def test_create_refuses_a_directory_holding_other_things(tmp_path: Path) -> None
     assert os.listdir(tmp_path / "home") == ["thesis.pdf"]
 
 
+def test_create_finishes_a_creation_that_crashed_but_never_overwrites_data(tmp_path: Path) -> None:
+    half = tmp_path / "half"
+    (half / "configs").mkdir(parents=True)
+    (half / "configs" / "v0001.toml").write_text("[run]\nseed = 1\n")  # crashed before its manifest
+    RunStore.create(half, CONFIG)
+    assert RunStore.open(half).configs()[0].toml == CONFIG
+    damaged = tmp_path / "damaged"
+    store = RunStore.create(damaged, CONFIG)
+    store.commit(epoch(range(1)))
+    for manifest in (damaged / "_manifest").iterdir():
+        manifest.write_text("{}")
+    before = tree(damaged)
+    with pytest.raises(StoreError, match="damaged: holds a damaged run"):
+        RunStore.create(damaged, CONFIG)
+    assert tree(damaged) == before
+
+
 def test_create_accepts_an_empty_directory_and_refuses_bad_toml(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     RunStore.create(tmp_path / "empty", CONFIG, run_id="exp-7")
