@@ -89,7 +89,7 @@ class GenomeSettings:
     def __post_init__(self) -> None:
         _set(self, "length", _int(self.length, "genome.length", 1, 100_000))
         _set(self, "codon_max", _int(self.codon_max, "genome.codon_max", 1, 2**31 - 1))
-        _set(self, "max_depth", _int(self.max_depth, "genome.max_depth", 1, 1000))
+        _set(self, "max_depth", _int(self.max_depth, "genome.max_depth", 1, 100))
         _set(self, "max_wraps", _int(self.max_wraps, "genome.max_wraps", 0, 1000))
 
 
@@ -155,15 +155,10 @@ def _default_environment() -> Any:
     return Environment()
 
 
-def _known_universes() -> list[str] | None:
-    try:
-        from genr8_dist import grammar
-    except ImportError:  # pragma: no cover - the grammar package is part of genr8_dist
-        return None
-    lister = getattr(grammar, "available_universes", None) or getattr(grammar, "list_universes", None)
-    if lister is None:
-        return None
-    return sorted(lister())
+def _known_universes() -> list[str]:
+    from genr8_dist import grammar
+
+    return [info.name for info in grammar.list_universes()]
 
 
 def _check_universe(name: Any) -> str:

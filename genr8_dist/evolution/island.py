@@ -139,7 +139,8 @@ class Island:
         if isinstance(item, Individual):
             return tuple(item.genome), (item.id,)
         if isinstance(item, str):
-            return tuple(int(c) for c in self.evaluator.universe.invert(item)), ()
+            genome = self.evaluator.universe.invert(item, max_depth=self.config.genome.max_depth)
+            return tuple(int(c) for c in genome), ()
         return tuple(int(c) for c in item), ()
 
     def step(self, previous: Sequence[Individual], generation: int,

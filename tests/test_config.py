@@ -1,0 +1,152 @@
+"""The run configuration: defaults, round trips through TOML, interventions, and refusals that name the
+file and the field."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from genr8_dist.config import EASettings, GenomeSettings, IslandSettings, RunConfig, load_config
+from genr8_dist.errors import ConfigError
+from genr8_dist.fitness import FitnessSpec
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def write(tmp_path: Path, text: str, name: str = "run.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_defaults():
+    config = RunConfig()
+    assert config.universe == "default" and config.seed == 0
+    assert config.genome == GenomeSettings() and config.ea == EASettings()
+    assert config.islands == IslandSettings() and config.fitness == FitnessSpec()
+    assert config.environment.steps == 4
+
+
+def test_an_empty_file_is_the_default_configuration(tmp_path):
+    assert load_config(write(tmp_path, "")) == RunConfig()
+
+
+def test_full_file(tmp_path):
+    path = write(tmp_path, """
+universe = "default"
+seed = 7
+[genome]
+length = 40
+codon_max = 99
+[ea]
+population = 12
+tournament = 2
+mutation_rate = 0.1
+[fitness.subdivisions]
+target = 0.4
+weight = 3
+[environment]
+steps = 3
+gravity = [0.0, 0.0, -0.2]
+[islands]
+count = 3
+topology = "full"
+""")
+    config = load_config(path)
+    assert config.seed == 7 and config.genome.length == 40 and config.genome.codon_max == 99
+    assert config.genome.max_depth == GenomeSettings().max_depth
+    assert config.ea.population == 12 and config.ea.mutation_rate == 0.1
+    assert config.fitness.subdivisions.target == 0.4 and config.fitness.subdivisions.weight == 3.0
+    assert config.fitness.size == FitnessSpec().size
+    assert config.environment.steps == 3 and tuple(config.environment.gravity) == (0.0, 0.0, -0.2)
+    assert config.islands.count == 3 and config.islands.topology == "full"
+
+
+def test_toml_round_trip(tmp_path):
+    config = load_config(write(tmp_path, '[ea]\npopulation = 9\n[environment]\nsteps = 2\nscale = 1.2\n'))
+    text = config.to_toml()
+    assert tomllib.loads(text) == config.to_dict()
+    again = load_config(write(tmp_path, text, "again.toml"))
+    assert again == config
+    assert again.to_toml() == text
+
+
+def test_environment_by_path_is_resolved_next_to_the_config(tmp_path):
+    (tmp_path / "envs").mkdir()
+    write(tmp_path / "envs", "steps = 2\ngravity = [0.0, 0.0, -1.0]\n", "sag.toml")
+    path = write(tmp_path, 'environment = "envs/sag.toml"\n')
+    config = load_config(path)
+    assert config.environment.steps == 2
+    # the stored configuration carries the environment inline: it does not depend on the file any more
+    assert config.to_dict()["environment"]["steps"] == 2
+
+
+def test_replace_is_an_intervention():
+    config = RunConfig()
+    changed = config.replace(ea={"mutation_rate": 0.2}, fitness={"size": {"weight": 4}},
+                             environment={"steps": 2}, seed=5)
+    assert changed.ea.mutation_rate == 0.2 and changed.ea.population == config.ea.population
+    assert changed.fitness.size.weight == 4.0 and changed.fitness.size.target == config.fitness.size.target
+    assert changed.environment.steps == 2 and changed.seed == 5
+    assert config.ea.mutation_rate == EASettings().mutation_rate  # the original is untouched
+    with pytest.raises(ConfigError, match=r"'ea\.mutation_rate'"):
+        config.replace(ea={"mutation_rate": -0.5})
+    with pytest.raises(ConfigError, match="'population'"):
+        config.replace(population=3)
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("populaton = 3\n", "'populaton'"),
+        ("[ea]\npopulaton = 3\n", "'ea.populaton'"),
+        ("[ea]\npopulation = \"many\"\n", "'ea.population'"),
+        ("[ea]\npopulation = 30.0\n", "'ea.population'"),
+        ("[ea]\nmutation_rate = -0.1\n", "'ea.mutation_rate'"),
+        ("[ea]\ncrossover_rate = 1.5\n", "'ea.crossover_rate'"),
+        ("[ea]\npopulation = 10\ntournament = 11\n", "'ea.tournament'"),
+        ("[ea]\nelites = -1\n", "'ea.elites'"),
+        ("[genome]\nlength = 0\n", "'genome.length'"),
+        ("[genome]\nmax_wraps = true\n", "'genome.max_wraps'"),
+        ("universe = \"no-such-universe\"\n", "'universe'"),
+        ("seed = -1\n", "'seed'"),
+        ("[islands]\ntopology = \"star\"\n", "'islands.topology'"),
+        ("[islands]\nmigrants = 30\n", "'islands.migrants'"),
+        ("[fitness.size]\nweight = -2\n", "'fitness.size.weight'"),
+        ("[fitness.sise]\nweight = 2\n", "'fitness.sise'"),
+        ("[environment]\nstepz = 3\n", "stepz"),
+        ("environment = \"missing.toml\"\n", "'environment'"),
+        ("ea = 3\n", "'ea'"),
+    ],
+)
+def test_bad_configurations_are_refused_naming_file_and_field(tmp_path, text, field):
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    message = str(info.value)
+    assert message.startswith(str(path)), message
+    assert field in message, message
+    assert "\n" not in message
+
+
+def test_not_toml_and_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        load_config(write(tmp_path, "[ea\n"))
+    with pytest.raises(ConfigError, match="not found"):
+        load_config(tmp_path / "nope.toml")
+
+
+def test_sections_validate_when_built_directly():
+    with pytest.raises(ConfigError, match=r"'ea\.mutation_rate'"):
+        EASettings(mutation_rate=2)
+    with pytest.raises(ConfigError, match=r"'islands\.count'"):
+        IslandSettings(count=0)
+
+
+@pytest.mark.parametrize("path", sorted(EXAMPLES.glob("*.toml")), ids=lambda p: p.name)
+def test_examples_load(path):
+    config = load_config(path)
+    assert config.islands.count >= 1
+    assert load_config(path).to_toml() == config.to_toml()
