@@ -169,9 +169,10 @@ def _check_universe(name: Any) -> str:
     try:
         load_universe(name)
     except Genr8Error as exc:
-        known = _known_universes()
-        hint = f"; known: {', '.join(known)}" if known else ""
-        raise _fail("universe", f"unknown universe {name!r}{hint} ({exc})") from None
+        message = str(exc)
+        if "known" not in message:
+            message += f" (known: {', '.join(_known_universes())})"
+        raise _fail("universe", message) from None
     return name
 
 
