@@ -83,9 +83,17 @@ class _Ctx:
         self.source = source
         self.text = text
 
-    def fail(self, message: str, name: str | None = None) -> UniverseError:
-        line, col = _find(self.text, name) if name else (0, 0)
+    def fail(self, message: str, name: str | None = None, *, define: bool = False) -> UniverseError:
+        """An error located at ``name``'s definition (``define``) or first use in the grammar."""
+        line, col = (0, 0)
+        if name and define:
+            line, col = _find_definition(self.text, name)
+        if name and not line:
+            line, col = _find(self.text, name)
         return UniverseError(located(message, self.source, line, col))
+
+    def at(self, message: str, line: int) -> UniverseError:
+        return UniverseError(located(message, self.source, line, 1))
 
 
 def _find(text: str, name: str) -> tuple[int, int]:
@@ -97,6 +105,17 @@ def _find(text: str, name: str) -> tuple[int, int]:
         if m:
             return lineno, m.start() + 1
     return 0, 0
+
+
+def _find_definition(text: str, name: str) -> tuple[int, int]:
+    """Line and column of the definition ``name: ...`` (rule or terminal) in ``text``."""
+    pattern = re.compile(r"^\s*[?!]?" + re.escape(name) + r"(?:\.-?\d+)?\s*(?:\{[^}]*\})?\s*:", re.MULTILINE)
+    m = pattern.search(text)
+    if not m:
+        return 0, 0
+    line = text.count("\n", 0, m.start()) + 1
+    col = m.start() - (text.rfind("\n", 0, m.start()) + 1) + 1 + (len(m.group()) - len(m.group().lstrip()))
+    return line, col
 
 
 def _lark_error(exc: Exception, ctx: _Ctx) -> UniverseError:
@@ -115,10 +134,12 @@ def _lark_error(exc: Exception, ctx: _Ctx) -> UniverseError:
     return UniverseError(located(first, ctx.source, line, column))
 
 
-def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]], str | None, str]:
+def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]], str | None, str,
+                                                dict[str, int]]:
     bias: dict[str, dict[int | None, int]] = {}
     repair: str | None = None
     description = ""
+    where_line: dict[str, int] = {}
     for lineno, line in enumerate(text.splitlines(), 1):
         m = _DIRECTIVE.match(line)
         if not m:
@@ -134,17 +155,19 @@ def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]],
                     "with X an integer >= 2", *where))
             which = int(bm.group(2)) if bm.group(2) else None
             bias.setdefault(bm.group(1), {})[which] = int(parts[1])
+            where_line[f"bias {bm.group(1)}"] = lineno
         elif word == "repair":
             if not re.fullmatch(r"[A-Za-z_]\w*", rest):
                 raise UniverseError(located(
                     f"bad directive '//@ repair {rest}': write '//@ repair RULE'", *where))
             repair = rest
+            where_line["repair"] = lineno
         elif word == "description":
             description = rest
         else:
             raise UniverseError(located(
                 f"unknown directive '//@ {word}' (known: bias, repair, description)", *where))
-    return bias, repair, description
+    return bias, repair, description, where_line
 
 
 def _literal(token, ctx: _Ctx, owner: str) -> tuple[str, str]:
@@ -165,7 +188,7 @@ def _template(name: str, body: str, ctx: _Ctx) -> EdgeTemplate:
     holes = list(_HOLE.finditer(body))
     bad = ctx.fail(
         f"edge terminal {name} must be written /PREFIX[0-9]+SUFFIX/ with literal text around one "
-        f"label hole, got /{body}/", name)
+        f"label hole, got /{body}/", name, define=True)
     if len(holes) != 1:
         raise bad
     hole = holes[0]
@@ -200,7 +223,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     from lark.tree import Tree
 
     ctx = _Ctx(source, text)
-    bias, repair_rule, description = _directives(text, ctx)
+    bias, repair_rule, description, directive_line = _directives(text, ctx)
     try:
         builder = GrammarBuilder()
         builder.load_grammar(text, source)
@@ -233,7 +256,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         if bound or pred or labelled or context:
             if value is None or value[0] != "re":
                 raise ctx.fail(f"edge terminal {name} must be defined by a regular expression "
-                               "such as /Edge[0-9]+/", name)
+                               "such as /Edge[0-9]+/", name, define=True)
             templates.setdefault(name, _template(name, value[1], ctx))
             index = list(templates).index(name)
             if bound:
@@ -245,7 +268,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         else:
             raise ctx.fail(f"terminal {name} cannot be generated: only string literals and edge "
                            "terminals (EDGE*, PRED*, CTX*, EDGE_X/Y/Z) can appear in a universe's rules",
-                           name)
+                           name, define=True)
         term_kind[name] = kind
         return kind
 
@@ -283,7 +306,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
             kind, value = _literal(node.children[0], ctx, f"rule {rule}")
             if kind != "lit":
                 raise ctx.fail(f"rule {rule} uses the regular expression /{value}/ directly; define "
-                               "an edge terminal (EDGE: /Edge[0-9]+/) instead", rule)
+                               "an edge terminal (EDGE: /Edge[0-9]+/) instead", rule, define=True)
             return ("lit", value)
         if data == "maybe":
             return ("opt", convert(node.children[0], rule, reps))
@@ -291,7 +314,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
             body, op = node.children[0], str(node.children[1])
             if len(node.children) > 2 or op not in ("*", "+", "?"):
                 raise ctx.fail(f"rule {rule} uses the repetition range '~'; universes support "
-                               "only ?, [], *, + and groups", rule)
+                               "only ?, [], *, + and groups", rule, define=True)
             inner = convert(body, rule, reps)
             if op == "?":
                 return ("opt", inner)
@@ -306,7 +329,8 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     for raw_name, params, tree, _options in grammar.rule_defs:
         name = str(raw_name)
         if params:
-            raise ctx.fail(f"rule {name} is a template; universes do not support templates", name)
+            raise ctx.fail(f"rule {name} is a template; universes do not support templates", name,
+                           define=True)
         reps: list[int] = []
         top = tree
         if isinstance(top, Tree) and top.data == "expansions":
@@ -316,11 +340,12 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         rules[name] = alts
         for which in bias.get(name, {}):
             if which is not None and which > len(reps):
-                raise ctx.fail(f"'//@ bias {name}#{which}': rule {name} has only {len(reps)} "
-                               "repetition(s)", name)
+                raise ctx.at(f"'//@ bias {name}#{which}': rule {name} has only {len(reps)} "
+                             "repetition(s)", directive_line[f"bias {name}"])
     for name in bias:
         if name not in rules:
-            raise ctx.fail(f"'//@ bias {name}' names no rule of this universe", name)
+            raise ctx.at(f"'//@ bias {name}' names no rule of this universe",
+                         directive_line[f"bias {name}"])
     if "start" not in rules:
         raise UniverseError(located("a universe needs a rule named 'start'", source, 1, 1))
 
@@ -328,10 +353,11 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     repair_depth = 0
     if repair_rule is not None:
         if repair_rule not in rules:
-            raise ctx.fail(f"'//@ repair {repair_rule}' names no rule of this universe", repair_rule)
+            raise ctx.at(f"'//@ repair {repair_rule}' names no rule of this universe",
+                         directive_line["repair"])
         repair_depth = _reach_depth(rules, repair_rule)
         if repair_depth == 0:
-            raise ctx.fail(f"repair rule {repair_rule} is not reachable from start", repair_rule)
+            raise ctx.at(f"repair rule {repair_rule} is not reachable from start", directive_line["repair"])
     return CompiledGrammar(source=source, text=text, rules=rules, need=need, min_depth=min_depth,
                            templates=tuple(templates.values()), repair_rule=repair_rule,
                            repair_depth=repair_depth, description=description)
@@ -365,7 +391,8 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
                 changed = True
     for name, value in md.items():
         if value == math.inf:
-            raise ctx.fail(f"rule {name} can never finish: every alternative expands it again", name)
+            raise ctx.fail(f"rule {name} can never finish: every alternative expands it again", name,
+                           define=True)
 
     table: dict[int, int] = {}
 

@@ -1,0 +1,61 @@
+"""A malformed universe is refused with one line naming the file, line and column."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from genr8_dist.errors import UniverseError
+from genr8_dist.grammar import load_universe
+from genr8_dist.grammar.compiler import compile_grammar
+
+
+@pytest.mark.parametrize("text, where, words", [
+    ('start: "x" (\n', ":1:13:", "Unclosed parenthesis"),
+    ('start: a\n', ":1:8:", "Rule 'a' used but not defined"),
+    ('start: "x"\n  | A\n', ":2:5:", "'A' used but not defined"),
+    ('start: EDGE\nEDGE: "Edge"\n', ":2:1:", "must be defined by a regular expression"),
+    ('start: EDGE\nEDGE: /Ed.ge[0-9]+/\n', ":2:1:", "literal text around one label hole"),
+    ('start: NUM\nNUM: /[0-9]+/\n', ":2:1:", "terminal NUM cannot be generated"),
+    ('start: "a" /x+/\n', ":1:1:", "regular expression /x+/ directly"),
+    ('//@ frobnicate\nstart: "x"\n', ":1:1:", "unknown directive '//@ frobnicate'"),
+    ('//@ bias start\nstart: "x"\n', ":1:1:", "X an integer >= 2"),
+    ('//@ bias start 1\nstart: "x"*\n', ":1:1:", "X an integer >= 2"),
+    ('\n//@ bias nothere 3\nstart: "x"\n', ":2:1:", "names no rule"),
+    ('//@ repair nothere\nstart: "x"\n', ":1:1:", "names no rule"),
+    ('//@ bias start#2 3\nstart: "x"*\n', ":1:1:", "has only 1 repetition"),
+    ('start: a\na: "x" a\n', ":1:1:", "can never finish"),
+    ('foo: "x"\n', ":1:1:", "needs a rule named 'start'"),
+    ('start: "x"~3\n', ":1:1:", "repetition range"),
+    ('_t{x}: x\nstart: _t{"a"}\n', ":1:1:", "template"),
+])
+def test_malformed_universe_errors_name_file_line_column(text, where, words):
+    with pytest.raises(UniverseError) as info:
+        compile_grammar(text, "bad.lark")
+    message = str(info.value)
+    assert message.startswith("bad.lark" + where), message
+    assert words in message
+    assert "\n" not in message
+
+
+def test_loading_a_malformed_file_names_its_path(tmp_path: Path):
+    path = tmp_path / "broken.lark"
+    path.write_text('start: axiom\naxiom: EDGE "+" (EDGE\nEDGE: /Edge[0-9]+/\n')
+    with pytest.raises(UniverseError, match=rf"^{path}:2:\d+: "):
+        load_universe(str(path))
+
+
+def test_bias_directive_applies_per_rule_and_per_repetition():
+    cg = compile_grammar('//@ bias start 5\n//@ bias start#2 3\nstart: "a"* "b"* "c"*\n', "x.lark")
+    reps = [node for node in cg.rules["start"][0][1] if node[0] == "rep"]
+    assert [rep[2] for rep in reps] == [5, 3, 5]
+
+
+def test_minimum_depths_and_edge_templates():
+    cg = compile_grammar('start: a "x"\na: "(" a ")" | b\nb: EDGE_I\nEDGE_I: /Edge[0-9]+_i\\+1/\n', "x")
+    assert cg.min_depth == {"start": 3, "a": 2, "b": 1}
+    (template,) = cg.templates
+    assert (template.prefix, template.suffix) == ("Edge", "_i+1")
+    assert template.text(7) == "Edge7_i+1"
+    assert template.regex().fullmatch("Edge12_i+1").group(1) == "12"
