@@ -1,0 +1,110 @@
+"""``genr8 universes``, ``genr8 map`` and ``genr8 invert`` run in-process: output and exit codes."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import pytest
+
+from genr8_dist.cli import main
+from genr8_dist.grammar import load_universe
+
+WORKED = 'start: axiom\naxiom: EDGE "+" EDGE "+" EDGE ("+" EDGE)*\nEDGE: /Edge[0-9]+/\n%ignore " "\n'
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_universes_lists_names_and_origins(capsys):
+    code, out, _ = run(capsys, "universes")
+    assert code == 0
+    names = [line.split()[0] for line in out.splitlines()]
+    assert names[:4] == ["default", "probabilistic", "reversible", "symmetric"]
+    assert "timed" in names and "plugin:" in out
+    code, out, _ = run(capsys, "universes", "--json")
+    listed = {u["name"]: u for u in json.loads(out)}
+    assert listed["default"]["origin"] == "built-in" and listed["default"]["path"].endswith("default.lark")
+
+
+def test_map_prints_the_journal_worked_example(tmp_path, capsys):
+    path = tmp_path / "worked.lark"
+    path.write_text(WORKED)
+    code, out, _ = run(capsys, "map", "--universe", str(path), "--genome", "212,187,632,832,800,517,338,39")
+    assert (code, out) == (0, "Edge2 + Edge0 + Edge0 + Edge2")
+    code, out, _ = run(capsys, "map", "--universe", str(path), "--genome",
+                       "212, 187, 632, 832, 800, 517, 338, 39", "--json")
+    assert json.loads(out) == {"universe": "worked", "genome": [212, 187, 632, 832, 800, 517, 338, 39],
+                               "text": "Edge2 + Edge0 + Edge0 + Edge2", "valid": True, "reason": None,
+                               "codons_used": 8, "wraps": 0}
+
+
+def test_map_random_is_seeded_and_matches_the_api(capsys):
+    code, first, _ = run(capsys, "map", "--random", "--seed", "3", "--json")
+    _, second, _ = run(capsys, "map", "--universe", "default", "--random", "--seed", "3", "--json")
+    assert code == 0 and first == second
+    record = json.loads(first)
+    assert len(record["genome"]) == 200 and max(record["genome"]) <= 65535
+    assert load_universe("default").map(record["genome"]).text == record["text"]
+    _, other, _ = run(capsys, "map", "--random", "--seed", "4", "--length", "50", "--json")
+    assert len(json.loads(other)["genome"]) == 50 and json.loads(other)["text"] != record["text"]
+
+
+def test_map_of_an_invalid_genome_exits_1_with_the_reason(capsys):
+    code, out, err = run(capsys, "map", "--genome", "3", "--max-wraps", "0")
+    assert code == 1 and out == "" and "genome exhausted" in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["map", "--genome", "1,-2,3"], "codon 1 is -2"),
+    (["map", "--genome", "1,2.5"], "codon 1 is '2.5'"),
+    (["map", "--genome", ""], "the genome is empty"),
+    (["map", "--genome", "1,x"], "codon 1 is 'x'"),
+    (["map", "--universe", "nope", "--genome", "1"], "unknown universe 'nope'"),
+    (["map", "--genome", "1", "--max-depth", "0"], "--max-depth must be >= 1"),
+    (["invert", "--universe", "default", "/no/such/file.hemls"], "/no/such/file.hemls"),
+])
+def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and out == ""
+    assert err.startswith("genr8: error: ") and message in err and err.count("\n") == 1
+
+
+def test_malformed_universe_file_names_line_and_column(tmp_path, capsys):
+    path = tmp_path / "bad.lark"
+    path.write_text('start: "a" (\n')
+    code, _, err = run(capsys, "map", "--universe", str(path), "--genome", "1")
+    assert code == 2 and f"{path}:1:13: Unclosed parenthesis" in err
+
+
+def test_invert_prints_a_genome_that_maps_back(tmp_path, capsys):
+    system = ("Edge2 + Edge0 + Edge0\nEdge2 > Edge0 -> ^ Edge0 & Edge1\nEdge0 -> Edge2\nEdge1 -> Edge0\n"
+              "Angle 30\nBranchAngle 75\n")
+    path = tmp_path / "b.hemls"
+    path.write_text(system)
+    code, out, _ = run(capsys, "invert", "--universe", "reversible", str(path))
+    assert code == 0
+    genome = [int(c) for c in out.strip().split(",")]
+    assert load_universe("reversible").map(genome).text == system
+    code, out, _ = run(capsys, "invert", "--universe", "reversible", str(path), "--json")
+    record = json.loads(out)
+    assert record["genome"] == genome and record["text"] == system
+
+
+def test_invert_reads_standard_input_and_reports_texts_outside_the_universe(capsys, monkeypatch):
+    monkeypatch.setattr("sys.stdin", io.StringIO("Edge0 + Edge1\nAngle 30\n"))
+    code, out, err = run(capsys, "invert", "--universe", "default", "-")
+    assert code == 2 and out == ""
+    assert "genr8: error: line 1, column 14:" in err and "universe 'default'" in err
+
+
+def test_map_then_invert_round_trip_through_the_cli(capsys, monkeypatch):
+    _, text, _ = run(capsys, "map", "--universe", "symmetric", "--random", "--seed", "11")
+    monkeypatch.setattr("sys.stdin", io.StringIO(text))
+    code, out, _ = run(capsys, "invert", "--universe", "symmetric", "-")
+    assert code == 0
+    _, again, _ = run(capsys, "map", "--universe", "symmetric", "--genome", out.strip())
+    assert again == text
