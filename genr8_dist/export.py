@@ -194,7 +194,7 @@ def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any) -> np.ndar
     level = (z - z.min()) / span if span > 1e-12 else np.full(len(z), 0.55)
     colours = cmap(0.15 + 0.7 * level)
     colours[:, :3] *= (0.45 + 0.55 * lambert)[:, None]
-    colours[:, 3] = 0.95
+    colours[:, 3] = 1.0
     return colours
 
 
@@ -354,8 +354,14 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
         ax.set_zlabel("z")
         ax.view_init(elev=32, azim=-58)
         ax.tick_params(labelsize=7)
+        from matplotlib.ticker import MaxNLocator
+
+        for axis, span in zip((ax.xaxis, ax.yaxis, ax.zaxis), extent / np.max(extent), strict=True):
+            axis.set_major_locator(MaxNLocator(nbins=max(2, round(7 * span)), min_n_ticks=2))
         n_regions = len(regions) if regions is not None else len(faces)
-        counts = f"{len(vertices)} vertices, {len(edges)} edges, {n_regions} regions"
+        counts = ", ".join(f"{n} {one if n == 1 else many}" for n, one, many in
+                           ((len(vertices), "vertex", "vertices"), (len(edges), "edge", "edges"),
+                            (n_regions, "region", "regions")))
         fig.text(0.5, 0.965, title, ha="center", va="top", fontsize=13, fontweight="bold")
         fig.text(0.5, 0.925, counts, ha="center", va="top", fontsize=9, color="0.35")
         fig.subplots_adjust(left=0.0, right=0.97, bottom=0.02, top=0.97)

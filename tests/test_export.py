@@ -124,3 +124,16 @@ def test_png_without_regions_draws_the_edges(tmp_path):
     surface.regions = []
     path = render_png(surface, tmp_path / "curve.png", title="curve")
     assert path.stat().st_size > 5000
+
+
+def test_grown_four_sided_tiles_round_trip_through_obj(tmp_path):
+    import trimesh
+
+    from genr8_dist.hemls import grow, load_system
+
+    surface = grow(load_system("four_sided_tiles"), Environment(steps=3)).surface
+    mesh = trimesh.load(export_mesh(surface, tmp_path / "tiles.obj"), force="mesh")
+    assert len(mesh.faces) == 128 and len(mesh.vertices) == 81
+    assert mesh.area == pytest.approx(surface.n_regions * (1.5 ** 3 / 8) ** 2)  # 64 squares of side 1.5^3/8
+    lines = export_scaffold(surface, tmp_path / "tiles-scaffold.obj").read_text().splitlines()
+    assert sum(line.startswith("l ") for line in lines) == 144
