@@ -128,7 +128,8 @@ def _handle(args: argparse.Namespace) -> int:
     _check_outputs(args)
     env = _environment(args)
     system = load_system(args.system)
-    name = (getattr(system, "name", "") or Path(args.system).stem).replace("_", " ")
+    name = "rewrite system from stdin" if args.system == "-" else (
+        getattr(system, "name", "") or Path(args.system).stem).replace("_", " ")
     writes = args.each_step and any((args.output, args.scaffold, args.png))
 
     result = grow(system, env, keep_steps=writes)

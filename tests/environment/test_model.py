@@ -192,3 +192,18 @@ def test_shipped_examples_load(example):
     env = load_environment(example)
     assert not env.is_empty
     assert Environment.from_dict(env.to_dict()) == env
+
+
+def test_pickles_with_a_mesh_boundary_for_ray_workers(tmp_path):
+    import dataclasses
+    import pickle
+
+    import trimesh
+
+    trimesh.creation.icosphere().export(tmp_path / "ball.obj")
+    env = Environment(start_position=(0, 0, 2), boundaries=(MeshBoundary(path=str(tmp_path / "ball.obj")),))
+    copy = pickle.loads(pickle.dumps(env))
+    assert copy == env and copy.boundaries[0].allowed_inside is False
+    probe = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 3.0]])
+    np.testing.assert_array_equal(copy.boundaries[0].violation(probe), env.boundaries[0].violation(probe))
+    assert dataclasses.replace(env, steps=2).boundaries[0].mesh is env.boundaries[0].mesh
