@@ -96,6 +96,8 @@ def register(subparsers: Any) -> None:
                    help="how many surfaces (default 12; per island with --per-island)")
     p.add_argument("--island", type=int, help="only this island")
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
+    p.add_argument("--duplicates", action="store_true",
+                   help="also show individuals whose surface equals a better one's (elites, copies)")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG to write")
     p.set_defaults(handler=_gallery)
 
@@ -181,9 +183,19 @@ def _lineage(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from genr8_dist.history import HistoryError
     from genr8_dist.history import _regrow as regrow
     from genr8_dist.history import _text
 
+    for path in args.output:  # refuse a bad name before anything is grown or written
+        suffix = Path(path).suffix.lower().lstrip(".")
+        if suffix not in regrow.EXPORT_FORMATS:
+            raise HistoryError(f"{path}: unknown format '{Path(path).suffix or '(no suffix)'}'; use one "
+                               "of " + ", ".join(f".{s}" for s in regrow.EXPORT_FORMATS))
+    if args.png and not str(args.png).lower().endswith(".png"):
+        raise HistoryError(f"{args.png}: --png writes a .png file")
     result = regrow.regrow(args.run, args.id)
     row = result.row
     crits = {k[5:]: v for k, v in row.items() if k.startswith("crit_")}
@@ -197,6 +209,9 @@ def _show(args: argparse.Namespace) -> int:
     _print("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
         _print(f"    {statement}")
+    if row["text"] and not result.text_matches:
+        _print("note: the genome no longer maps to this rewrite system with this universe; the "
+               "recorded system was grown")
     if result.surface is not None:
         s = result.surface
         _print(f"regrown: {len(s.vertices)} vertices, {len(s.edges)} edges, {len(s.regions)} regions "
@@ -239,7 +254,8 @@ def _gallery(args: argparse.Namespace) -> int:
     from genr8_dist.history import pictures
 
     info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
-                                island=args.island, per_island=args.per_island)
+                                island=args.island, per_island=args.per_island,
+                                distinct=not args.duplicates)
     _print(f"wrote {args.output}: {info}")
     return 0
 

@@ -42,7 +42,7 @@ __all__ = [
 # Columns shown for a ranked individual (genome never; text only when asked).
 _SUMMARY = ("id", "generation", "island", "index", "fitness")
 _AFTER = ("origin", "parents", "n_vertices", "n_edges", "n_regions", "steps_done", "capped",
-          "config_version")
+          "config_version", "surface_digest")
 
 
 def _groups(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -110,6 +110,8 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
     from genr8_dist.history._tables import per_generation
 
     plt = _pyplot()
+    from matplotlib.ticker import MaxNLocator
+
     store = open_run(store)
     if table is None:
         table = per_generation(store)
@@ -139,6 +141,7 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
         ax.set_yscale("log")
     last = int(gen.max()) if gen.size else 0
     ax.set_xlim(-0.5, last + 0.5)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("generation")
     ax.set_ylabel("total fitness (lower is better)")
     ax.grid(True, color="#e5e5e5", lw=0.8)
@@ -186,6 +189,7 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
             ys = [t for _, t in steps] + [steps[-1][1]]
             cax.step(xs, ys, where="post", color="black", ls="--", lw=1.0, label="target")
         cax.set_title(name.replace("_", " "), loc="left", fontsize=10)
+        cax.xaxis.set_major_locator(MaxNLocator(integer=True))
         cax.grid(True, color="#eeeeee", lw=0.6)
         cax.tick_params(labelsize=8)
         for side in ("top", "right"):
@@ -227,7 +231,7 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
                 (main if parent in line and r["id"] in line else links).append(segment)
     gens = [r["generation"] for r in rows]
     span = max(gens) - min(gens) + 1
-    fig, ax = plt.subplots(figsize=(min(22, 4 + 0.28 * span), 2.0 + 1.6 * len(islands)),
+    fig, ax = plt.subplots(figsize=(min(22, 6 + 0.32 * span), 2.0 + 1.6 * len(islands)),
                            facecolor="white")
     ax.add_collection(LineCollection(links, colors="#b0b0b0", linewidths=0.5, alpha=0.6, zorder=1))
     ax.add_collection(LineCollection(main, colors="black", linewidths=2.2, zorder=3))
@@ -245,6 +249,9 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
     ax.set_yticks([n + 0.5 for n in range(len(islands))], [f"island {i}" for i in islands])
     ax.set_ylim(0, len(islands))
     ax.set_xlim(min(gens) - 0.8, max(gens) + 0.8 + 0.08 * span)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("generation")
     ax.invert_yaxis()
     for side in ("top", "right"):
@@ -281,7 +288,9 @@ def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58
         light = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
         lit = np.where(length > 0, np.abs(normal @ light) / np.where(length > 0, length, 1.0), 0.8)
         colours[:, :3] *= (0.55 + 0.45 * lit)[:, None]
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors="none", alpha=0.95))
+        # edges in the face colour close the hairline seams between the triangles of one region
+        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors=colours,
+                                             linewidths=0.35))
     if len(edges):
         ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
                                              alpha=0.85))
@@ -323,14 +332,39 @@ def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int
     return fig
 
 
+def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
+              distinct: bool) -> list[str]:
+    """The ids of the ``k`` best valid individuals; with ``distinct``, only the best individual of
+    each distinct surface (same digest: the same surface, e.g. an elite and its copies)."""
+    from genr8_dist.history._tables import top
+
+    if not distinct:
+        return list(top(store, k, generation=generation, island=island)["id"].to_pylist())
+    fetch = 4 * k
+    while True:
+        table = top(store, fetch, generation=generation, island=island)
+        ids, seen = [], set()
+        for ident, digest in zip(table["id"].to_pylist(), table["surface_digest"].to_pylist(),
+                                 strict=True):
+            if digest not in seen:
+                seen.add(digest)
+                ids.append(ident)
+        if len(ids) >= k or table.num_rows < fetch:
+            return ids[:k]
+        fetch *= 4
+
+
 def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
-                      island: int | None = None, per_island: bool = False) -> tuple[Any, str]:
+                      island: int | None = None, per_island: bool = False,
+                      distinct: bool = True) -> tuple[Any, str]:
     """The contact sheet of the ``k`` best valid individuals of ``generation`` (negative counts back
     from the last; ``None``: the whole run), of one ``island``, or the best ``k`` of each island with
-    ``per_island``; each regrown from its row. Returns the figure and a one-line description."""
+    ``per_island``; each regrown from its row. With ``distinct`` (default) an individual whose surface
+    equals a better one's (an elite, a migrant's copy) is left out, so the sheet shows k different
+    surfaces. Returns the figure and a one-line description."""
     from genr8_dist.history._regrow import regrow
     from genr8_dist.history._run import dataset
-    from genr8_dist.history._tables import _resolve_generation, top
+    from genr8_dist.history._tables import _resolve_generation
 
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
@@ -339,14 +373,20 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     if per_island:
         islands = [island] if island is not None else sorted(
             int(i) for i in store.committed_generations())
-        groups = [top(store, k, generation=generation, island=i) for i in islands]
-        row_labels = [f"island {g['island'][0].as_py()}" for g in groups]
+        row_labels = []
         ids: list[str | None] = []
-        for g in groups:
-            ids.extend(g["id"].to_pylist() + [None] * (k - g.num_rows))
+        for i in islands:
+            try:
+                chosen = _best_ids(store, k, generation, i, distinct)
+            except HistoryError:  # an island without a valid individual in this generation
+                continue
+            row_labels.append(f"island {i}")
+            ids.extend(chosen + [None] * (k - len(chosen)))
+        if not ids:
+            raise HistoryError(f"{run_label(store)}: no valid individual of generation {generation}")
         columns: int | None = k
     else:
-        ids = list(top(store, k, generation=generation, island=island)["id"].to_pylist())
+        ids = list(_best_ids(store, k, generation, island, distinct))
         row_labels, columns = None, None
     tiles = []
     count = 0
@@ -363,16 +403,18 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
         where += f", island {island}"
-    title = (f"{getattr(store, 'run_id', run_label(store))}: best {k} of {where}"
+    title = (f"{getattr(store, 'run_id', run_label(store))}: the best {count if not per_island else k}"
+             + (" distinct surfaces" if distinct else "") + f" of {where}"
              + (" per island" if per_island else "") + "  (lower fitness is better)")
     fig = gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels)
     return fig, f"{count} surfaces of {where}"
 
 
 def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
-                island: int | None = None, per_island: bool = False) -> str:
+                island: int | None = None, per_island: bool = False, distinct: bool = True) -> str:
     """Write the contact sheet of ``gallery_figure_of`` to the PNG ``path``; returns its description."""
-    fig, info = gallery_figure_of(run, generation=generation, k=k, island=island, per_island=per_island)
+    fig, info = gallery_figure_of(run, generation=generation, k=k, island=island, per_island=per_island,
+                                  distinct=distinct)
     _save(fig, path, dpi=100)
     return info
 

@@ -44,7 +44,7 @@ td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: now
 pre { margin: 0; font-size: 12px; background: #f7f7f2; padding: 6px 8px; border-radius: 4px;
       white-space: pre-wrap; }
 .note { color: #6b747c; font-size: 13px; }
-code { background: #eef2f5; padding: 1px 5px; border-radius: 3px; }
+code { background: #eef2f5; padding: 1px 5px; border-radius: 3px; white-space: nowrap; }
 """
 
 

@@ -56,3 +56,52 @@ def targets() -> dict[int, dict[str, float]]:
 def units() -> dict[int, dict[str, float]]:
     """The deviation unit of each criterion per version: ``max(1, |target|)`` (no scale set)."""
     return {v: {name: max(1.0, abs(t)) for name, t in table.items()} for v, table in targets().items()}
+
+
+# A real run: genomes mapped, grown and scored by the island (plain Python), committed to the store
+# generation by generation, with migration and an intervention that changes the environment.
+REAL = {
+    "universe": "default",
+    "seed": 5,
+    "genome": {"length": 60, "max_wraps": 2},
+    "ea": {"population": 10, "generations": 3, "elites": 1, "tournament": 2},
+    "fitness": {"size": {"target": 6.0}, "subdivisions": {"target": 0.5, "weight": 2.0},
+                "undulation": {"target": 1.0}, "smoothness": {"target": 0.0, "weight": 0.0}},
+    "environment": {"steps": 3, "scale": 1.5, "seed": 3,
+                    "attractors": [{"position": [0.0, 0.0, 2.0], "constant": 4.0, "exponent": 2.0}]},
+    "islands": {"count": 2, "migration_interval": 1, "migrants": 1},
+}
+REAL_INTERVENTION_AT = 2
+
+
+def build_real_run(path: Path) -> RunStore:
+    """Two islands x 4 generations (0..3) x 10 individuals of real evolution; from generation 2 the
+    environment's attractor is stronger (configuration version 2); one migrant per island per
+    generation along the ring; in generation 3 a copy of generation 1's best is injected into
+    island 0."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.island import Island
+
+    config = RunConfig.from_dict(REAL, source="history_runs.REAL")
+    store = RunStore.create(path, config.to_toml())
+    islands = [Island(config, i) for i in range(2)]
+    populations = [island.initial() for island in islands]
+    store.commit([ind for pop in populations for ind in pop], [Event("start", 0, None, {"islands": 2})])
+    for generation in range(1, config.ea.generations + 1):
+        events = [Event("migration", generation - 1, None, {"topology": "ring"})]
+        if generation == REAL_INTERVENTION_AT:
+            changes = {"environment": {"attractors": [
+                {"position": [0.0, 0.0, 2.0], "constant": 6.0, "exponent": 2.0}]}}
+            config = config.replace(**changes)
+            store.add_config(config.to_toml(), generation, events=[
+                Event("intervention", generation, None, {"version": 2, "changes": changes})])
+            islands = [Island(config, i, config_version=2) for i in range(2)]
+        best = [min(pop, key=lambda ind: (ind.fitness, ind.index)) for pop in populations]
+        if generation == 1:
+            champion = best[0]
+        injected = [champion] if generation == 3 else []
+        populations = [island.step(populations[i], generation, migrants=[best[(i - 1) % 2]],
+                                   injected=injected if i == 0 else [])
+                       for i, island in enumerate(islands)]
+        store.commit([ind for pop in populations for ind in pop], events)
+    return store
