@@ -27,6 +27,10 @@ class IslandHost:
     """Hosts islands of one run; ``run_dir`` is where it reads a generation it does not hold."""
 
     def __init__(self, run_dir: str) -> None:
+        self.bind(run_dir)
+
+    def bind(self, run_dir: str) -> None:
+        """Serve the run in ``run_dir`` from now on, forgetting everything held of another run."""
         self.run_dir = run_dir
         self._islands: dict[tuple[int, int], Any] = {}
         self._configs: dict[int, Any] = {}

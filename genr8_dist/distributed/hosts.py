@@ -100,6 +100,16 @@ class HostPool:
                 f"{ray.available_resources().get('CPU', 0.0):g} free); the run was not started"
             ) from None
 
+    def rebind(self, run_dir: str, n_islands: int) -> None:
+        """Serve another run with the same hosts (a notebook or a test running several runs in turn)."""
+        import ray
+
+        live = [h for h, alive in zip(self._hosts, self._alive, strict=True) if alive]
+        ray.get([h.bind.remote(run_dir) for h in live])
+        self._hosts, self._alive = live, [True] * len(live)
+        self.run_dir, self.n_islands = run_dir, n_islands
+        self.placement = {island: island % len(live) for island in range(n_islands)}
+
     @property
     def size(self) -> int:
         """How many hosts are alive."""

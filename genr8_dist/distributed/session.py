@@ -215,8 +215,10 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     return summary
 
 
-def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, **hooks: Any) -> RunSummary:
-    """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation."""
+def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, hosts: Any = None,
+               **hooks: Any) -> RunSummary:
+    """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation (on
+    ``hosts``, a ``HostPool`` of an earlier run, rebound to this one, when given)."""
     from genr8_dist.distributed.hosts import HostPool
     from genr8_dist.store import RunStore
 
@@ -233,7 +235,12 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
     with connect_ray(options.address, options.num_cpus):
-        hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts, timeout=options.schedule_timeout)
+        own = hosts is None
+        if own:
+            hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
+                             timeout=options.schedule_timeout)
+        else:
+            hosts.rebind(str(store.path), n)
         try:
             if problems:
                 for problem in problems:
@@ -249,6 +256,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                       file=out, flush=True)
             summary = drive(store, options, out=out, hosts=hosts, **hooks)
         finally:
-            hosts.shutdown()
+            if own:
+                hosts.shutdown()
     _report(summary, run_dir, out)
     return summary

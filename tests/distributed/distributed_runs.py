@@ -71,13 +71,17 @@ def new_run(run_dir, toml: str):
     return store
 
 
-def drive_to_end(run_dir, **hooks):
-    """Run (or go on with) the run in ``run_dir`` on the session's Ray until it ends or a hook stops it."""
-    from genr8_dist.distributed.session import RunOptions, drive
+def drive_to_end(run_dir, hosts=None, **hooks):
+    """Run (or go on with) the run in ``run_dir`` on the session's Ray until it ends or a hook stops it;
+    on ``hosts`` (a ``HostPool``, rebound to this run) when given, else on hosts of its own."""
+    from genr8_dist.distributed.session import RunOptions, drive, latest_config
     from genr8_dist.store import RunStore
 
     out = io.StringIO()
-    summary = drive(RunStore.open(run_dir), RunOptions(quiet=False), out=out, **hooks)
+    store = RunStore.open(run_dir)
+    if hosts is not None:
+        hosts.rebind(str(store.path), latest_config(store).islands.count)
+    summary = drive(store, RunOptions(quiet=False), out=out, hosts=hosts, **hooks)
     return summary, out.getvalue()
 
 

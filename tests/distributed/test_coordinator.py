@@ -13,11 +13,21 @@ pytestmark = pytest.mark.usefixtures("ray_local")
 
 
 @pytest.fixture(scope="module")
-def reference(tmp_path_factory, ray_local):
+def pool(tmp_path_factory, ray_local):
+    """Island hosts shared by this module's runs (rebound to each run; the CLI tests start their own)."""
+    from genr8_dist.distributed.hosts import HostPool
+
+    hosts = HostPool(str(tmp_path_factory.mktemp("unbound")), 3)
+    yield hosts
+    hosts.shutdown()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, pool):
     """The uninterrupted 3-island run every other run is compared with."""
     run_dir = tmp_path_factory.mktemp("ref") / "run"
     new_run(run_dir, tiny_toml())
-    summary, log = drive_to_end(run_dir)
+    summary, log = drive_to_end(run_dir, pool)
     return run_dir, summary, log
 
 
@@ -41,19 +51,19 @@ def test_three_islands_with_migration_complete_with_every_row(reference):
 
 
 @pytest.mark.parametrize("at", [0, 1, 3, 5])
-def test_interrupted_and_resumed_equals_uninterrupted(reference, tmp_path, at):
+def test_interrupted_and_resumed_equals_uninterrupted(reference, pool, tmp_path, at):
     run_dir = tmp_path / "run"
     new_run(run_dir, tiny_toml())
-    first, _ = drive_to_end(run_dir, on_generation=stop_at(at))
+    first, _ = drive_to_end(run_dir, pool, on_generation=stop_at(at))
     assert first.status == "interrupted"
     assert min(first.committed.values()) >= at
     assert "interrupt" in event_kinds(run_dir)
-    second, _ = drive_to_end(run_dir)
+    second, _ = drive_to_end(run_dir, pool)
     assert second.status == "complete"
     assert rows(run_dir) == rows(reference[0])
 
 
-def test_killed_island_actor_is_rebuilt_and_the_rows_are_the_same(reference, tmp_path):
+def test_killed_island_actor_is_rebuilt_and_the_rows_are_the_same(reference, pool, tmp_path):
     import ray
 
     run_dir = tmp_path / "run"
@@ -65,7 +75,7 @@ def test_killed_island_actor_is_rebuilt_and_the_rows_are_the_same(reference, tmp
             killed.append(g)
             ray.kill(coordinator.hosts.host_of(1), no_restart=True)
 
-    summary, log = drive_to_end(run_dir, on_generation=kill_island_1)
+    summary, log = drive_to_end(run_dir, pool, on_generation=kill_island_1)
     assert killed and summary.status == "complete"
     assert summary.recoveries >= 1
     assert "recovery" in event_kinds(run_dir)
@@ -73,19 +83,19 @@ def test_killed_island_actor_is_rebuilt_and_the_rows_are_the_same(reference, tmp
     assert rows(run_dir) == rows(reference[0])
 
 
-def test_edit_takes_effect_from_its_generation_only(reference, tmp_path):
+def test_edit_takes_effect_from_its_generation_only(reference, pool, tmp_path):
     from genr8_dist.distributed.intervene import Edit, apply_edit
     from genr8_dist.fitness import FitnessSpec
     from genr8_dist.store import RunStore
 
     run_dir = tmp_path / "run"
     new_run(run_dir, tiny_toml())
-    drive_to_end(run_dir, on_generation=stop_at(2))
+    drive_to_end(run_dir, pool, on_generation=stop_at(2))
     done = max(RunStore.open(run_dir).committed_generations().values())
     edit = Edit(assignments=["fitness.size.weight=5", "fitness.weights.symmetry=0"], inject_copy=["1-1-0"])
     result = apply_edit(str(run_dir), edit)
     assert result.effective_generation == done + 1 and result.version == 2
-    drive_to_end(run_dir)
+    drive_to_end(run_dir, pool)
 
     got, ref = rows(run_dir), rows(reference[0])
     assert [r for r in got if r["generation"] <= done] == [r for r in ref if r["generation"] <= done]
@@ -109,30 +119,31 @@ def test_edit_takes_effect_from_its_generation_only(reference, tmp_path):
     assert json.loads(intervention["detail"])["changes"]["fitness.size.weight"] == 5
 
 
-def test_truncated_parquet_is_named_and_the_run_resumes_from_the_last_intact_generation(reference, tmp_path):
+def test_truncated_parquet_is_named_and_the_run_resumes_from_the_last_intact_generation(
+        reference, pool, tmp_path):
     from genr8_dist.store import RunStore
 
     run_dir = tmp_path / "run"
     new_run(run_dir, tiny_toml())
-    drive_to_end(run_dir, on_generation=stop_at(4))
+    drive_to_end(run_dir, pool, on_generation=stop_at(4))
     store = RunStore.open(run_dir)
     newest = store.individual_files()[-1]
     with open(newest, "r+b") as f:
         f.truncate(f.seek(0, 2) // 2)
     problems = RunStore.open(run_dir).verify()
     assert problems and any(newest.rsplit("/", 1)[-1] in p for p in problems)
-    summary, log = drive_to_end_after_repair(run_dir)
+    summary, log = drive_to_end_after_repair(run_dir, pool)
     assert "damaged:" in log and newest.rsplit("/", 1)[-1] in log
     assert summary.status == "complete"
     assert rows(run_dir) == rows(reference[0])
 
 
-def drive_to_end_after_repair(run_dir):
+def drive_to_end_after_repair(run_dir, pool):
     """What ``genr8 resume`` does: report damage, repair, go on."""
     import io
 
     from genr8_dist.distributed.session import RunOptions, resume_run
 
     out = io.StringIO()
-    summary = resume_run(str(run_dir), RunOptions(quiet=True), out=out)
+    summary = resume_run(str(run_dir), RunOptions(quiet=True), out=out, hosts=pool)
     return summary, out.getvalue()
