@@ -79,6 +79,7 @@ class _Group:
 class _CompiledRule:
     left: int | None
     right: int | None
+    chain: tuple[int, ...]
     condition: object
     templates: tuple[Template, ...]
     cumulative: np.ndarray  # cumulative normalized weights
@@ -107,6 +108,7 @@ def _compile(system: RewriteSystem) -> _Compiled:
         groups.setdefault(ids[rule.predecessor.name], []).append(_CompiledRule(
             None if rule.left is None else ids[rule.left.name],
             None if rule.right is None else ids[rule.right.name],
+            tuple(ids[c.name] for c in rule.chain),
             rule.condition, templates, cum))
     labels = np.array(sorted(set(ids.values())), dtype=np.int64)
     return _Compiled(
@@ -264,12 +266,24 @@ class _Map:
         sizes = np.bincount(fs, minlength=self.nf)[faces]
         offsets = np.zeros(len(starts) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
-        cur = starts.copy()
-        longest = int(sizes.max()) if len(sizes) else 0
-        for i in range(longest):
-            active = i < sizes
-            order[offsets[:-1][active] + i] = cur[active]
+        short = sizes <= 64
+        cur = starts[short].copy()
+        base = offsets[:-1][short]
+        lengths = sizes[short]
+        for i in range(int(lengths.max()) if len(lengths) else 0):
+            active = i < lengths
+            order[base[active] + i] = cur[active]
             cur[active] = nxt[cur[active]]
+        long_faces = np.flatnonzero(~short)
+        if len(long_faces):  # a few long cycles: a plain walk beats thousands of array passes
+            links = nxt.tolist()
+            for f in long_faces:
+                h = int(starts[f])
+                walk = []
+                for _ in range(int(sizes[f])):
+                    walk.append(h)
+                    h = links[h]
+                order[offsets[f]:offsets[f + 1]] = walk
         return faces, offsets, self.origin(order)
 
     def surface(self) -> Surface:
@@ -331,6 +345,9 @@ class _Branches:
     def __init__(self) -> None:
         self.parts: list[tuple[np.ndarray, ...]] = []
         self._cat: tuple[np.ndarray, ...] | None = None
+        # branches [0, checked) have met each other in a join already: positions and headings do
+        # not change within a step and faces only split, so such pairs never need testing again
+        self.checked = 0
 
     def add(self, vertex, corner, label, age, heading, reversed_, normal) -> None:
         if len(vertex):
@@ -354,7 +371,9 @@ class _Branches:
         return self._cat
 
     def keep(self, mask: np.ndarray) -> None:
+        """Keep the branches where ``mask`` holds; all of them count as checked from now on."""
         self._cat = tuple(a[mask] for a in self.arrays())
+        self.checked = len(self._cat[0])
 
     def remap_corners(self, repl: np.ndarray) -> None:
         arrs = list(self.arrays())
@@ -442,6 +461,25 @@ class _Grower:
         own = (m.label[idx] == label).astype(np.int64)  # the edge itself sits at that vertex too
         return count - own > 0
 
+    def _chain_ok(self, idx: np.ndarray, chain: tuple[int, ...]) -> np.ndarray:
+        """Whether a path of edges labelled ``chain`` continues from the end vertex of each edge."""
+        m = self.m
+        live = np.flatnonzero(m.alive[:m.ne])
+        ends = m.ev[live]
+        labels = m.label[live]
+        rest = np.ones(m.nv, dtype=bool)  # where the remainder of the chain can start
+        for lab in reversed(chain[1:]):
+            p, q = ends[labels == lab, 0], ends[labels == lab, 1]
+            mask = np.zeros(m.nv, dtype=bool)
+            mask[p[rest[q]]] = True
+            mask[q[rest[p]]] = True
+            rest = mask
+        lab = chain[0]
+        p, q = ends[labels == lab, 0], ends[labels == lab, 1]
+        count = (np.bincount(p[rest[q]], minlength=m.nv) + np.bincount(q[rest[p]], minlength=m.nv))
+        own = (m.label[idx] == lab) & rest[m.ev[idx, 0]]  # the edge itself, seen from its end
+        return count[m.ev[idx, 1]] - own > 0
+
     def _rewrite_group(self, group: _Group, pending: _Branches) -> None:
         m = self.m
         idx = np.flatnonzero(m.alive[:m.ne] & (m.label[:m.ne] == group.label))
@@ -459,6 +497,8 @@ class _Grower:
                 ok[ok] = self._context_ok(idx[ok], 0, rule.left)
             if rule.right is not None:
                 ok[ok] = self._context_ok(idx[ok], 1, rule.right)
+            if rule.chain:
+                ok[ok] = self._chain_ok(idx[ok], rule.chain)
             choice[ok] = r
         batches: list[tuple[np.ndarray, Template]] = []
         grow_edges = 0
@@ -603,44 +643,52 @@ class _Grower:
         face = np.where(ok, m.face[np.maximum(corner, 0)], 0)
         ok &= face != 0
         cand = np.flatnonzero(ok)
-        if len(cand) < 2:
+        old = pending.checked
+        if len(cand) < 2 or not np.any(cand >= old):
+            pending.checked = n
             return
         key = face[cand] * (self.c.max_label + 1) + label[cand]
-        order = np.argsort(key, kind="stable")
+        order = np.argsort(key, kind="stable")  # within a group, old branches come first
         cand = cand[order]
         key = key[order]
         first = np.ones(len(cand), dtype=bool)
         first[1:] = key[1:] != key[:-1]
         starts = np.flatnonzero(first)
         sizes = np.diff(np.append(starts, len(cand)))
+        points = m.pos[vert]
         pi_all, pj_all = [], []
-        for size in np.unique(sizes):
+        small = (sizes >= 2) & (sizes <= 48)
+        for size in np.unique(sizes[small]):
             size = int(size)
-            if size < 2:
+            gs = starts[small & (sizes == size)]
+            ti, tj = np.triu_indices(size, 1)
+            pi = cand[(gs[:, None] + ti).ravel()]
+            pj = cand[(gs[:, None] + tj).ravel()]
+            fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
+            pi, pj = pi[fresh], pj[fresh]
+            keep = self._pair_ok(pi, pj, points, heading, max_dist)
+            pi_all.append(pi[keep])
+            pj_all.append(pj[keep])
+        for g in np.flatnonzero(sizes > 48):
+            members = cand[starts[g]:starts[g] + sizes[g]]
+            new = members[members >= old]
+            if not len(new):
                 continue
-            gs = starts[sizes == size]
-            if size <= 64:
-                ti, tj = np.triu_indices(size, 1)
-                pi = cand[(gs[:, None] + ti).ravel()]
-                pj = cand[(gs[:, None] + tj).ravel()]
-                keep = self._pair_ok(pi, pj, vert, heading, max_dist)
+            rows = max(1, 1_000_000 // len(new))
+            for r0 in range(0, len(members), rows):
+                self._check_time()
+                block = members[r0:r0 + rows]
+                pi = np.repeat(block, len(new))
+                pj = np.tile(new, len(block))
+                fresh = pi < pj
+                pi, pj = pi[fresh], pj[fresh]
+                keep = self._pair_ok(pi, pj, points, heading, max_dist)
                 pi_all.append(pi[keep])
                 pj_all.append(pj[keep])
-            else:
-                for g in gs:
-                    members = cand[g:g + size]
-                    for x in range(size - 1):
-                        self._check_time()
-                        pi = np.full(size - x - 1, members[x])
-                        pj = members[x + 1:]
-                        keep = self._pair_ok(pi, pj, vert, heading, max_dist)
-                        pi_all.append(pi[keep])
-                        pj_all.append(pj[keep])
-        if not pi_all:
-            return
-        pi = np.concatenate(pi_all)
-        pj = np.concatenate(pj_all)
+        pi = np.concatenate(pi_all) if pi_all else np.zeros(0, dtype=np.int64)
+        pj = np.concatenate(pj_all) if pj_all else np.zeros(0, dtype=np.int64)
         if not len(pi):
+            pending.checked = n
             return
         d = m.pos[vert[pj]] - m.pos[vert[pi]]
         dist = np.linalg.norm(d, axis=1)
@@ -690,16 +738,16 @@ class _Grower:
                 raise _Capped("edges")
         pending.keep(~used)
 
-    def _pair_ok(self, pi, pj, vert, heading, max_dist) -> np.ndarray:
-        m = self.m
+    def _pair_ok(self, pi, pj, points, heading, max_dist) -> np.ndarray:
+        """Branch pairs that point at each other within the cone and the distance limit."""
         cos_cone = self.c.cos_cone - 1e-9
-        d = m.pos[vert[pj]] - m.pos[vert[pi]]
-        dist = np.linalg.norm(d, axis=1)
-        ok = (vert[pi] != vert[pj]) & (dist > 1e-300) & (dist <= max_dist)
-        safe = np.where(dist > 1e-300, dist, 1.0)
-        ci = np.einsum("ij,ij->i", heading[pi], d) / safe
-        cj = -np.einsum("ij,ij->i", heading[pj], d) / safe
-        return ok & (ci >= cos_cone) & (cj >= cos_cone)
+        d = points[pj] - points[pi]
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        ok = (dist > 1e-12) & (dist <= max_dist)
+        safe = np.where(ok, dist, 1.0)
+        ok &= np.einsum("ij,ij->i", heading[pi], d) >= cos_cone * safe
+        ok &= -np.einsum("ij,ij->i", heading[pj], d) >= cos_cone * safe
+        return ok
 
     def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """For each half-edge leaving u, whether u already has an edge to the matching target."""
@@ -748,24 +796,43 @@ class _Grower:
         cx, cy = m.nxt[x], m.nxt[y]
         open_ = np.ones(j, dtype=bool)
         shorter_is_x = np.zeros(j, dtype=bool)
-        while np.any(open_):
+        for _ in range(32):
             done_x = open_ & (cx == x)
             done_y = open_ & (cy == y) & ~done_x
             shorter_is_x |= done_x
             open_ &= ~(done_x | done_y)
+            if not np.any(open_):
+                break
             cx = np.where(open_, m.nxt[cx], cx)
             cy = np.where(open_, m.nxt[cy], cy)
         new_face = m.nf + np.arange(j, dtype=np.int64)
         m.nf += j
         m.face[x] = f
         m.face[y] = f
+        links = m.nxt.tolist() if np.any(open_) else None
+        for r in np.flatnonzero(open_):  # long cycles on both sides: walk them one by one
+            xr, yr, px, py = int(x[r]), int(y[r]), int(cx[r]), int(cy[r])
+            while px != xr and py != yr:
+                px, py = links[px], links[py]
+            shorter_is_x[r] = px == xr
         start = np.where(shorter_is_x, x, y)
+        short = ~open_
         cur = start.copy()
-        active = np.ones(j, dtype=bool)
+        active = short.copy()
         while np.any(active):
             m.face[cur[active]] = new_face[active]
             cur[active] = m.nxt[cur[active]]
             active &= cur != start
+        for r in np.flatnonzero(open_):
+            h0 = int(start[r])
+            h = h0
+            walk = []
+            while True:
+                walk.append(h)
+                h = links[h]
+                if h == h0:
+                    break
+            m.face[walk] = new_face[r]
         # pending branches whose corner was split: keep ha (sector from ha's direction round to the
         # new edge) or move to the new edge's half leaving the same vertex
         lookup = np.full(2 * m.ne, -1, dtype=np.int64)

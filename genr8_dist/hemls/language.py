@@ -143,7 +143,11 @@ class Condition:
 
 @dataclass(frozen=True)
 class Rule:
-    """``left < predecessor > right -> successor [Weight w] {-> successor [Weight w]} [If i op c]``."""
+    """``left < predecessor > right -> successor [Weight w] {-> successor [Weight w]} [If i op c]``.
+
+    ``chain`` holds the segments written after the predecessor without a ``>`` (``A B C ->``):
+    the rule applies to an A edge followed by a B edge at its end vertex, followed in turn by a C edge.
+    """
 
     predecessor: Segment
     successors: tuple[Successor, ...]
@@ -151,9 +155,10 @@ class Rule:
     right: Segment | None = None
     condition: Condition | None = None
     line: int = field(default=0, compare=False)
+    chain: tuple[Segment, ...] = ()
 
     def __str__(self) -> str:
-        pred = str(self.predecessor)
+        pred = " ".join(str(s) for s in (self.predecessor, *self.chain))
         if self.left is not None:
             pred = f"{self.left} < {pred}"
         if self.right is not None:
@@ -235,7 +240,7 @@ class RewriteSystem:
         for e in self.axiom:
             seen.setdefault(e.segment.name)
         for r in self.rules:
-            for s in (r.left, r.predecessor, r.right):
+            for s in (r.left, r.predecessor, *r.chain, r.right):
                 if s is not None:
                     seen.setdefault(s.name)
             for succ in r.successors:
@@ -380,17 +385,19 @@ class _Build(Transformer):
         return seg
 
     def context_free(self, c):
-        return (None, self._predecessor(c[0], "predecessor"), None)
+        chain = tuple(self._predecessor(p, "following edge") for p in c[1:])
+        return (None, self._predecessor(c[0], "predecessor"), None, chain)
 
     def left_context(self, c):
-        return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"), None)
+        return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"), None, ())
 
     def right_context(self, c):
-        return (None, self._predecessor(c[0], "predecessor"), self._predecessor(c[1], "right context"))
+        return (None, self._predecessor(c[0], "predecessor"), self._predecessor(c[1], "right context"),
+                ())
 
     def both_contexts(self, c):
         return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"),
-                self._predecessor(c[2], "right context"))
+                self._predecessor(c[2], "right context"), ())
 
     def predecessor(self, c):  # pragma: no cover - every alternative is aliased
         return c[0]
@@ -436,10 +443,10 @@ class _Build(Transformer):
 
     @v_args(meta=True)
     def rule(self, meta, children):
-        left, pred, right = children[0]
+        left, pred, right, chain = children[0]
         succs = tuple(c for c in children[1:] if isinstance(c, Successor))
         cond = next((c for c in children[1:] if isinstance(c, Condition)), None)
-        return ("rule", Rule(pred, succs, left, right, cond, line=meta.line), meta)
+        return ("rule", Rule(pred, succs, left, right, cond, line=meta.line, chain=chain), meta)
 
     @v_args(meta=True)
     def continuation(self, meta, children):
@@ -481,7 +488,7 @@ class _Build(Transformer):
                 succs, cond = value
                 last = rules[-1]
                 rules[-1] = Rule(last.predecessor, last.successors + succs, last.left, last.right,
-                                 cond, line=last.line)
+                                 cond, line=last.line, chain=last.chain)
             else:
                 if kind in settings:
                     raise self._fail(f"{kind} given twice (first on line {settings[kind][1]})", meta)

@@ -183,6 +183,15 @@ def test_context_matches_edges_at_the_start_and_end_vertices():
     assert np.bincount(surface.labels).tolist() == [2, 1, 3]
 
 
+def test_predecessor_followed_by_a_chain_of_edges():
+    # triangle v0 -Edge0-> v1 -Edge1-> v2 -Edge2-> v0
+    system = parse("Edge0 + Edge1 + Edge2\nEdge0 Edge1 Edge2 -> Edge0 Edge0\nEdge1 Edge0 -> Edge1 Edge1\n"
+                   "Edge2 Edge0 Edge2 -> Edge2 Edge2\n")
+    surface = grow(system, FLAT, steps=1).surface
+    # Edge0 then Edge1 then Edge2 follows; Edge1 is followed by Edge2, not Edge0; Edge2 by Edge0, Edge1
+    assert np.bincount(surface.labels).tolist() == [2, 1, 1]
+
+
 def test_first_matching_rule_wins_within_a_label():
     system = parse("Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 Edge0 Edge0\nEdge0 -> Edge0 Edge0\n")
     assert grow(system, FLAT, steps=1).surface.n_edges == 9

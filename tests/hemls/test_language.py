@@ -96,6 +96,13 @@ def test_context_forms():
         (Segment("Edge1"), None), (None, Segment("Edge2")), (Segment("Edge1"), Segment("Edge2"))]
 
 
+def test_predecessor_of_several_segments():
+    s = parse("Edge0 + Edge1 + Edge2\nEdge0 Edge1 Edge2 -> Edge0\n")
+    assert s.rules[0].predecessor == Segment("Edge0")
+    assert s.rules[0].chain == (Segment("Edge1"), Segment("Edge2"))
+    assert s.to_text().splitlines()[1] == "Edge0 Edge1 Edge2 -> Edge0"
+
+
 def test_journal_letter_labels():
     s = parse("A + B + A + B\nA -> A [ [ + B ] - B ] A\nB -> B [ [ + A ] - A ] B\nAngle 90\n"
               "BranchAngle 90\n")
