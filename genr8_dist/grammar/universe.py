@@ -111,6 +111,7 @@ class Universe:
         templates = self.grammar.templates
         pred = [t for t in templates if t.terminal.startswith("PRED")] or list(templates)
         self._pred_template = pred[0] if pred else None
+        self._pred_index = list(templates).index(pred[0]) if pred else 0
         self._has_pred = any(n[0] == "edge" and n[1] == "P" for alts in self.grammar.rules.values()
                              for alt in alts for n in _walk(alt))
         self._edge_res = [t.regex() for t in templates]
@@ -186,18 +187,12 @@ class Universe:
     def _run_repair(self, m: CompiledMapper, nxt: Callable[[], int], out: list[str], text: str,
                     count: int, has: set[int]) -> str:
         """Run the repair hook over ``text``; returns the repaired text."""
-        tokens = set(out)
-        occurring = set(range(2, count))
-        for table in m.tables:
-            if table[0] in tokens:
-                occurring.add(0)
-            if table[1] in tokens:
-                occurring.add(1)
         if not self._has_pred:
             has = rule_predecessors(text, self.label_of)
-        hook = self._repair_hook
-        if hook is hemls_repair and occurring <= has:
-            return text
+        if self._repair_hook is hemls_repair and self._pred_template is not None:
+            return self._hemls_repair(m, nxt, out, text, count, has)
+        occurring = set(range(2, count))
+        occurring.update(k for k in (0, 1) if any(table[k] in out for table in m.tables))
         repair = m.repair
 
         def expand() -> list[str]:
@@ -216,8 +211,38 @@ class Universe:
         ctx = RepairContext(text=text, expand=expand, occurring=occurring, has_rule=has,
                             label_of=self.label_of, edge=template.text if template else str,
                             count=count, labels_in=labels_in)
-        hook(ctx)
+        self._repair_hook(ctx)
         return ctx.text
+
+    def _hemls_repair(self, m: CompiledMapper, nxt: Callable[[], int], out: list[str], text: str,
+                      count: int, has: set[int]) -> str:
+        """:func:`~genr8_dist.grammar.hooks.hemls_repair`, inlined for speed (same result)."""
+        missing = {k for k in range(count) if k not in has}
+        for k in (0, 1):
+            if k in missing and not any(table[k] in out for table in m.tables):
+                missing.discard(k)  # labels 0 and 1 exist from the start but may never occur
+        if not missing:
+            return text
+        arrow = text.rfind("->")
+        if arrow < 0:
+            return text
+        end = text.find("\n", arrow)
+        end = len(text) if end < 0 else end + 1
+        get = m.labels.get
+        repair = m.repair
+        edges = m.tables[self._pred_index]
+        new = []
+        while missing:
+            label = min(missing)
+            missing.discard(label)
+            has.add(label)
+            successor: list[str] = []
+            repair(nxt, successor, count)
+            new.append(" ".join([edges[label], "->", *successor]))
+            for lab in set(map(get, successor)):
+                if lab is not None and lab not in has:
+                    missing.add(lab)
+        return f"{text[:end]}{chr(10).join(new)}\n{text[end:]}"
 
     # ----------------------------------------------------------------------------- inverse
 

@@ -48,7 +48,8 @@ class Reference:
         return self.cg.templates[template].text(value)
 
     def fits(self, node, d):
-        return d + self.cg.alt_need(node) <= self.maxd
+        need = self.cg.alt_need(node)  # a body that opens no rule fits even past max_depth
+        return need == 0 or d + need <= self.maxd
 
     def rule(self, name, d, out):
         self.deepest = max(self.deepest, d)
