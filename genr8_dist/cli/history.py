@@ -185,9 +185,8 @@ def _lineage(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from genr8_dist.history import HistoryError
+    from genr8_dist.history import HistoryError, _text
     from genr8_dist.history import _regrow as regrow
-    from genr8_dist.history import _text
 
     for path in args.output:  # refuse a bad name before anything is grown or written
         suffix = Path(path).suffix.lower().lstrip(".")
