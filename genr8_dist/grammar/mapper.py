@@ -72,8 +72,8 @@ class _Writer:
             return str(off)
         return f"{var} + {off}" if off else var
 
-    def body(self, root: str, depth: int) -> list[str]:
-        """Code (at indentation 0) expanding ``root`` at ``depth``, then every function it needs."""
+    def body(self, root: str, depth: int) -> tuple[list[str], list[str]]:
+        """The functions needed, and the code (indentation 0) expanding ``root`` at ``depth``."""
         self.draws = False
         main: list[str] = []
         self.rule_ref(root, main, 0, (None, depth))
@@ -87,11 +87,10 @@ class _Writer:
                 lines.insert(1, "    nonlocal count")
             self.functions[name] = lines
         self.draws = main_draws
-        out: list[str] = []
+        funcs: list[str] = []
         for lines in self.functions.values():
-            out.extend(lines)
-        out.extend(main)
-        return out
+            funcs.extend(lines)
+        return funcs, main
 
     def rule_ref(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
         if name in self.recursive:
@@ -294,20 +293,26 @@ def build_source(cg: CompiledGrammar, max_depth: int) -> str:
     for i in range(max(1, len(cg.templates))):
         lines.append(f"    ES{i} = ES[{i}]")
     main = _Writer(cg, max_depth, birth=True, suffix="")
-    code = main.body(cg.start, 1)
+    funcs, code = main.body(cg.start, 1)
     lines.append("    def derive(nxt, out, has_rule):")
     lines.append("        app = out.append")
     lines.append("        ext_ = out.extend")
     lines.append("        count = 2")
-    lines.extend("        " + line for line in code)
+    lines.extend("        " + line for line in funcs + code)
     lines.append("        return count")
     if cg.repair_rule is not None:
         rep = _Writer(cg, max_depth, birth=False, suffix="_r")
-        code = rep.body(cg.repair_rule, cg.repair_depth)
+        funcs, body = rep.body(cg.repair_rule, cg.repair_depth)
+        # repair(nxt, out, count) -> expand(): the rule functions are made once per genome, and
+        # each expand() call appends one expansion of the repair rule to ``out``.
         lines.append("    def repair(nxt, out, count):")
         lines.append("        app = out.append")
         lines.append("        ext_ = out.extend")
-        lines.extend("        " + line for line in code)
+        lines.extend("        " + line for line in funcs)
+        lines.append("        def expand():")
+        lines.extend("            " + line for line in body)
+        lines.append("            return None")
+        lines.append("        return expand")
     else:
         lines.append("    repair = None")
     lines.append("    return derive, repair")
@@ -330,7 +335,8 @@ class CompiledMapper:
 
     ``derive(nxt, out, has_rule) -> count`` runs the main derivation, appending tokens to ``out``,
     reading codons with ``nxt()`` and calling ``has_rule(label)`` for every ``PRED`` edge;
-    ``repair(nxt, out, count)`` expands the repair rule once with no new labels
+    ``repair(nxt, out, count)`` returns ``expand()``, which appends one expansion of the repair
+    rule to ``out`` with no new labels
     (``None`` when the universe has no repair rule). ``tables`` holds each template's token strings.
     """
 
@@ -338,6 +344,7 @@ class CompiledMapper:
     repair: Callable | None
     tables: tuple[list[str], ...]
     labels: dict[str, int]             # every edge token in ``tables`` -> its label
+    distinct: tuple[list[str], ...]    # the distinct tables among ``tables``
     max_depth: int
 
 
@@ -349,18 +356,22 @@ def compile_mapper(cg: CompiledGrammar, max_depth: int) -> CompiledMapper:
           for name, alts in cg.rules.items()}
     eg = {gid: tuple(eligible(cg, alts, d, max_depth) for d in range(top + 1))
           for gid, alts in _groups(cg).items()}
-    templates = cg.templates
-    tables: tuple[list[str], ...] = tuple(
-        [t.text(i) for i in range(_PRESIZE)] for t in templates) or ([],)
-    labels = {tok: i for table in tables for i, tok in enumerate(table)}
+    # One token table per distinct printed form (EDGE, PRED and CTX usually share "Edge<n>").
+    shared: dict[tuple[str, str], list[str]] = {}
+    for t in cg.templates:
+        shared.setdefault((t.prefix, t.suffix), [f"{t.prefix}{i}{t.suffix}" for i in range(_PRESIZE)])
+    tables: tuple[list[str], ...] = tuple(shared[(t.prefix, t.suffix)] for t in cg.templates) or ([],)
+    unique = tuple(shared.items())
+    labels = {tok: i for table in shared.values() for i, tok in enumerate(table)}
 
     def grow(count: int) -> None:
-        for t, table in zip(templates, tables, strict=False):
+        for (prefix, suffix), table in unique:
             start = len(table)
-            table.extend(t.text(i) for i in range(start, 2 * count + 1))
+            table.extend(f"{prefix}{i}{suffix}" for i in range(start, 2 * count + 1))
             labels.update((table[i], i) for i in range(start, len(table)))
 
     namespace: dict = {}
     exec(compile(code, f"<universe {cg.source}>", "exec"), namespace)
     derive, repair = namespace["make"](el, eg, tables, grow)
-    return CompiledMapper(derive=derive, repair=repair, tables=tables, labels=labels, max_depth=max_depth)
+    return CompiledMapper(derive=derive, repair=repair, tables=tables, labels=labels,
+                          distinct=tuple(table for _, table in unique), max_depth=max_depth)

@@ -192,13 +192,14 @@ class Universe:
         if self._repair_hook is hemls_repair and self._pred_template is not None:
             return self._hemls_repair(m, nxt, out, text, count, has)
         occurring = set(range(2, count))
-        occurring.update(k for k in (0, 1) if any(table[k] in out for table in m.tables))
-        repair = m.repair
+        occurring.update(k for k in (0, 1) if any(table[k] in out for table in m.distinct))
+        acc: list[str] = []
+        grow_one = m.repair(nxt, acc, count)
 
         def expand() -> list[str]:
-            successor: list[str] = []
-            repair(nxt, successor, count)
-            return successor
+            start = len(acc)
+            grow_one()
+            return acc[start:]
 
         get = m.labels.get
 
@@ -219,7 +220,7 @@ class Universe:
         """:func:`~genr8_dist.grammar.hooks.hemls_repair`, inlined for speed (same result)."""
         missing = {k for k in range(count) if k not in has}
         for k in (0, 1):
-            if k in missing and not any(table[k] in out for table in m.tables):
+            if k in missing and not any(table[k] in out for table in m.distinct):
                 missing.discard(k)  # labels 0 and 1 exist from the start but may never occur
         if not missing:
             return text
@@ -229,15 +230,17 @@ class Universe:
         end = text.find("\n", arrow)
         end = len(text) if end < 0 else end + 1
         get = m.labels.get
-        repair = m.repair
+        acc: list[str] = []
+        expand = m.repair(nxt, acc, count)
         edges = m.tables[self._pred_index]
         new = []
         while missing:
             label = min(missing)
             missing.discard(label)
             has.add(label)
-            successor: list[str] = []
-            repair(nxt, successor, count)
+            start = len(acc)
+            expand()
+            successor = acc[start:]
             new.append(" ".join([edges[label], "->", *successor]))
             for lab in set(map(get, successor)):
                 if lab is not None and lab not in has:
