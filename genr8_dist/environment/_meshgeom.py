@@ -16,6 +16,7 @@ __all__ = ["TriangleMesh"]
 
 # Ericson's Voronoi regions, in the order the closest-point test checks them
 _VERTEX_A, _VERTEX_B, _EDGE_AB, _VERTEX_C, _EDGE_AC, _EDGE_BC, _FACE = range(7)
+_K = 16  # nearest centroids fetched per point before falling back to a ball query
 
 
 def _closest_pairs(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray
@@ -103,6 +104,23 @@ class TriangleMesh:
         self.reach = float(np.max(np.linalg.norm(tri - self.centroids[:, None, :], axis=2)))
         self._tree = cKDTree(self.centroids)
 
+    def _best_of(self, points: np.ndarray, todo: np.ndarray, owner: np.ndarray, candidates: np.ndarray,
+                 closest: np.ndarray, dist2: np.ndarray, face: np.ndarray, feature: np.ndarray) -> None:
+        """Set, for each point in ``todo``, the nearest of its candidate triangles (``owner`` says whose
+        candidate each is, grouped by point in ``todo`` order). Ties go to the lower triangle index."""
+        tri = self.triangles[candidates]
+        cand, region = _closest_pairs(points[owner], tri[:, 0], tri[:, 1], tri[:, 2])
+        d2 = np.sum((cand - points[owner]) ** 2, axis=1)
+        order = np.lexsort((candidates, d2, owner))
+        first = np.ones(len(order), dtype=bool)
+        first[1:] = owner[order][1:] != owner[order][:-1]
+        best = order[first]
+        who = owner[best]
+        closest[who] = cand[best]
+        dist2[who] = d2[best]
+        face[who] = candidates[best]
+        feature[who] = region[best]
+
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For each point: the closest point of the mesh, the distance, and whether it is inside.
 
@@ -110,33 +128,44 @@ class TriangleMesh:
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         n = len(points)
-        if n == 0:
-            return np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=bool)
-        tri = self.triangles
-        _, nearest = self._tree.query(points, k=1)
-        first, _ = _closest_pairs(points, tri[nearest, 0], tri[nearest, 1], tri[nearest, 2])
-        bound = np.linalg.norm(first - points, axis=1) + self.reach
-        lists = self._tree.query_ball_point(points, bound * (1.0 + 1e-9) + 1e-12, return_sorted=True)
-        counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=n)
-        candidates = np.fromiter((t for x in lists for t in x), dtype=np.int64, count=int(counts.sum()))
-        owner = np.repeat(np.arange(n), counts)
-        closest, region = _closest_pairs(points[owner], tri[candidates, 0], tri[candidates, 1],
-                                         tri[candidates, 2])
-        dist2 = np.sum((closest - points[owner]) ** 2, axis=1)
-        order = np.lexsort((candidates, dist2, owner))  # per point: nearest first, ties by triangle index
-        starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        best = order[starts]
-        point_closest = closest[best]
-        face = candidates[best]
-        feature = region[best]
+        closest = np.zeros((n, 3))
+        dist2 = np.full(n, np.inf)
+        face = np.zeros(n, dtype=np.int64)
+        feature = np.zeros(n, dtype=np.int8)
+        todo = np.arange(n)
+        k = min(_K, len(self.triangles))
+        # round 1: the k nearest centroids. The best of their triangles is exact once no other triangle
+        # can be closer, i.e. once the k-th centroid is farther than that distance plus ``reach``.
+        near_d, near = self._tree.query(points, k=k)
+        near_d = near_d.reshape(n, k)
+        near = near.reshape(n, k)
+        tri = self.triangles[near.reshape(-1)]
+        owner = np.repeat(todo, k)
+        cand, region = _closest_pairs(points[owner], tri[:, 0], tri[:, 1], tri[:, 2])
+        d2 = np.sum((cand - points[owner]) ** 2, axis=1).reshape(n, k)
+        pick = np.argmin(d2, axis=1)  # ties: the nearer centroid (the tree's order) wins
+        flat = np.arange(n) * k + pick
+        closest[:] = cand[flat]
+        dist2[:] = d2[np.arange(n), pick]
+        face[:] = near[np.arange(n), pick]
+        feature[:] = region[flat]
+        settled = (np.sqrt(dist2) <= near_d[:, -1] - self.reach) | (k == len(self.triangles))
+        todo = todo[~settled]
+        if len(todo):
+            # round 2, for points far from the mesh: every centroid within (best so far + reach)
+            radius = np.sqrt(dist2[todo]) + self.reach
+            lists = self._tree.query_ball_point(points[todo], radius * (1.0 + 1e-9) + 1e-12,
+                                                return_sorted=True)
+            counts = np.fromiter((len(x) for x in lists), dtype=np.int64, count=len(todo))
+            candidates = np.fromiter((t for x in lists for t in x), dtype=np.int64, count=int(counts.sum()))
+            self._best_of(points, todo, np.repeat(todo, counts), candidates, closest, dist2, face, feature)
         pseudo = self.face_normals[face].copy()
         corner = self.faces[face]
-        for code, k in ((_VERTEX_A, 0), (_VERTEX_B, 1), (_VERTEX_C, 2)):
-            pick = feature == code
-            pseudo[pick] = self.vertex_normals[corner[pick, k]]
-        for code, k in ((_EDGE_AB, 0), (_EDGE_BC, 1), (_EDGE_AC, 2)):
-            pick = feature == code
-            pseudo[pick] = self.edge_normals[face[pick], k]
-        distance = np.sqrt(dist2[best])
-        inside = np.einsum("ij,ij->i", points - point_closest, pseudo) < 0.0
-        return point_closest, distance, inside
+        for code, j in ((_VERTEX_A, 0), (_VERTEX_B, 1), (_VERTEX_C, 2)):
+            chosen = feature == code
+            pseudo[chosen] = self.vertex_normals[corner[chosen, j]]
+        for code, j in ((_EDGE_AB, 0), (_EDGE_BC, 1), (_EDGE_AC, 2)):
+            chosen = feature == code
+            pseudo[chosen] = self.edge_normals[face[chosen], j]
+        inside = np.einsum("ij,ij->i", points - closest, pseudo) < 0.0
+        return closest, np.sqrt(dist2), inside

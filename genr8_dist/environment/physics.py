@@ -141,7 +141,7 @@ def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
         return p
     p = p.copy()
     extent = float(np.max(np.abs(p)))
-    for _ in range(2):
+    for _ in range(2 if len(hard) > 1 else 1):  # a second pass settles vertices between two walls
         for b in hard:
             bad = np.flatnonzero((b.violation(p) > 0.0) & ~stopped)
             if len(bad):
@@ -156,10 +156,12 @@ def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: n
     """Resolve each vertex's move p -> q against the boundaries (slide, cut-off, reflect; soft passes)."""
     extent = float(np.max(np.abs(q))) if len(q) else 1.0
     hard = [b for b in env.boundaries if b.behaviour != "soft"]
+    touched = np.zeros(len(q), dtype=bool)
     for b in hard:
         bad = np.flatnonzero(b.violation(q) > 0.0)
         if len(bad) == 0:
             continue
+        touched[bad] = True
         target = q[bad]
         if b.behaviour == "slide":
             q[bad] = b.project(target, extent)
@@ -175,13 +177,15 @@ def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: n
             if np.any(still):
                 mirrored[still] = b.project(mirrored[still], extent)
             q[bad] = mirrored
-    if hard:
-        # A later boundary may have pushed a vertex across an earlier one: put it back where it was.
-        wrong = np.zeros(len(q), dtype=bool)
+    idx = np.flatnonzero(touched)
+    if len(idx):
+        # A later boundary may have pushed a vertex across an earlier one (or rounding left it a hair
+        # outside): put it back where it was when that was allowed. Untouched vertices are fine.
+        wrong = np.zeros(len(idx), dtype=bool)
         for b in hard:
-            wrong |= b.violation(q) > 0.0
+            wrong |= b.violation(q[idx]) > 0.0
         if np.any(wrong):
-            idx = np.flatnonzero(wrong)
+            idx = idx[wrong]
             start_ok = np.ones(len(idx), dtype=bool)
             for b in hard:
                 start_ok &= b.violation(p[idx]) <= 0.0
