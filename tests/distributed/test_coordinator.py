@@ -147,3 +147,13 @@ def drive_to_end_after_repair(run_dir, pool):
     out = io.StringIO()
     summary = resume_run(str(run_dir), RunOptions(quiet=True), out=out, hosts=pool)
     return summary, out.getvalue()
+
+
+def test_a_run_that_cannot_be_scheduled_is_refused(pool, tmp_path):
+    """The module's pool holds every CPU of the session's Ray: another run is refused, not left waiting."""
+    from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.errors import RunError
+
+    with pytest.raises(RunError, match="no free CPU"):
+        HostPool(str(tmp_path / "run"), 2)
+    assert not (tmp_path / "run").exists()
