@@ -76,6 +76,13 @@ def check_genome(genome: Iterable[int]) -> list[int] | tuple[int, ...]:
     return seq
 
 
+def _rebuild(name: str, origin: str, path: str, text: str, hooks_dir: str | None) -> Universe:
+    from genr8_dist.grammar.discovery import _load_hooks
+
+    hooks = _load_hooks(Path(hooks_dir)) if hooks_dir else None
+    return Universe(name, origin, Path(path), text, hooks)
+
+
 def _render(tokens: list[str]) -> str:
     text = " ".join(tokens).replace(" \n ", "\n")
     if text.endswith(" \n"):
@@ -117,6 +124,11 @@ class Universe:
         self._edge_res = [t.regex() for t in templates]
         self._labels: dict[str, int | None] = {}
         self._parser = None
+
+    def __reduce__(self):
+        """Pickle by source (name, origin, path, grammar text, hooks folder): compiled code is rebuilt."""
+        hooks_dir = str(Path(self.hooks.__file__).parent) if self.hooks is not None else None
+        return (_rebuild, (self.name, self.origin, str(self.path), self.grammar.text, hooks_dir))
 
     def __repr__(self) -> str:
         return f"Universe({self.name!r}, origin={self.origin!r}, path='{self.path}')"

@@ -189,3 +189,23 @@ def test_max_depth_out_of_range_is_a_value_error():
         u.map([1, 2, 3], max_depth=0)
     with pytest.raises(ValueError, match="max_wraps"):
         u.map([1, 2, 3], max_wraps=-1)
+
+
+@pytest.mark.parametrize("name", [*BUILT_INS, "timed"])
+def test_universes_pickle_and_their_texts_are_read_by_the_hemls_parser(name):
+    import pickle
+
+    from genr8_dist.hemls.language import parse
+    from genr8_dist.rng import stream
+
+    u = load_universe(name)
+    copy = pickle.loads(pickle.dumps(u))
+    assert (copy.name, copy.origin, copy.path) == (u.name, u.origin, u.path)
+    parsed = 0
+    for genome in stream(5, "test", name).integers(0, 65536, size=(40, 200)).tolist():
+        result = u.map(genome)
+        assert copy.map(genome) == result
+        if result.valid:
+            parse(result.text)
+            parsed += 1
+    assert parsed >= 35
