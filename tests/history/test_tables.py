@@ -275,3 +275,35 @@ def test_public_names():
     for name in module.__all__:
         assert getattr(module, name) is not None
     assert callable(module.regrow) and callable(module.export)
+
+
+def test_a_generation_without_valid_individuals(tmp_path, capsys):
+    """Groups where every individual failed have nulls, print as '-', and still draw."""
+    from history_runs import TOML_V1
+
+    from genr8_dist import cli
+    from genr8_dist.evolution.individual import Individual
+    from genr8_dist.store import RunStore
+
+    store = RunStore.create(tmp_path / "run", TOML_V1)
+    crit = dict.fromkeys(CRITS, 0.5)
+    good = [Individual(0, 0, n, (n + 1,), "random", valid=True, fitness=float(n), criteria=crit,
+                       text="Edge0 + Edge1 + Edge2") for n in range(3)]
+    bad = [Individual(1, 0, n, (7,), "random", stage="map", error="wrapped too often") for n in range(3)]
+    store.commit(good + bad)
+    table = history.per_generation(tmp_path / "run")
+    rows = table.to_pylist()
+    assert rows[0]["best"] == 0.0 and rows[0]["median"] == 1.0 and rows[0]["best_id"] == "0-0-0"
+    assert rows[1]["n_valid"] == 0 and rows[1]["best"] is None and rows[1]["best_id"] is None
+    assert rows[1]["best_size"] is None
+    assert cli.main(["history", str(tmp_path / "run"), "--png", str(tmp_path / "c.png")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[2].split()[:8] == ["0", "1", "3", "0", "-", "-", "-", "-"]
+    assert (tmp_path / "c.png").stat().st_size > 10_000
+    with pytest.raises(HistoryError, match="no valid individual of island 1"):
+        history.top(tmp_path / "run", island=1)
+
+
+def test_a_run_named_by_uri(history_run):
+    uri = history_run.resolve().as_uri()
+    assert history.top(uri, 3).equals(history.top(history_run, 3))
