@@ -209,3 +209,41 @@ def test_universes_pickle_and_their_texts_are_read_by_the_hemls_parser(name):
             parse(result.text)
             parsed += 1
     assert parsed >= 35
+
+
+SYNTHETIC = [
+    # groups and options inside a recursive rule (depth known only at run time), bound edges in
+    # repetitions, x+ with a rule body, a rule whose options do not fit near max_depth.
+    '''start: tree (";" tree)*
+tree: EDGE_X ( "(" tree ")" | "<" EDGE_X ">" | PRED ) [ "!" tree ] ("," EDGE_X)*
+EDGE_X: /E[0-9]+/
+PRED: /E[0-9]+/
+''',
+    '''//@ bias start 4
+start: item+ ["end" deep]
+item: EDGE | "(" item item ")" | ( "-" | "+" item )
+deep: "d" deep | "z"
+EDGE: /E[0-9]+/
+''',
+    '''start: a
+a: b b | "x" a "y"
+b: c | "q"
+c: ("k" a)? EDGE_Y "m" EDGE_Y
+EDGE_Y: /Y[0-9]+/
+''',
+]
+
+
+@pytest.mark.parametrize("text", SYNTHETIC)
+@given(genome=genomes, max_depth=st.integers(1, 8))
+def test_compiled_mapper_matches_the_reference_on_synthetic_grammars(text, genome, max_depth):
+    from pathlib import Path
+
+    from genr8_dist.grammar.universe import Universe
+
+    u = Universe("synthetic", "path", Path("synthetic.lark"), text + '%ignore " "\n')
+    result = u.map(genome, max_depth=max_depth)
+    ref = Reference(u, genome, max_depth)
+    expected, used = ref.run()
+    assert (result.text, result.codons_used) == (expected, used)
+    assert ref.deepest <= max(max_depth, u.grammar.min_depth["start"])
