@@ -1,9 +1,11 @@
 """The GE mapper: a universe's compiled grammar turned into one specialised Python function.
 
-Walking the grammar per codon is slow in Python, so each universe is compiled once into source code
-(one nested function per rule, literals merged into single ``extend`` calls, alternatives chosen
-through precomputed eligibility tables) and ``exec``'d; the result is cached per ``max_depth``.
-The semantics are Genr8's (``../shared/DESIGN.md``, thesis Appendix B, journal 5.1):
+Walking the grammar per codon is slow in Python, so each universe is compiled once per ``max_depth``
+into Python source and ``exec``'d: rules that cannot recurse are inlined where they are used, and
+wherever the depth is known when the code is generated the eligible alternatives are decided then;
+recursive rules become nested functions that look their eligible alternatives up in precomputed
+per-depth tables; consecutive literals are emitted by one ``extend`` call. ``genr8_dist.grammar``
+caches the result. The semantics are Genr8's (``DESIGN.md``, thesis Appendix B, journal 5.1):
 
 * every rule expansion reads one codon, even with one alternative; the alternative is
   ``codon mod n`` among the ``n`` alternatives that still fit in ``max_depth``;
@@ -12,6 +14,8 @@ The semantics are Genr8's (``../shared/DESIGN.md``, thesis Appendix B, journal 5
 * an option emits its body when ``codon mod 2 == 1``;
 * a labelled edge takes ``codon mod (count + 1)`` (a new label is born when it equals ``count``),
   a predecessor edge ``codon mod count``; ``EdgeX/Y/Z`` bind within one rule expansion;
+* a repetition or option whose body opens rules that cannot fit in ``max_depth`` reads its codon
+  and emits nothing;
 * the genome wraps at most ``max_wraps`` times; reading past that raises ``StopIteration``, which
   :class:`~genr8_dist.grammar.universe.Universe` turns into an invalid result with its reason.
 """
