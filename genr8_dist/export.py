@@ -278,21 +278,31 @@ def _legend(env: Environment) -> str:
     return "   ".join(parts)
 
 
+def _perimeter(surface: SurfaceLike) -> np.ndarray:
+    """The outer boundary's vertex cycle when the surface offers one (``Surface.perimeter()``)."""
+    perimeter = getattr(surface, "perimeter", None)
+    if not callable(perimeter):
+        return np.zeros(0, dtype=np.int64)
+    return np.asarray(perimeter(), dtype=np.int64).reshape(-1)
+
+
 def _scene_bounds(env: Environment, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The surface's bounding box grown to show nearby attractors, repellers and sphere boundaries.
 
-    Things further than twice the surface's size away are left out of the view (a huge enclosing box
-    would otherwise shrink the surface to a dot).
+    Things further than twice the surface's size away are cut off at that distance (a huge enclosing
+    box would otherwise shrink the surface to a dot).
     """
-    from genr8_dist.environment import SphereBoundary
+    from genr8_dist.environment import BoxBoundary, SphereBoundary
 
     size = max(float(np.max(hi - lo)), 1e-9)
     middle = (lo + hi) / 2
     limit_lo, limit_hi = middle - 2.0 * size, middle + 2.0 * size
     points = [np.asarray(f.position) for f in (*env.attractors, *env.repellers)]
     for b in env.boundaries:
-        if isinstance(b, SphereBoundary) and not b.allowed_inside:
+        if isinstance(b, SphereBoundary):
             points += [np.asarray(b.centre) - b.radius, np.asarray(b.centre) + b.radius]
+        elif isinstance(b, BoxBoundary):
+            points += [np.asarray(b.min), np.asarray(b.max)]
     new_lo, new_hi = lo.copy(), hi.copy()
     for point in points:
         clipped = np.clip(point, limit_lo, limit_hi)
@@ -305,9 +315,10 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
                size: tuple[float, float] = (8.0, 7.0), dpi: int = 120) -> Path:
     """Draw the surface (shaded regions, edges, axes, ``title``) into a PNG at ``path``; returns the path.
 
-    The subtitle gives the vertex, edge and region counts. With ``env`` the environment's boundaries
-    (grey wireframes), attractors (green dots) and repellers (red crosses) are drawn too, and a line
-    under the picture lists gravity, boundaries and the internal forces in use.
+    The outer boundary is drawn heavier; the subtitle gives the vertex, edge and region counts. With
+    ``env`` the environment's boundaries (grey wireframes), attractors (green dots) and repellers (red
+    crosses) are drawn too, and a line under the picture lists gravity, boundaries and the internal
+    forces in use.
     """
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -337,12 +348,16 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
             width = 0.8 if len(edges) < 3000 else (0.4 if len(edges) < 20000 else 0.2)
             ax.add_collection3d(Line3DCollection(vertices[edges], colors="0.12", linewidths=width, alpha=0.9,
                                                  zorder=2))
+        rim = _perimeter(surface)
+        if len(rim) > 1:
+            loop = vertices[np.append(rim, rim[0])]
+            ax.plot(loop[:, 0], loop[:, 1], loop[:, 2], color="0.05", linewidth=1.3, zorder=3)
         if env is not None:
             lo, hi = _scene_bounds(env, lo, hi)
             _draw_environment(ax, env, lo, hi, vertices)
             legend = _legend(env)
             if legend:
-                fig.text(0.5, 0.02, legend, ha="center", va="bottom", fontsize=8, color="0.25")
+                fig.text(0.5, -0.01, legend, ha="center", va="top", fontsize=8, color="0.25")
         centre = (lo + hi) / 2
         extent = np.maximum(hi - lo, 0.08 * float(np.max(hi - lo)) if np.any(hi > lo) else 1.0)
         ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
