@@ -48,7 +48,7 @@ def config_of(store: Any, version: int) -> Any:
             try:
                 return RunConfig.from_dict(tomllib.loads(cv.toml), source=source)
             except ConfigError as exc:
-                raise HistoryError(f"cannot regrow from {source}: {exc}") from None
+                raise HistoryError(str(exc)) from None
     raise HistoryError(f"{run_label(store)}: no configuration version {version}")
 
 

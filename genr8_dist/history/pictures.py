@@ -136,6 +136,11 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
         rows = isl == i
         ax.plot(gen[rows], best[rows], color=colours[i], lw=2.0, label=f"island {i} best")
         ax.plot(gen[rows], median[rows], color=colours[i], lw=1.0, ls="--", alpha=0.6)
+    if len(islands) > 2:  # the run's best over all islands, on top, so the trend reads at a glance
+        overall = [np.nanmin(best[gen == g]) if np.isfinite(best[gen == g]).any() else np.nan
+                   for g in sorted(set(gen.tolist()))]
+        ax.plot(sorted(set(gen.tolist())), overall, color="black", lw=1.6, alpha=0.85,
+                label="best of all islands", zorder=5)
     finite = best[np.isfinite(best)]
     if finite.size and finite.min() > 0 and finite.max() / finite.min() > 50:
         ax.set_yscale("log")
