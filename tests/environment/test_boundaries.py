@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from genr8_dist.environment import (
@@ -264,3 +264,37 @@ def test_mesh_queries_are_exact_on_sharp_and_concave_meshes(tmp_path, shape):
     geometry = TriangleMesh(mesh.vertices, mesh.faces)
     _, distance, _ = geometry.query(points)
     np.testing.assert_allclose(distance, _brute_closest(points, geometry.triangles), atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def crate(tmp_path_factory):
+    """Two closed, disjoint shells as one boundary file: a slab and a block hovering over one corner,
+    so the allowed space (outside both) is not convex."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(6, 6, 3))
+    box.apply_translation((0, 0, -2.0))
+    block = trimesh.creation.box(extents=(1, 1, 1))
+    block.apply_translation((1.0, 1.0, 0.3))
+    vertices = np.vstack([box.vertices, block.vertices])
+    faces = np.vstack([box.faces, block.faces + len(box.vertices)])
+    path = tmp_path_factory.mktemp("mesh") / "crate.ply"
+    trimesh.Trimesh(vertices, faces, process=False).export(path)
+    return path
+
+
+@settings(max_examples=25)
+@given(behaviour=_HARD, gravity=st.tuples(*[st.floats(-1.5, 1.5, allow_nan=False)] * 3),
+       scale=st.floats(0.7, 1.8), start_z=st.floats(1.0, 2.0))
+def test_mesh_boundaries_are_never_crossed(crate, behaviour, gravity, scale, start_z):
+    env = Environment(scale=scale, gravity=gravity, start_position=(0, 0, start_z),
+                      boundaries=(MeshBoundary(path=str(crate), behaviour=behaviour),))
+    b = env.boundaries[0]
+    p = disc(30, radius=0.8, z=start_z)
+    stopped = np.zeros(len(p), dtype=bool)
+    for step in range(1, 4):
+        before = p
+        p, new = step_once(env, p, stopped, step)
+        assert np.all(b.violation(p) <= 0)
+        assert np.array_equal(p[stopped], before[stopped])
+        stopped = new

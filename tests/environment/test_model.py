@@ -207,3 +207,19 @@ def test_pickles_with_a_mesh_boundary_for_ray_workers(tmp_path):
     probe = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 3.0]])
     np.testing.assert_array_equal(copy.boundaries[0].violation(probe), env.boundaries[0].violation(probe))
     assert dataclasses.replace(env, steps=2).boundaries[0].mesh is env.boundaries[0].mesh
+
+
+def test_docs_describe_every_field():
+    import dataclasses
+    import re
+
+    from genr8_dist.environment.boundaries import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "environment.md").read_text()
+    documented = set(re.findall(r"^\| `([a-z_]+)`", doc, flags=re.M))
+    fields = {f.name for f in dataclasses.fields(Environment) if f.name not in ("source",)}
+    assert fields - {"attractors", "repellers", "boundaries"} <= documented
+    for cls in (PlaneBoundary, BoxBoundary, SphereBoundary, MeshBoundary):
+        for f in dataclasses.fields(cls):
+            if f.init and f.name not in ("allowed_inside",):
+                assert f"`{f.name}`" in doc, f"{cls.__name__}.{f.name} is not in docs/environment.md"
