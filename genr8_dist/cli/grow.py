@@ -144,7 +144,7 @@ def _handle(args: argparse.Namespace) -> int:
         print(f"growth stopped at step {done} of {env.steps}: {_cap_message(result.capped, env)}", file=out)
     if writes:
         for step, surface in enumerate(result.history[1:], start=1):
-            for path in _write(surface, args, env, f"{name}, step {step}", step):
+            for path in _write(surface, args, env, f"{args.title or name}, step {step}", step):
                 print(f"wrote {path}", file=out)
     else:
         title = args.title or f"{name}, {done} step{'s' if done != 1 else ''}"
