@@ -52,13 +52,11 @@ def _independent_surface(row, toml_text):
     return grow(parse(row["text"]), config.environment).surface
 
 
-def test_every_valid_individual_regrows_bit_identically(real_run, real_rows):
+def _check_regrowth(real_run, real_rows, ids):
     from genr8_dist.store import RunStore
 
     store = RunStore.open(real_run)
     tomls = {c.version: c.toml for c in store.configs()}
-    ids = _valid_ids(real_rows)
-    assert len(ids) >= 8, "the real run should have valid individuals to regrow"
     by_id = {r["id"]: r for r in real_rows.to_pylist()}
     for ident in ids:
         result = history.regrow(store, ident)
@@ -70,6 +68,25 @@ def test_every_valid_individual_regrows_bit_identically(real_run, real_rows):
         assert result.text_matches or row["origin"] == "injected"
         again = _independent_surface(row, tomls[row["config_version"]])
         assert np.array_equal(again.vertices, result.surface.vertices)
+
+
+def test_individuals_of_every_kind_regrow_bit_identically(real_run, real_rows):
+    """One valid individual per generation and per way of being made (migrants, the injected copy)."""
+    seen, ids = set(), []
+    for r in real_rows.filter(real_rows["valid"]).to_pylist():
+        if (r["generation"], r["origin"]) not in seen:
+            seen.add((r["generation"], r["origin"]))
+            ids.append(r["id"])
+    origins = {o for _, o in seen}
+    assert {"random", "migrant", "injected", "elite"} <= origins
+    _check_regrowth(real_run, real_rows, ids)
+
+
+@pytest.mark.slow
+def test_every_valid_individual_regrows_bit_identically(real_run, real_rows):
+    ids = _valid_ids(real_rows)
+    assert len(ids) >= 60
+    _check_regrowth(real_run, real_rows, ids)
 
 
 def test_the_configuration_version_in_force_is_used(real_run, real_rows):
