@@ -38,6 +38,7 @@ ORIGIN_COLOURS = {
     "migrant": "#d62728",
     "injected": "#e377c2",
 }
+_MAX_LINKS = 50_000  # an ancestry picture draws parent links up to this many (a haze beyond)
 _EVENT_STYLE = {
     "intervention": ("#c0392b", "--", "intervention"),
     "resume": ("#7f8c8d", ":", "resumed"),
@@ -238,7 +239,8 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
     span = max(gens) - min(gens) + 1
     fig, ax = plt.subplots(figsize=(min(22, 6 + 0.32 * span), 2.0 + 1.6 * len(islands)),
                            facecolor="white")
-    ax.add_collection(LineCollection(links, colors="#b0b0b0", linewidths=0.5, alpha=0.6, zorder=1))
+    if len(links) <= _MAX_LINKS:
+        ax.add_collection(LineCollection(links, colors="#b0b0b0", linewidths=0.5, alpha=0.6, zorder=1))
     ax.add_collection(LineCollection(main, colors="black", linewidths=2.2, zorder=3))
     xs = np.array([pos[r["id"]][0] for r in rows], float)
     ys = np.array([pos[r["id"]][1] for r in rows], float)
@@ -265,7 +267,8 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
     handles = [Line2D([], [], marker="o", ls="none", color=ORIGIN_COLOURS[o], label=o) for o in present]
     handles.append(Line2D([], [], color="black", lw=2.2, label="main line (first parents)"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
-    ax.set_title(f"ancestry of {id}: {len(rows) - 1} ancestors", loc="left", fontsize=12,
+    note = "" if len(links) <= _MAX_LINKS else f" (too many to link: {len(links):,} links left out)"
+    ax.set_title(f"ancestry of {id}: {len(rows) - 1:,} ancestors{note}", loc="left", fontsize=12,
                  fontweight="bold")
     fig.tight_layout()
     _save(fig, path)
