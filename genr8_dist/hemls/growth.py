@@ -124,6 +124,15 @@ def _compile(system: RewriteSystem) -> _Compiled:
 
 # -- the map ----------------------------------------------------------------------------------------
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) arrays (np.cross costs more than the work on small maps)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
+    out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
+    out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return out
+
+
 class _Map:
     """Growable half-edge arrays; see the module docstring."""
 
@@ -204,7 +213,7 @@ class _Map:
         """Unit area vector of every face (zero for the outside and for degenerate faces)."""
         h = self.alive_halves()
         f = self.face[h]
-        cr = np.cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
+        cr = _cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
         out = np.zeros((self.nf, 3))
         for axis in range(3):
             out[:, axis] = np.bincount(f, weights=cr[:, axis], minlength=self.nf)
@@ -409,7 +418,7 @@ def _frames(m: _Map, idx: np.ndarray, normals: np.ndarray):
     u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
     un = np.linalg.norm(u, axis=1)
     u = u / np.where(un > 1e-300, un, 1.0)[:, None]
-    left = np.cross(u, h)
+    left = _cross(u, h)
     return s, t, p, length, h, left, u
 
 
@@ -421,6 +430,7 @@ class _Grower:
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
         self.max_edges = int(env.max_edges)
+        self._keys: np.ndarray | None = None
 
     # -- step ------------------------------------------------------------------------------------
     def step(self, step: int) -> None:
@@ -451,10 +461,13 @@ class _Grower:
     def _context_ok(self, idx: np.ndarray, end: int, label: int | None) -> np.ndarray:
         """Whether some other edge at the start (end=0) or end (end=1) vertex of ``idx`` has ``label``."""
         m = self.m
-        live = np.flatnonzero(m.alive[:m.ne])
         width = self.c.max_label + 1
-        keys = np.concatenate([m.ev[live, 0], m.ev[live, 1]]) * width + np.tile(m.label[live], 2)
-        keys.sort()
+        if self._keys is None:  # (vertex, label) of every edge end, sorted; valid for one group
+            live = np.flatnonzero(m.alive[:m.ne])
+            keys = np.concatenate([m.ev[live, 0], m.ev[live, 1]]) * width + np.tile(m.label[live], 2)
+            keys.sort()
+            self._keys = keys
+        keys = self._keys
         v = m.ev[idx, end]
         want = v * width + label
         count = np.searchsorted(keys, want, side="right") - np.searchsorted(keys, want, side="left")
@@ -486,6 +499,7 @@ class _Grower:
         if not len(idx):
             return
         choice = np.full(len(idx), -1, dtype=np.int64)
+        self._keys = None
         for r, rule in enumerate(group.rules):
             free = choice < 0
             if not np.any(free):
@@ -516,6 +530,8 @@ class _Grower:
                 if len(part):
                     batches.append((part, tpl))
                     grow_edges += len(part) * (tpl.n_segments - 1)
+        if not batches:
+            return
         if m.n_alive() + grow_edges > self.max_edges:
             raise _Capped("edges")
         normals = m.face_normals()
@@ -874,7 +890,7 @@ class _Grower:
 def _in_sweep(a: np.ndarray, b: np.ndarray, v: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Whether v lies strictly inside the counter-clockwise (about n) sweep from a to b, row-wise."""
     def rel(p, q):
-        return np.arctan2(np.einsum("ij,ij->i", np.cross(p, q), n), np.einsum("ij,ij->i", p, q))
+        return np.arctan2(np.einsum("ij,ij->i", _cross(p, q), n), np.einsum("ij,ij->i", p, q))
 
     two_pi = 2.0 * np.pi
     sweep = np.mod(rel(a, b), two_pi)

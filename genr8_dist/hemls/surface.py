@@ -245,7 +245,8 @@ class Surface:
 
 def _ear_clip(cycle: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Triangulate one simple polygon (vertex ids ``cycle`` at ``points``) by ear clipping in the plane
-    of its Newell normal; a polygon that is not simple falls back to a fan for what remains."""
+    of its Newell normal, testing each ear only against the reflex vertices; what is left when no ear
+    can be found (a polygon that is not simple) is fanned."""
     normal = np.cross(points, np.roll(points, -1, axis=0)).sum(axis=0)
     norm = np.linalg.norm(normal)
     normal = np.array([0.0, 0.0, 1.0]) if norm < 1e-300 else normal / norm
@@ -253,37 +254,53 @@ def _ear_clip(cycle: np.ndarray, points: np.ndarray) -> np.ndarray:
     e1 = np.cross(normal, helper)
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(normal, e1)
-    xy = np.stack([points @ e1, points @ e2], axis=1)
-    idx = list(range(len(cycle)))
+    px, py = points @ e1, points @ e2
+    xs, ys = px.tolist(), py.tolist()
+    n = len(cycle)
+    nxt = [*range(1, n), 0]
+    prv = [n - 1, *range(n - 1)]
+    scale = max(float(np.ptp(px)), float(np.ptp(py)), 1e-300)
+    eps = 1e-12 * scale * scale
+
+    def turn(a: int, b: int, c: int) -> float:
+        return (xs[b] - xs[a]) * (ys[c] - ys[a]) - (ys[b] - ys[a]) * (xs[c] - xs[a])
+
+    reflex = np.array([turn(prv[i], i, nxt[i]) <= eps for i in range(n)], dtype=bool)
+    ridx = np.flatnonzero(reflex)
+    dirty = False
     tris: list[tuple[int, int, int]] = []
-
-    def cross2(o, a, b):
-        return ((a[..., 0] - o[..., 0]) * (b[..., 1] - o[..., 1])
-                - (a[..., 1] - o[..., 1]) * (b[..., 0] - o[..., 0]))
-
-    guard = 0
-    i = 0
-    while len(idx) > 3 and guard < 4 * len(cycle) * len(cycle) + 10:
-        guard += 1
-        m = len(idx)
-        a, b, c = idx[(i - 1) % m], idx[i % m], idx[(i + 1) % m]
-        if cross2(xy[a], xy[b], xy[c]) > 1e-15:
-            others = np.array([j for j in idx if j not in (a, b, c)], dtype=np.int64)
-            inside = False
-            if len(others):
-                q = xy[others]
-                d1 = cross2(xy[a], xy[b], q)
-                d2 = cross2(xy[b], xy[c], q)
-                d3 = cross2(xy[c], xy[a], q)
-                inside = bool(np.any((d1 >= 0) & (d2 >= 0) & (d3 >= 0)))
-            if not inside:
-                tris.append((a, b, c))
-                del idx[i % m]
-                i = max(i - 1, 0)
-                continue
-        i += 1
-        if i > 2 * m:  # no ear found: not a simple polygon; fan the rest
-            break
-    for j in range(1, len(idx) - 1):
-        tris.append((idx[0], idx[j], idx[j + 1]))
+    remaining, i, misses = n, 0, 0
+    while remaining > 3 and misses <= remaining:
+        a, c = prv[i], nxt[i]
+        ear = not reflex[i] and turn(a, i, c) > eps
+        if ear:
+            if dirty:
+                ridx = np.flatnonzero(reflex)
+                dirty = False
+            q = ridx[(ridx != a) & (ridx != c)]
+            if len(q):
+                qx, qy = px[q], py[q]
+                d1 = (xs[i] - xs[a]) * (qy - ys[a]) - (ys[i] - ys[a]) * (qx - xs[a])
+                d2 = (xs[c] - xs[i]) * (qy - ys[i]) - (ys[c] - ys[i]) * (qx - xs[i])
+                d3 = (xs[a] - xs[c]) * (qy - ys[c]) - (ys[a] - ys[c]) * (qx - xs[c])
+                ear = not bool(np.any((d1 >= -eps) & (d2 >= -eps) & (d3 >= -eps)))
+        if not ear:
+            i = c
+            misses += 1
+            continue
+        tris.append((a, i, c))
+        nxt[a], prv[c] = c, a
+        remaining -= 1
+        for v in (a, c):
+            if reflex[v] and turn(prv[v], v, nxt[v]) > eps:
+                reflex[v] = False
+                dirty = True
+        i, misses = a, 0
+    rest = [i]
+    j = nxt[i]
+    while j != i and len(rest) < remaining:
+        rest.append(j)
+        j = nxt[j]
+    for k in range(1, len(rest) - 1):
+        tris.append((rest[0], rest[k], rest[k + 1]))
     return cycle[np.array(tris, dtype=np.int64).reshape(-1, 3)]
