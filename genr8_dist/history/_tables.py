@@ -259,6 +259,8 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     run). Rows are sorted by generation (latest first), then island and index. The walk is
     vectorised over whole generations, so even an ancestry of a million individuals takes seconds.
     """
+    if depth is not None and depth < 0:
+        raise HistoryError(f"depth: must be 0 or more generations back, got {depth}")
     store = open_run(run)
     data = dataset(store)
     start = individual(store, id, ["generation"])

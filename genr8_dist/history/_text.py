@@ -111,9 +111,10 @@ def lineage_text(table: pa.Table, id: str, *, per_generation: int | None = 12) -
     missing = sorted({p for ps in table.filter(pc.greater(pc.list_value_length(table["missing"]), 0))[
         "missing"].to_pylist() for p in ps})
     summary = (f"ancestry of {id} (generation {me['generation']}, island {me['island']}, fitness "
-               f"{format_value(me['fitness'])}): {table.num_rows - 1} ancestors over {n_gens} "
-               f"generations; {origins.get('migrant', 0)} migrants, {origins.get('injected', 0)} "
-               f"injected, {founders} in generation 0")
+               f"{format_value(me['fitness']) if me['valid'] else 'invalid'}): "
+               f"{table.num_rows - 1} ancestors over {n_gens} "
+               f"generation{'s' if n_gens != 1 else ''}; {origins.get('migrant', 0)} migrants, "
+               f"{origins.get('injected', 0)} injected, {founders} in generation 0")
     lines = [summary]
     if missing:
         lines.append(f"parents not in this run: {', '.join(missing)}")
@@ -121,7 +122,8 @@ def lineage_text(table: pa.Table, id: str, *, per_generation: int | None = 12) -
     import textwrap
 
     lines.extend(textwrap.wrap(" <- ".join(
-        f"{r['id']} ({r['origin']}, {format_value(r['fitness'])})" for r in chain),
+        f"{r['id']} ({r['origin']}, {format_value(r['fitness']) if r['valid'] else 'invalid'})"
+        for r in chain),
         width=110, initial_indent="main line (first parents): ", subsequent_indent="    ",
         break_long_words=False, break_on_hyphens=False))
     change = np.r_[True, gens[1:] != gens[:-1]]

@@ -168,6 +168,11 @@ def test_query_prints_and_writes(capsys, run_dir, rows, tmp_path):
     ("top", "{empty}"),
     ("report", "{empty}", "-o", "{tmp}/r.html"),
     ("gallery", "{missing}", "-o", "{tmp}/g.png"),
+    ("gallery", "{run}", "-k", "0", "-o", "{tmp}/g.png"),
+    ("lineage", "{run}", "0-5-5", "--depth", "-2"),
+    ("top", "{run}", "--generation", "-51"),
+    ("history", "{run}", "--csv", "{tmp}/no/such/folder/h.csv"),
+    ("query", "{run}", "   "),
 ])
 def test_bad_input_is_one_line_and_exit_2(capsys, run_dir, tmp_path, argv):
     from genr8_dist.store import RunStore
