@@ -287,9 +287,14 @@ def _bound_letters(alts: tuple) -> set[str]:
     return {n[3] for alt in alts for n in _walk(alt) if n[0] == "edge" and n[1] == "B"}
 
 
-def build_source(cg: CompiledGrammar, max_depth: int) -> str:
-    """The Python source of the factory ``make(EL, EG, ES, grow)`` for this grammar and depth."""
-    lines = ["def make(EL, EG, ES, grow):"]
+def build_source(cg: CompiledGrammar, max_depth: int, pred_template: int | None = None) -> str:
+    """The Python source of the factory ``make(EL, EG, ES, DT, grow, get)`` for this grammar and depth.
+
+    With ``pred_template`` (the index of the template repaired predecessors are printed with) it
+    also defines ``derive_hemls``: the main derivation followed by the built-in HEMLS repair
+    (:func:`genr8_dist.grammar.hooks.hemls_repair`) in one function, the fast path of ``map``.
+    """
+    lines = ["def make(EL, EG, ES, DT, grow, get):"]
     for name in cg.rules:
         lines.append(f"    EL_{name} = EL[{name!r}]")
     for gid in _group_ids(cg):
@@ -304,22 +309,56 @@ def build_source(cg: CompiledGrammar, max_depth: int) -> str:
     lines.append("        count = 2")
     lines.extend("        " + line for line in funcs + code)
     lines.append("        return count")
+    derive_hemls = False
     if cg.repair_rule is not None:
         rep = _Writer(cg, max_depth, birth=False, suffix="_r")
-        funcs, body = rep.body(cg.repair_rule, cg.repair_depth)
+        rfuncs, rbody = rep.body(cg.repair_rule, cg.repair_depth)
         # repair(nxt, out, count) -> expand(): the rule functions are made once per genome, and
         # each expand() call appends one expansion of the repair rule to ``out``.
         lines.append("    def repair(nxt, out, count):")
         lines.append("        app = out.append")
         lines.append("        ext_ = out.extend")
-        lines.extend("        " + line for line in funcs)
+        lines.extend("        " + line for line in rfuncs)
         lines.append("        def expand():")
-        lines.extend("            " + line for line in body)
+        lines.extend("            " + line for line in rbody)
         lines.append("            return None")
         lines.append("        return expand")
+        if pred_template is not None:
+            derive_hemls = True
+            lines.append("    def derive_hemls(nxt, out, has):")
+            lines.append("        has_rule = has.add")
+            lines.append("        app = out.append")
+            lines.append("        ext_ = out.extend")
+            lines.append("        count = 2")
+            lines.extend("        " + line for line in funcs + rfuncs + code)
+            lines.append("        missing = {k for k in range(count) if k not in has}")
+            lines.append("        if not missing or '->' not in out:")
+            lines.append("            return count, None")
+            forms = len(dict.fromkeys((t.prefix, t.suffix) for t in cg.templates))
+            for k in (0, 1):  # labels 0 and 1 exist from the start but may never occur
+                absent = " and ".join(f"DT[{j}][{k}] not in out" for j in range(forms)) or "True"
+                lines.append(f"        if {k} in missing and {absent}:")
+                lines.append(f"            missing.discard({k})")
+            lines.append("        new = []")
+            lines.append("        rout = []")
+            lines.append("        app = rout.append")
+            lines.append("        ext_ = rout.extend")
+            lines.append("        while missing:")
+            lines.append("            label = min(missing)")
+            lines.append("            missing.discard(label)")
+            lines.append("            has.add(label)")
+            lines.append("            rout.clear()")
+            lines.extend("            " + line for line in rbody)
+            lines.append(f"            new.append(' '.join([ES{pred_template}[label], '->', *rout]))")
+            lines.append("            for lab in set(map(get, rout)):")
+            lines.append("                if lab is not None and lab not in has:")
+            lines.append("                    missing.add(lab)")
+            lines.append("        return count, new")
     else:
         lines.append("    repair = None")
-    lines.append("    return derive, repair")
+    if not derive_hemls:
+        lines.append("    derive_hemls = None")
+    lines.append("    return derive, repair, derive_hemls")
     return "\n".join(lines) + "\n"
 
 
@@ -350,11 +389,12 @@ class CompiledMapper:
     labels: dict[str, int]             # every edge token in ``tables`` -> its label
     distinct: tuple[list[str], ...]    # the distinct tables among ``tables``
     max_depth: int
+    derive_hemls: Callable | None = None  # derive + built-in HEMLS repair: -> (count, new rules)
 
 
-def compile_mapper(cg: CompiledGrammar, max_depth: int) -> CompiledMapper:
-    """Build the mapping functions of ``cg`` for ``max_depth``."""
-    code = build_source(cg, max_depth)
+def compile_mapper(cg: CompiledGrammar, max_depth: int, pred_template: int | None = None) -> CompiledMapper:
+    """Build the mapping functions of ``cg`` for ``max_depth`` (see :func:`build_source`)."""
+    code = build_source(cg, max_depth, pred_template)
     top = max(max_depth, max(cg.min_depth.values())) + 2
     el = {name: tuple(eligible(cg, alts, d, max_depth) for d in range(top + 1))
           for name, alts in cg.rules.items()}
@@ -376,6 +416,7 @@ def compile_mapper(cg: CompiledGrammar, max_depth: int) -> CompiledMapper:
 
     namespace: dict = {}
     exec(compile(code, f"<universe {cg.source}>", "exec"), namespace)
-    derive, repair = namespace["make"](el, eg, tables, grow)
+    distinct = tuple(table for _, table in unique)
+    derive, repair, derive_hemls = namespace["make"](el, eg, tables, distinct, grow, labels.get)
     return CompiledMapper(derive=derive, repair=repair, tables=tables, labels=labels,
-                          distinct=tuple(table for _, table in unique), max_depth=max_depth)
+                          distinct=distinct, max_depth=max_depth, derive_hemls=derive_hemls)

@@ -145,7 +145,9 @@ class Universe:
             with self._lock:
                 m = self._mappers.get(max_depth)
                 if m is None:
-                    m = compile_mapper(self.grammar, max_depth)
+                    fast = self._repair_hook is hemls_repair and self._has_pred \
+                        and self._pred_template is not None
+                    m = compile_mapper(self.grammar, max_depth, self._pred_index if fast else None)
                     self._mappers[max_depth] = m
         return m
 
@@ -177,16 +179,24 @@ class Universe:
         # Most genomes finish without wrapping: try the genome itself first, and only build the
         # wrapped copy (max_wraps + 1 repetitions) when the first pass runs out.
         n = len(seq)
-        for ext in (seq, seq * (max_wraps + 1)) if max_wraps else (seq,):
+        for attempt in (0, 1) if max_wraps else (0,):
+            ext = seq * (max_wraps + 1) if attempt else seq
             it = iter(ext)
             nxt = it.__next__
             out: list[str] = []
             has: set[int] = set()
             try:
-                count = m.derive(nxt, out, has.add)
-                text = _render(out)
-                if self._repair_hook is not None:
-                    text = self._run_repair(m, nxt, out, text, count, has)
+                if m.derive_hemls is not None:
+                    _count, new = m.derive_hemls(nxt, out, has)
+                    text = _render(out)
+                    if new:
+                        end = text.find("\n", text.rfind("->")) + 1 or len(text)
+                        text = f"{text[:end]}{chr(10).join(new)}\n{text[end:]}"
+                else:
+                    count = m.derive(nxt, out, has.add)
+                    text = _render(out)
+                    if self._repair_hook is not None:
+                        text = self._run_repair(m, nxt, out, text, count, has)
             except StopIteration:
                 continue
             used = len(ext) - length_hint(it)
