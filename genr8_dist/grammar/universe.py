@@ -11,10 +11,10 @@ import re
 import threading
 from array import array
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from operator import length_hint
 from pathlib import Path
 from types import ModuleType
+from typing import NamedTuple
 
 from genr8_dist.errors import GenomeError, UniverseError
 from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
@@ -24,9 +24,9 @@ from genr8_dist.grammar.mapper import CompiledMapper, _walk, compile_mapper
 __all__ = ["MapResult", "Universe", "check_genome"]
 
 
-@dataclass(frozen=True, slots=True)
-class MapResult:
-    """The outcome of mapping one genome.
+class MapResult(NamedTuple):
+    """The outcome of mapping one genome (an immutable record; a named tuple because it is made
+    tens of thousands of times a second).
 
     ``text`` is the rewrite system (``None`` when invalid), ``reason`` says why a genome is invalid,
     ``codons_used`` counts codons read (wrapping included) and ``wraps`` how often the genome wrapped.
@@ -84,10 +84,11 @@ def _rebuild(name: str, origin: str, path: str, text: str, hooks_dir: str | None
 
 
 def _render(tokens: list[str]) -> str:
-    text = " ".join(tokens).replace(" \n ", "\n")
-    if text.endswith(" \n"):
-        text = text[:-2] + "\n"
-    return text
+    """Tokens joined by single spaces, ``"\\n"`` tokens ending lines (``tokens`` loses a final one)."""
+    if tokens and tokens[-1] == "\n":
+        tokens.pop()
+        return " ".join(tokens).replace(" \n ", "\n") + "\n"
+    return " ".join(tokens).replace(" \n ", "\n")
 
 
 class Universe:
