@@ -171,3 +171,48 @@ def test_criteria_are_invariant_under_translation(points):
     for name in ("size", "smoothness", "undulation", "subdivisions"):
         assert a[name] == pytest.approx(b[name], rel=1e-9, abs=1e-9)
     assert 0.0 <= a["symmetry"] <= 1.0
+
+
+# --------------------------------------------------------------------------------------------------
+# The same criteria on surfaces grown by the growth engine.
+
+
+def grown(system: str, **env_fields):
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, load_system
+
+    env = Environment.from_dict(env_fields)
+    result = grow(load_system(system), env)
+    assert result.capped is None
+    return result.surface, env
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_grown_four_sided_tiles_match_the_closed_forms(n):
+    surface, env = grown("four-sided-tiles", steps=n)
+    m = 2**n
+    raw = score_surface(surface, env)
+    assert raw["subdivisions"] == pytest.approx((m + 1) ** 2 / (2 * m * (m + 1)))
+    assert raw["size"] == pytest.approx(2 * 1.0 * 1.5**n)  # start length 1, scale 1.5 per step, x + y
+    assert raw["smoothness"] == 0.0 and raw["undulation"] == 0.0
+    assert raw["symmetry"] == 1.0 and raw["soft_boundary"] == 0.0
+
+
+def test_grown_surface_under_gravity_undulates():
+    flat, _ = grown("four-sided-tiles", steps=3, fixed_perimeter=True)
+    sagged, env = grown("four-sided-tiles", steps=3, fixed_perimeter=True, gravity=0.2)
+    raw = score_surface(sagged, env)
+    assert score_surface(flat)["undulation"] == 0.0
+    assert raw["undulation"] > 0.1 and raw["smoothness"] > 0.0
+    z = sagged.vertices[:, 2]
+    assert raw["undulation"] == pytest.approx(z.max() - z.min())
+    assert raw["symmetry"] == 1.0  # gravity pulls straight down: still balanced
+
+
+def test_grown_surface_half_through_a_soft_boundary():
+    plane = {"kind": "plane", "point": [0.013, 0.0, 0.0], "normal": [1.0, 0.0, 0.0], "behaviour": "soft"}
+    surface, env = grown("four-sided-tiles", steps=3, boundaries=[plane])
+    x = surface.vertices[:, 0]
+    through = int(np.count_nonzero(x > 0.013))
+    assert 0 < through < len(x)  # the surface grew half through the plane, unhindered
+    assert score_surface(surface, env)["soft_boundary"] == through == 36

@@ -45,6 +45,7 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     """Grow ``system`` (a ``RewriteSystem``, or its text) in ``env`` and score it under ``spec``: the
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
+    from genr8_dist.evolution.evaluate import regions_of, steps_of
     from genr8_dist.fitness import CRITERIA, score_surface
     from genr8_dist.hemls import grow, parse
 
@@ -59,7 +60,7 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     n_vertices, n_edges = len(surface.vertices), len(surface.edges)
     problem = None
     if capped:
-        problem = f"growth capped ({capped}) after {result.steps} derivation steps"
+        problem = f"growth capped ({capped}) in derivation step {steps_of(result)}"
     elif not n_vertices or not n_edges or not math.isfinite(total):
         problem = "degenerate surface"
     return {
@@ -67,8 +68,8 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
         "text": system.to_text() if hasattr(system, "to_text") else str(system),
         "vertices": n_vertices,
         "edges": n_edges,
-        "regions": len(surface.regions),
-        "steps": int(result.steps),
+        "regions": regions_of(surface),
+        "steps": steps_of(result),
         "capped": capped or None,
         "criteria": {key: {"raw": _finite(raw[key]), "target": spec[key].target,
                            "weight": spec[key].weight, "deviation": _finite(deviations[key])}

@@ -22,7 +22,15 @@ from typing import Any
 from genr8_dist.errors import GenomeError, Genr8Error
 from genr8_dist.fitness import CRITERIA, score_surface
 
-__all__ = ["Evaluation", "Evaluator", "evaluate_genome", "evaluate_text", "universe_for"]
+__all__ = [
+    "Evaluation",
+    "Evaluator",
+    "evaluate_genome",
+    "evaluate_text",
+    "regions_of",
+    "steps_of",
+    "universe_for",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,15 +90,30 @@ def _check_genome(genome: Sequence[int]) -> tuple[int, ...]:
     return values
 
 
+def steps_of(result: Any) -> int:
+    """How many derivation steps a ``GrowthResult`` ran (its ``steps`` is the per-step statistics)."""
+    steps = result.steps
+    return len(steps) if isinstance(steps, (list, tuple)) else int(steps)
+
+
+def regions_of(surface: Any) -> int:
+    """The number of regions of ``surface`` (without building the cycles when it can say)."""
+    n = getattr(surface, "n_regions", None)
+    return int(n) if n is not None else len(surface.regions)
+
+
 def _grow_and_score(text: str, config: Any) -> Evaluation:
-    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set)."""
+    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
+
+    ``grow_seconds`` is the time to parse the text and grow it; ``score_seconds`` the criteria's."""
     from genr8_dist.hemls import grow, parse
 
+    t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
         system = parse(text)
     except Exception as exc:  # failure is data: a text that does not parse is an invalid individual
-        return Evaluation(text=text, stage="parse", error=_describe(exc))
-    t0 = time.perf_counter()
+        return Evaluation(text=text, stage="parse", error=_describe(exc),
+                          grow_seconds=time.perf_counter() - t0)
     try:
         result = grow(system, config.environment)
     except Exception as exc:  # failure is data, whatever growth raised
@@ -100,12 +123,13 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
     surface = result.surface
     capped = result.capped
     capped = (capped if isinstance(capped, str) else "cap") if capped else None
+    steps_done = steps_of(result)
     grown = {
         "text": text,
         "n_vertices": len(surface.vertices),
         "n_edges": len(surface.edges),
-        "n_regions": len(surface.regions),
-        "steps_done": int(result.steps),
+        "n_regions": regions_of(surface),
+        "steps_done": steps_done,
         "capped": capped,
         "grow_seconds": grow_seconds,
     }
@@ -119,7 +143,7 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
     grown["score_seconds"] = time.perf_counter() - t1
     grown["criteria"] = criteria
     if capped:
-        error = f"growth capped ({capped}) after {result.steps} derivation steps"
+        error = f"growth capped ({capped}) in derivation step {steps_done}"
         return Evaluation(stage="grow", error=error, **grown)
     if not grown["n_vertices"] or not grown["n_edges"]:
         return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)

@@ -1,0 +1,77 @@
+"""``genr8 score``, run in-process."""
+
+from __future__ import annotations
+
+import io
+import json
+
+import pytest
+
+from genr8_dist.cli import main
+from genr8_dist.fitness import CRITERIA
+
+TILES = "Edge0 + ~ Edge1 + ~ Edge0 + Edge1\nEdge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0\n" \
+        "Edge1 -> Edge1 [ [ + Edge0 ] - Edge0 ] Edge1\nAngle 90\n"
+
+
+def score_json(capsys, *argv):
+    assert main(["score", *argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_table_lists_every_criterion_and_the_total(capsys, tmp_path):
+    env = tmp_path / "env.toml"
+    env.write_text("steps = 2\n")
+    assert main(["score", "four-sided-tiles", "--env", str(env)]) == 0
+    out = capsys.readouterr().out
+    for name in (*CRITERIA, "total"):
+        assert any(line.startswith(name) for line in out.splitlines()), name
+    assert "25 vertices, 40 edges, 16 regions after 2 derivation steps" in out
+
+
+def test_json_report_of_the_four_sided_tiles(capsys, tmp_path):
+    env = tmp_path / "env.toml"
+    env.write_text("steps = 3\n")
+    report = score_json(capsys, "four-sided-tiles", "--env", str(env))
+    m = 2**3
+    assert report["vertices"] == (m + 1) ** 2 and report["edges"] == 2 * m * (m + 1)
+    crit = report["criteria"]
+    assert list(crit) == list(CRITERIA)
+    assert crit["subdivisions"]["raw"] == pytest.approx((m + 1) ** 2 / (2 * m * (m + 1)))
+    assert crit["undulation"]["raw"] == 0.0 and crit["smoothness"]["raw"] == 0.0
+    assert crit["symmetry"]["raw"] == 1.0
+    assert crit["size"]["raw"] == pytest.approx(2 * 1.5**3)   # start length 1, scale 1.5, 3 steps
+    assert report["total"] == pytest.approx(sum(c["deviation"] for c in crit.values()))
+    assert report["valid"] is True
+
+
+def test_fitness_from_a_run_configuration(capsys, tmp_path):
+    config = tmp_path / "run.toml"
+    config.write_text("[fitness.size]\ntarget = 2.0\nweight = 10\n[environment]\nsteps = 1\n")
+    report = score_json(capsys, "four-sided-tiles", "--fitness", str(config))
+    size = report["criteria"]["size"]
+    assert size["target"] == 2.0 and size["weight"] == 10.0
+    assert size["deviation"] == pytest.approx(10 * abs(size["raw"] - 2.0) / 2.0)
+    assert report["steps"] == 1  # the configuration's environment is used when --env is not given
+
+
+def test_system_from_stdin(capsys, monkeypatch, tmp_path):
+    monkeypatch.setattr("sys.stdin", io.StringIO(TILES))
+    env = tmp_path / "env.toml"
+    env.write_text("steps = 1\n")
+    report = score_json(capsys, "-", "--env", str(env))
+    assert report["vertices"] == 9 and report["edges"] == 12
+
+
+def test_errors_are_one_line_and_exit_2(capsys, tmp_path):
+    assert main(["score", "no-such-system"]) == 2
+    assert capsys.readouterr().err.startswith("genr8: error:")
+    bad = tmp_path / "bad.hemls"
+    bad.write_text("Edge0 + Edge1 +\n")
+    assert main(["score", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("genr8: error:") and "bad.hemls:1:" in err and "Traceback" not in err
+    config = tmp_path / "run.toml"
+    config.write_text("[fitness.size]\nweight = -1\n")
+    assert main(["score", "square", "--fitness", str(config)]) == 2
+    assert "'fitness.size.weight'" in capsys.readouterr().err

@@ -1,0 +1,77 @@
+"""Evaluating one genome: map -> parse -> grow -> score, failures as data, caches that change nothing."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from genr8_dist.config import RunConfig
+from genr8_dist.errors import GenomeError
+from genr8_dist.evolution import Evaluator, evaluate_genome, evaluate_text
+from genr8_dist.evolution.operators import random_genome
+from genr8_dist.fitness import CRITERIA
+from genr8_dist.rng import stream
+
+SQUARE = "Edge0 + Edge1 + Edge0 + Edge1\nEdge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0\n" \
+         "Edge1 -> Edge1 [ [ + Edge0 ] - Edge0 ] Edge1\nAngle 90\n"
+
+
+@pytest.fixture(scope="module")
+def config():
+    return RunConfig.from_dict({"environment": {"steps": 2}})
+
+
+def genomes(n, seed=0, length=60):
+    rng = stream(seed, "test")
+    return [random_genome(rng, length, 255) for _ in range(n)]
+
+
+def untimed(e):
+    return e.untimed()
+
+
+def test_a_valid_genome_has_every_criterion_and_its_fitness(config):
+    results = [evaluate_genome(g, config) for g in genomes(20)]
+    valid = [r for r in results if r.valid]
+    assert valid, "some random genomes of the default universe must grow"
+    for r in valid:
+        assert list(r.criteria) == list(CRITERIA)
+        assert r.fitness == pytest.approx(config.fitness.evaluate(r.criteria))
+        assert r.text and r.codons_used > 0 and r.n_vertices >= 3 and r.n_edges >= 3
+        assert r.steps_done == 2 and r.capped is None and r.surface_digest
+        assert r.eval_seconds >= r.map_seconds >= 0 and r.grow_seconds > 0
+
+
+def test_evaluation_is_deterministic_and_caching_changes_nothing(config):
+    batch = genomes(15, seed=1)
+    fresh = [evaluate_genome(g, config).untimed() for g in batch]
+    evaluator = Evaluator(config)
+    cached = [evaluator.evaluate(g).untimed() for g in batch + batch]
+    assert cached == fresh + fresh
+    assert evaluator.evaluations == len(set(batch)) and evaluator.cache_hits == len(batch)
+
+
+def test_hand_written_square_matches_closed_form(config):
+    r = evaluate_text(SQUARE, config)
+    assert r.valid, r.error
+    n = 2
+    assert r.n_vertices == (2**n + 1) ** 2 and r.n_edges == 2 * 2**n * (2**n + 1)
+    assert r.criteria["subdivisions"] == pytest.approx(r.n_vertices / r.n_edges)
+    assert r.criteria["undulation"] == 0.0 and r.criteria["symmetry"] == 1.0
+
+
+def test_failures_are_data(config):
+    no_wrap = config.replace(genome={"max_wraps": 0})
+    failed = evaluate_genome([7], no_wrap)
+    assert not failed.valid and failed.stage == "map" and failed.error and failed.fitness == math.inf
+    bad = evaluate_text("Edge0 + + Edge1", config)
+    assert not bad.valid and bad.stage == "parse" and "1:" in bad.error and bad.fitness == math.inf
+    capped = evaluate_text(SQUARE, config.replace(environment={"max_edges": 10}))
+    assert not capped.valid and capped.stage == "grow" and capped.capped and capped.fitness == math.inf
+
+
+@pytest.mark.parametrize("genome", [[], [-1, 2], ["a"]])
+def test_a_genome_that_is_not_non_negative_ints_is_refused(config, genome):
+    with pytest.raises(GenomeError):
+        evaluate_genome(genome, config)

@@ -1,0 +1,172 @@
+"""The island: generations, provenance, determinism, recomputation, migrants and injections, and
+selection that improves fitness."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import statistics
+
+import pytest
+
+from genr8_dist.config import RunConfig
+from genr8_dist.errors import ConfigError
+from genr8_dist.evolution import ORIGINS, Individual, Island
+
+TIMINGS = {"eval_seconds", "map_seconds", "grow_seconds", "score_seconds"}
+
+
+def untimed(individual: Individual) -> dict:
+    return {k: v for k, v in dataclasses.asdict(individual).items() if k not in TIMINGS}
+
+
+def small_config(**changes) -> RunConfig:
+    base = {
+        "seed": 11,
+        "genome": {"length": 40},
+        "ea": {"population": 12, "generations": 3, "tournament": 3, "elites": 2},
+        "environment": {"steps": 2},
+        "islands": {"count": 2, "migrants": 2},
+    }
+    for key, value in changes.items():
+        base[key] = {**base[key], **value} if isinstance(value, dict) and key in base else value
+    return RunConfig.from_dict(base)
+
+
+@pytest.fixture(scope="module")
+def history():
+    config = small_config()
+    return config, Island(config, 0).run()
+
+
+def test_generation_zero(history):
+    config, hist = history
+    gen0 = hist[0]
+    assert [ind.index for ind in gen0] == list(range(config.ea.population))
+    assert all(ind.generation == 0 and ind.island == 0 and ind.origin == "random" for ind in gen0)
+    assert all(len(ind.genome) == 40 and all(0 <= c <= 255 for c in ind.genome) for ind in gen0)
+    assert len({ind.genome for ind in gen0}) == len(gen0)
+    for ind in gen0:
+        if ind.valid:
+            assert math.isfinite(ind.fitness) and ind.stage is None and ind.text
+            assert ind.fitness == pytest.approx(config.fitness.evaluate(ind.criteria))
+        else:
+            assert ind.fitness == math.inf and ind.stage in ("map", "parse", "grow", "score") and ind.error
+
+
+def test_provenance(history):
+    config, hist = history
+    for g in range(1, len(hist)):
+        previous = {ind.id: ind for ind in hist[g - 1]}
+        population = hist[g]
+        assert [ind.index for ind in population] == list(range(config.ea.population))
+        assert all(ind.origin in ORIGINS and ind.generation == g for ind in population)
+        elites = [ind for ind in population if ind.origin == "elite"]
+        assert len(elites) == config.ea.elites
+        best = sorted((p for p in hist[g - 1] if math.isfinite(p.fitness)),
+                      key=lambda p: (p.fitness, p.index))[: config.ea.elites]
+        assert [e.parents[0] for e in elites] == [b.id for b in best]
+        for ind in population:
+            assert all(pid in previous for pid in ind.parents)
+            if ind.origin == "elite":
+                parent = previous[ind.parents[0]]
+                assert ind.genome == parent.genome and ind.fitness == parent.fitness
+            elif ind.origin.startswith("crossover"):
+                assert len(ind.parents) == 2
+            else:
+                assert ind.origin == "mutation" and len(ind.parents) == 1
+                assert ind.genome != previous[ind.parents[0]].genome or len(ind.genome) == 0
+
+
+def test_same_config_and_seed_give_identical_populations(history):
+    config, hist = history
+    again = Island(small_config(), 0).run()
+    assert [[untimed(i) for i in pop] for pop in again] == [[untimed(i) for i in pop] for pop in hist]
+    other_seed = Island(small_config(seed=12), 0).initial()
+    assert [i.genome for i in other_seed] != [i.genome for i in hist[0]]
+    other_island = Island(config, 1).initial()
+    assert [i.genome for i in other_island] != [i.genome for i in hist[0]]
+
+
+def test_a_generation_is_recomputed_from_the_stored_one(history):
+    config, hist = history
+    for g in range(1, len(hist)):
+        stored = [Individual(**dataclasses.asdict(ind)) for ind in hist[g - 1]]  # as the store rebuilds it
+        recomputed = Island(config, 0).step(stored, g)
+        assert [untimed(i) for i in recomputed] == [untimed(i) for i in hist[g]]
+
+
+def test_migrants_and_injected_enter_first(history):
+    config, hist = history
+    island1 = Island(config, 1)
+    arrivals = sorted(hist[2], key=lambda i: (i.fitness, i.index))[:2]
+    donor = next(ind for ind in hist[2] if ind.valid)
+    text_source = next(ind for ind in hist[0] if ind.valid)
+    injected = [text_source.text, list(donor.genome), donor]
+    gen1 = island1.step(island1.initial(), 1, migrants=arrivals, injected=injected)
+    assert [i.origin for i in gen1[:5]] == ["migrant", "migrant", "injected", "injected", "injected"]
+    for m, arrived in zip(gen1[:2], arrivals, strict=True):
+        assert m.parents == (arrived.id,) and m.genome == arrived.genome and m.fitness == arrived.fitness
+        assert m.island == 1 and m.generation == 1
+    assert gen1[2].text == text_source.text and gen1[2].parents == ()       # through the inverse mapper
+    assert gen1[3].genome == donor.genome and gen1[3].parents == ()
+    assert gen1[4].parents == (donor.id,) and gen1[4].fitness == donor.fitness
+    assert len(gen1) == config.ea.population
+
+
+def test_migrants_from_another_configuration_version_are_re_evaluated(history):
+    config, hist = history
+    changed = config.replace(fitness={"size": {"weight": 7.0}})
+    island = Island(changed, 1, config_version=2)
+    migrant = next(ind for ind in hist[1] if ind.valid)
+    gen = island.step(hist[1], 2, migrants=[migrant])
+    assert gen[0].config_version == 2
+    assert gen[0].fitness == pytest.approx(changed.fitness.evaluate(migrant.criteria))
+    assert gen[0].criteria == migrant.criteria
+
+
+def test_too_many_incoming_is_refused(history):
+    config, hist = history
+    with pytest.raises(ConfigError, match="do not fit"):
+        Island(config, 0).step(hist[0], 1, migrants=hist[0], injected=[hist[0][0]])
+
+
+def test_identical_genomes_are_evaluated_once(history):
+    config, hist = history
+    island = Island(config, 0)
+    genome = list(hist[0][0].genome)
+    island.step(hist[0], 1, injected=[genome] * 6)
+    assert island.stats.evaluated <= config.ea.population - 6 - config.ea.elites + 1
+
+
+def test_invalid_individuals_are_data_not_exceptions():
+    config = small_config(genome={"length": 3, "max_wraps": 0})
+    hist = Island(config, 0).run(2)
+    invalid = [ind for pop in hist for ind in pop if not ind.valid]
+    assert invalid, "three-codon genomes that may not wrap should mostly fail to map"
+    assert all(ind.fitness == math.inf and ind.stage and ind.error for ind in invalid)
+
+
+@pytest.mark.slow
+@pytest.mark.stochastic
+def test_selection_improves_a_fitness_that_rewards_subdivisions():
+    """Best and median fitness of a 30-individual island improve over 10 generations for most seeds."""
+    zero = {"weight": 0.0}
+    fitness = {"size": zero, "smoothness": zero, "undulation": zero, "symmetry": zero,
+               "soft_boundary": zero, "subdivisions": {"target": 0.3, "weight": 1.0}}
+    best_better = median_better = 0
+    seeds = range(5)
+    for seed in seeds:
+        config = RunConfig.from_dict({
+            "seed": seed, "genome": {"length": 60},
+            "ea": {"population": 30, "generations": 10, "elites": 1, "tournament": 5},
+            "fitness": fitness, "environment": {"steps": 2},
+        })
+        hist = Island(config, 0).run()
+        first, last = [i.fitness for i in hist[0]], [i.fitness for i in hist[-1]]
+        assert min(last) <= min(first)  # elitism: the best never gets worse
+        best_better += min(last) < min(first)
+        median_better += statistics.median(last) < statistics.median(first)
+    # Measured (seeds 0-4): the median improves for all five, the best for four (seed 0's generation 0
+    # already held a good one); allow one more miss of the best, which elitism keeps from getting worse.
+    assert best_better >= 3 and median_better >= 4, (best_better, median_better)
