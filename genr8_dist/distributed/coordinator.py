@@ -51,8 +51,9 @@ def last_generation(config: Any) -> int:
 
 def epoch_end(low: int, interval: int, last: int) -> int:
     """The generation an epoch that starts after ``low`` ends at: the next multiple of ``interval``
-    above ``low`` (generation 0 alone is the first epoch), or ``last``."""
-    return min(last, (low // interval + 1) * interval)
+    above ``low`` (the first epoch is generations ``0..interval``), or ``last``. Epochs end where
+    migrants leave, the only points where islands must wait for each other."""
+    return min(last, (max(low, 0) // interval + 1) * interval)
 
 
 @dataclass(frozen=True, slots=True)

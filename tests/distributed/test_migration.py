@@ -84,3 +84,13 @@ def test_plan_migration_full_keeps_the_best_k_of_all_arrivals():
 def test_migration_generations():
     assert [g for g in range(21) if is_migration_generation(g, 5)] == [5, 10, 15, 20]
     assert not is_migration_generation(0, 1)
+
+
+def test_epochs_end_where_migrants_leave():
+    from genr8_dist.distributed.coordinator import epoch_end
+
+    assert epoch_end(-1, 5, 20) == 5        # a new run: generations 0..5 in the first epoch
+    assert epoch_end(5, 5, 20) == 10
+    assert epoch_end(7, 5, 20) == 10        # resumed mid-epoch: on to the next migration
+    assert epoch_end(15, 5, 18) == 18       # the last epoch ends with the run
+    assert epoch_end(-1, 5, 0) == 0
