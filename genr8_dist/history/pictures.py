@@ -24,6 +24,7 @@ __all__ = [
     "gallery_figure",
     "gallery_figure_of",
     "gallery_png",
+    "lineage_figure",
     "lineage_png",
     "png_bytes",
 ]
@@ -214,6 +215,11 @@ def curves_png(store: RunLike, path: str | os.PathLike, *, table: pa.Table | Non
 
 
 def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
+    """Write ``lineage_figure(table, id)`` to the PNG ``path``."""
+    _save(lineage_figure(table, id), path)
+
+
+def lineage_figure(table: pa.Table, id: str) -> Any:
     """Draw an ancestry (``history.lineage``'s table): generations left to right, each island a band,
     individuals coloured by how they were made, parent-to-child links, the main line in black."""
     from matplotlib.collections import LineCollection
@@ -271,7 +277,7 @@ def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
     ax.set_title(f"ancestry of {id}: {len(rows) - 1:,} ancestors{note}", loc="left", fontsize=12,
                  fontweight="bold")
     fig.tight_layout()
-    _save(fig, path)
+    return fig
 
 
 def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:

@@ -22,6 +22,8 @@ from genr8_dist.history._run import RunLike, atomic_write, open_run, run_label
 
 __all__ = ["report_html", "write_report"]
 
+_LINEAGE_DEPTH = 30  # generations of the best individual's ancestry drawn in the report
+
 _CSS = """
 body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 0;
        background: #f6f6f3; color: #222; }
@@ -150,6 +152,16 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
                 "</p>")
     parts.append(_section(f"The {best.num_rows} best individuals of the run",
                           f"<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
+
+    if best.num_rows:
+        champion = best["id"][0].as_py()
+        tree = _tables.lineage(store, champion, depth=_LINEAGE_DEPTH)
+        parts.append(_section(f"Where {champion} came from", _img(
+            pictures.png_bytes(pictures.lineage_figure(tree, champion), dpi=80),
+            f"ancestry of {champion}") + f'<p class="note">Its ancestors over the last '
+            f"{_LINEAGE_DEPTH} generations at most, coloured by how each was made; the black line "
+            f"follows first parents. <code>genr8 lineage {html.escape(str(run_label(store)))} "
+            f"{champion}</code> lists them.</p>"))
 
     rows = []
     previous = None

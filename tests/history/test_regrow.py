@@ -237,7 +237,7 @@ def test_report_is_self_contained(real_run, tmp_path):
     assert page.startswith("<!DOCTYPE html>")
     assert not re.search(r"(src|href)=\"(https?:)?//", page), "the page must not fetch anything"
     assert "<script" not in page
-    assert page.count('src="data:image/png;base64,') == 2  # the curves and the gallery
+    assert page.count('src="data:image/png;base64,') == 3  # the curves, the gallery, the ancestry
     best = history.top(real_run, 5, systems=True)
     for ident in best["id"].to_pylist():
         assert f"<code>{ident}</code>" in page
@@ -254,6 +254,7 @@ def test_report_renders_in_headless_chromium(real_run, tmp_path):
         ["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--disable-sync", "--no-first-run",
          f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1400,2000", "--hide-scrollbars",
+         "--virtual-time-budget=5000",
          f"--screenshot={shot}", page.resolve().as_uri()],
         check=True, capture_output=True, timeout=120)
     _png_ok(shot)
