@@ -60,6 +60,7 @@ class _Writer:
         self.birth = birth
         self.suffix = suffix
         self.recursive = _recursive_rules(cg)
+        self.checked: set[str] = set()
         self.functions: dict[str, list[str]] = {}
         self.pending: list[str] = []
         self.counter = 0
@@ -106,13 +107,12 @@ class _Writer:
             self.inline_rule(name, out, ind, dep)
 
     def choose(self, alts: tuple, table: str, out: list[str], ind: int, dep: tuple,
-               scope: dict, bound: frozenset) -> None:
+               scope: dict, state: tuple) -> tuple:
         """Read a codon and run the chosen alternative among those eligible at ``dep``."""
         pad = "    " * ind
         if len(alts) == 1:
             out.append(f"{pad}nxt()")
-            self.node(alts[0], out, ind, dep, scope, bound)
-            return
+            return self.node(alts[0], out, ind, dep, scope, state)
         top = max(self.maxd, max(self.cg.min_depth.values())) + 2
         if dep[0] is None:
             sets = {eligible(self.cg, alts, dep[1], self.maxd)}
@@ -122,28 +122,30 @@ class _Writer:
             elig = next(iter(sets))
             if len(elig) == 1:
                 out.append(f"{pad}nxt()")
-                self.node(alts[elig[0]], out, ind, dep, scope, bound)
-                return
+                return self.node(alts[elig[0]], out, ind, dep, scope, state)
             k = self.fresh("k")
             out.append(f"{pad}{k} = nxt() % {len(elig)}")
+            maybe = set(state[1])
             for j, i in enumerate(elig):
                 out.append(f"{pad}{'if' if j == 0 else 'elif'} {k} == {j}:" if j < len(elig) - 1
                            else f"{pad}else:")
-                self.block(alts[i], out, ind + 1, dep, scope, bound)
-            return
+                maybe |= self.block(alts[i], out, ind + 1, dep, scope, state)[1]
+            return state[0], frozenset(maybe)
         k, e = self.fresh("k"), self.fresh("e")
         out.append(f"{pad}{e} = {table}[{self.dexpr(dep)}]")
         out.append(f"{pad}{k} = {e}[nxt() % len({e})]")
         used = sorted(set().union(*sets))
+        maybe = set(state[1])
         for j, i in enumerate(used):
             out.append(f"{pad}{'if' if j == 0 else 'elif'} {k} == {i}:" if j < len(used) - 1
                        else f"{pad}else:")
-            self.block(alts[i], out, ind + 1, dep, scope, bound)
+            maybe |= self.block(alts[i], out, ind + 1, dep, scope, state)[1]
+        return state[0], frozenset(maybe)
 
     def block(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
-              bound: frozenset) -> frozenset:
+              state: tuple) -> tuple:
         before = len(out)
-        result = self.node(node, out, ind, dep, scope, bound)
+        result = self.node(node, out, ind, dep, scope, state)
         if len(out) == before:
             out.append("    " * ind + "pass")
         return result
@@ -151,9 +153,11 @@ class _Writer:
     def inline_rule(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
         alts = self.cg.rules[name]
         scope = {letter: self.fresh(f"b{letter}") for letter in sorted(_bound_letters(alts))}
-        for var in scope.values():
-            out.append(f"{'    ' * ind}{var} = -1")
-        self.choose(alts, f"EL_{name}", out, ind, dep, scope, frozenset())
+        start = len(out)
+        self.choose(alts, f"EL_{name}", out, ind, dep, scope, (frozenset(), frozenset()))
+        # A bound edge needs "bX = -1" only where the code must test whether it was drawn yet.
+        inits = [f"{'    ' * ind}{var} = -1" for var in scope.values() if var in self.checked]
+        out[start:start] = inits
 
     def fits(self, need: int, dep: tuple) -> bool | str:
         """True/False when known now, else the runtime test (as code) that the body fits."""
@@ -164,18 +168,19 @@ class _Writer:
         return f"{self.dexpr(dep)} + {need} <= {self.maxd}"
 
     def node(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
-             bound: frozenset) -> frozenset:
-        """Append code for ``node``; returns the bound letters known to be drawn afterwards."""
+             state: tuple) -> tuple:
+        """Append code for ``node``. ``state`` is (bound letters surely drawn, letters maybe drawn)
+        before it; returns the state after it."""
         pad = "    " * ind
         kind = node[0]
         if kind == "lit":
             out.append(f"{pad}app({node[1]!r})")
-            return bound
+            return state
         if kind == "edge":
-            return self.edge(node, out, pad, scope, bound)
+            return self.edge(node, out, pad, scope, state)
         if kind == "rule":
             self.rule_ref(node[1], out, ind, (dep[0], dep[1] + 1))
-            return bound
+            return state
         if kind == "seq":
             items = list(node[1])
             i = 0
@@ -189,36 +194,37 @@ class _Writer:
                         out.append(f"{pad}ext_({texts!r})")
                         i = j
                         continue
-                bound = self.node(items[i], out, ind, dep, scope, bound)
+                state = self.node(items[i], out, ind, dep, scope, state)
                 i += 1
-            return bound
+            return state
         if kind == "choice":
-            self.choose(node[1], f"EG_{node[2]}", out, ind, dep, scope, bound)
-            return bound
+            return self.choose(node[1], f"EG_{node[2]}", out, ind, dep, scope, state)
         if kind == "opt":
             fit = self.fits(self.cg.alt_need(node[1]), dep)
             if fit is False:
                 out.append(f"{pad}nxt()")
-                return bound
+                return state
             test = "nxt() & 1" if fit is True else f"nxt() & 1 and {fit}"
             out.append(f"{pad}if {test}:")
-            self.block(node[1], out, ind + 1, dep, scope, bound)
-            return bound
+            after = self.block(node[1], out, ind + 1, dep, scope, state)
+            return state[0], after[1]
         if kind == "rep":
             inner, x, plus = node[1], node[2], node[3]
             if plus:
-                bound = self.node(inner, out, ind, dep, scope, bound)
+                state = self.node(inner, out, ind, dep, scope, state)
             fit = self.fits(self.cg.alt_need(inner), dep)
             if fit is False:
                 out.append(f"{pad}nxt()")
-                return bound
+                return state
             c = self.fresh("c")
             out.append(f"{pad}{c} = 0")
             extra = "" if fit is True else f" and {fit}"
             out.append(f"{pad}while nxt() % ({c} + {x}) > {c}{extra}:")
-            self.node(inner, out, ind + 1, dep, scope, bound)
+            # A later round may find a letter drawn by an earlier one.
+            looping = (state[0], state[1] | {n[3] for n in _walk(inner) if n[0] == "edge" and n[1] == "B"})
+            after = self.node(inner, out, ind + 1, dep, scope, looping)
             out.append(f"{pad}    {c} += 1")
-            return bound
+            return state[0], after[1]
         raise AssertionError(kind)
 
     def draw(self, target: str, out: list[str], pad: str) -> None:
@@ -233,27 +239,31 @@ class _Writer:
         out.append(f"{pad}    if count >= len(ES0):")
         out.append(f"{pad}        grow(count)")
 
-    def edge(self, node: tuple, out: list[str], pad: str, scope: dict, bound: frozenset) -> frozenset:
+    def edge(self, node: tuple, out: list[str], pad: str, scope: dict, state: tuple) -> tuple:
         _, mode, template, letter = node
         table = f"ES{template}"
         if mode == "P" and self.birth:
             out.append(f"{pad}lab = nxt() % count")
             out.append(f"{pad}has_rule(lab)")
             out.append(f"{pad}app({table}[lab])")
-            return bound
+            return state
         if mode in ("P", "C"):
             out.append(f"{pad}app({table}[nxt() % count])")
-            return bound
+            return state
         if mode == "L":
             self.draw("lab", out, pad)
             out.append(f"{pad}app({table}[lab])")
-            return bound
+            return state
         var = scope[letter]
-        if letter not in bound:
+        bound, maybe = state
+        if letter not in maybe:  # surely not drawn yet: draw
+            self.draw(var, out, pad)
+        elif letter not in bound:  # perhaps drawn: test
+            self.checked.add(var)
             out.append(f"{pad}if {var} < 0:")
             self.draw(var, out, pad + "    ")
         out.append(f"{pad}app({table}[{var}])")
-        return bound | {letter}
+        return bound | {letter}, maybe | {letter}
 
 
 def _recursive_rules(cg: CompiledGrammar) -> set[str]:

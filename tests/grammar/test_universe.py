@@ -225,6 +225,11 @@ item: EDGE | "(" item item ")" | ( "-" | "+" item )
 deep: "d" deep | "z"
 EDGE: /E[0-9]+/
 ''',
+    # a bound edge first drawn inside a repetition, then reused by later rounds and after it
+    '''start: ("a" EDGE_X ["!" EDGE_Z])* "b" EDGE_X [EDGE_Z] ("c" EDGE_X | "d" EDGE_Z)
+EDGE_X: /X[0-9]+/
+EDGE_Z: /Z[0-9]+/
+''',
     '''start: a
 a: b b | "x" a "y"
 b: c | "q"
