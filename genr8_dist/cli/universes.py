@@ -15,7 +15,7 @@ import argparse
 import json
 import sys
 
-from genr8_dist.errors import ConfigError, GenomeError
+from genr8_dist.errors import ConfigError, GenomeError, InversionError
 
 __all__ = ["parse_genome", "register"]
 
@@ -131,11 +131,14 @@ def _invert(args: argparse.Namespace) -> int:
     if not 1 <= args.max_depth <= 100:
         raise ConfigError(f"--max-depth must be from 1 to 100, got {args.max_depth}")
     universe = load_universe(args.universe)
-    if args.file == "-":
-        text = sys.stdin.read()
-    else:
-        with open(args.file, encoding="utf-8") as handle:
-            text = handle.read()
+    try:
+        if args.file == "-":
+            text = sys.stdin.read()
+        else:
+            with open(args.file, encoding="utf-8") as handle:
+                text = handle.read()
+    except UnicodeDecodeError as exc:
+        raise InversionError(f"{args.file}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     genome = universe.invert(text, max_depth=args.max_depth)
     if args.json:
         mapped = universe.map(genome, max_depth=args.max_depth)

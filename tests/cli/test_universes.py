@@ -73,6 +73,13 @@ def test_bad_input_is_one_line_and_exit_2(capsys, argv, message):
     assert err.startswith("genr8: error: ") and message in err and err.count("\n") == 1
 
 
+def test_invert_of_a_binary_file_is_a_one_line_error(tmp_path, capsys):
+    path = tmp_path / "system.bin"
+    path.write_bytes(b"\xff\xfe\x00Edge0")
+    code, _, err = run(capsys, "invert", str(path))
+    assert code == 2 and f"{path}: not UTF-8 text" in err
+
+
 def test_malformed_universe_file_names_line_and_column(tmp_path, capsys):
     path = tmp_path / "bad.lark"
     path.write_text('start: "a" (\n')
