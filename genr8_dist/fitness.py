@@ -93,7 +93,11 @@ def _neighbour_pairs(edges: Any) -> np.ndarray:
     e = e[e[:, 0] != e[:, 1]]
     if not len(e):
         return e
-    return np.unique(np.sort(e, axis=1), axis=0)
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    n = int(hi.max()) + 1
+    keys = np.sort(lo * n + hi)  # one int per unordered pair; sorted, repeats are neighbours
+    keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))]
+    return np.column_stack([keys // n, keys % n])
 
 
 def smoothness(vertices: Any, edges: Any) -> float:
