@@ -10,6 +10,8 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pytest
 from history_runs import GENERATIONS, INTERVENTION_AT, ISLANDS, POP, targets, units
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from genr8_dist import history
 from genr8_dist.errors import Genr8Error, StoreError
@@ -307,3 +309,36 @@ def test_a_generation_without_valid_individuals(tmp_path, capsys):
 def test_a_run_named_by_uri(history_run):
     uri = history_run.resolve().as_uri()
     assert history.top(uri, 3).equals(history.top(history_run, 3))
+
+
+@settings(max_examples=12, deadline=None)
+@given(islands=st.integers(1, 3), generations=st.integers(1, 4), pop=st.integers(5, 9),
+       seed=st.integers(0, 2**16), k=st.integers(1, 12))
+def test_property_per_generation_and_top_on_any_synthetic_run(tmp_path_factory, islands, generations, pop,
+                                                              seed, k):
+    import pyarrow.parquet as pq
+
+    from genr8_dist.store import RunStore, write_synthetic_run
+
+    path = tmp_path_factory.mktemp("prop") / "run"
+    write_synthetic_run(path, islands, generations, pop, seed, generations_per_commit=2)
+    rows = pa.concat_tables([pq.read_table(f) for f in RunStore.open(path).individual_files()])
+    assert rows.num_rows == islands * generations * pop
+    table = history.per_generation(path)
+    assert table.num_rows == islands * generations
+    groups: dict[tuple[int, int], list[float]] = defaultdict(list)
+    for r in rows.to_pylist():
+        if r["valid"]:
+            groups[(r["generation"], r["island"])].append(r["fitness"])
+    for r in table.to_pylist():
+        values = groups.get((r["generation"], r["island"]), [])
+        assert r["n_valid"] == len(values)
+        if values:
+            assert r["best"] == min(values) and r["worst"] == max(values)
+            assert r["median"] == pytest.approx(float(np.median(values)), rel=1e-12)
+        else:
+            assert r["best"] is None
+    expected = sorted((r["fitness"], r["generation"], r["island"], r["index"], r["id"])
+                      for r in rows.to_pylist() if r["valid"])[:k]
+    if expected:
+        assert history.top(path, k)["id"].to_pylist() == [e[-1] for e in expected]
