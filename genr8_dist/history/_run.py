@@ -102,15 +102,16 @@ def deviation(values: np.ndarray, versions: np.ndarray, criterion: str,
               targets: dict[int, dict[str, tuple[float, float]]]) -> np.ndarray:
     """``|raw - target| / unit`` per row, the target taken from each row's configuration version; NaN
     raw values (and versions without the criterion) give ``inf`` so they never rank first."""
-    target = np.full(len(values), math.nan)
-    unit = np.ones(len(values))
-    for version, table in targets.items():
-        if criterion not in table:
-            continue
-        rows = versions == version
-        target[rows], unit[rows] = table[criterion]
-    dev = np.abs(values - target) / unit
-    dev[~np.isfinite(dev)] = np.inf
+    known = [v for v, table in targets.items() if criterion in table and v >= 0]
+    size = max([*known, int(versions.max()) if len(versions) else 0, 0]) + 1
+    target = np.full(size, np.nan)
+    unit = np.ones(size)
+    for v in known:
+        target[v], unit[v] = targets[v][criterion]
+    rows = np.clip(versions, 0, size - 1)
+    with np.errstate(invalid="ignore"):
+        dev = np.abs(values - target[rows]) / unit[rows]
+    dev[~np.isfinite(dev) | (versions < 0)] = np.inf
     return dev
 
 

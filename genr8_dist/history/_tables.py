@@ -111,14 +111,14 @@ def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
     }
     if crits:
         targets = targets_by_version(store, crits)
-        versions = as_numpy(table["config_version"], -1).astype(np.int64)[order]
+        versions = as_numpy(table["config_version"], -1).astype(np.int64)
         for name in crits:
-            raw = as_numpy(table[f"crit_{name}"], math.nan).astype(np.float64)[order]
-            dev = deviation(raw, versions, name, targets)
+            raw = as_numpy(table[f"crit_{name}"], math.nan).astype(np.float64, copy=False)
+            dev = deviation(raw, versions, name, targets)[order]
             mins = np.minimum.reduceat(dev, starts)
             hit = np.flatnonzero(dev == np.repeat(mins, counts))
             first = hit[np.searchsorted(hit, starts)]
-            out[f"best_{name}"] = pa.array(raw[first], pa.float64(), mask=~np.isfinite(mins))
+            out[f"best_{name}"] = pa.array(raw[order[first]], pa.float64(), mask=~np.isfinite(mins))
     return pa.table(out)
 
 
