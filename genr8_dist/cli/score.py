@@ -85,8 +85,11 @@ def _fmt(value: float | None) -> str:
 
 
 def _print_table(report: dict[str, Any]) -> None:
-    print(f"{report['system']}: {report['vertices']} vertices, {report['edges']} edges, "
-          f"{report['regions']} regions after {report['steps']} derivation steps")
+    def count(n: int, noun: str) -> str:
+        return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+    print(f"{report['system']}: {report['vertices']} vertices, {count(report['edges'], 'edge')}, "
+          f"{count(report['regions'], 'region')} after {count(report['steps'], 'derivation step')}")
     header = f"{'criterion':<14} {'raw':>12} {'target':>10} {'weight':>8} {'deviation':>12}"
     print(header)
     print("-" * len(header))
