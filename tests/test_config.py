@@ -150,3 +150,11 @@ def test_examples_load(path):
     config = load_config(path)
     assert config.islands.count >= 1
     assert load_config(path).to_toml() == config.to_toml()
+
+
+def test_a_configuration_survives_pickling_for_ray_actors():
+    import pickle
+
+    config = load_config(EXAMPLES / "long.toml")
+    again = pickle.loads(pickle.dumps(config))
+    assert again == config and again.to_toml() == config.to_toml()
