@@ -150,10 +150,18 @@ def drive_to_end_after_repair(run_dir, pool):
 
 
 def test_a_run_that_cannot_be_scheduled_is_refused(pool, tmp_path):
-    """The module's pool holds every CPU of the session's Ray: another run is refused, not left waiting."""
+    """With every CPU of the session's Ray held by hosts, another run is refused, not left waiting."""
+    import ray
+
     from genr8_dist.distributed.hosts import HostPool
     from genr8_dist.errors import RunError
 
-    with pytest.raises(RunError, match="no free CPU"):
-        HostPool(str(tmp_path / "run"), 2)
+    free = int(ray.available_resources().get("CPU", 0))
+    blocker = HostPool(str(tmp_path / "blocker"), free) if free >= 1 else None
+    try:
+        with pytest.raises(RunError, match="no free CPU"):
+            HostPool(str(tmp_path / "run"), 2)
+    finally:
+        if blocker is not None:
+            blocker.shutdown()
     assert not (tmp_path / "run").exists()
