@@ -216,3 +216,18 @@ def test_grown_surface_half_through_a_soft_boundary():
     through = int(np.count_nonzero(x > 0.013))
     assert 0 < through < len(x)  # the surface grew half through the plane, unhindered
     assert score_surface(surface, env)["soft_boundary"] == through == 36
+
+
+finite = st.floats(-1e6, 1e6, allow_nan=False)
+criterion_tables = st.fixed_dictionaries(
+    {"target": finite, "weight": st.floats(0, 1e3)}, optional={"scale": st.floats(1e-3, 1e3)})
+
+
+@given(st.dictionaries(st.sampled_from(CRITERIA), criterion_tables))
+def test_spec_round_trips_and_total_is_never_negative(tables):
+    spec = FitnessSpec.from_dict(tables)
+    assert FitnessSpec.from_dict(spec.to_dict()) == spec
+    raw = {name: spec[name].target + 1.0 for name in CRITERIA}
+    total = spec.evaluate(raw)
+    assert total >= 0.0
+    assert total == pytest.approx(sum(spec[n].weight / spec[n].unit for n in CRITERIA))
