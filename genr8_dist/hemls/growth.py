@@ -150,6 +150,7 @@ class _Map:
         self.label = np.zeros(cap_e, dtype=np.int64)
         self.age = np.zeros(cap_e, dtype=np.int64)
         self.alive = np.zeros(cap_e, dtype=bool)
+        self.up = np.zeros((cap_e, 3))  # the surface normal each edge was drawn with (a fallback)
         self.nxt = np.full(2 * cap_e, -1, dtype=np.int64)
         self.prv = np.full(2 * cap_e, -1, dtype=np.int64)
         self.face = np.zeros(2 * cap_e, dtype=np.int64)
@@ -160,6 +161,10 @@ class _Map:
         self.ev[:n, 1] = np.where(reversed_, a, b)
         self.label[:n] = labels
         self.alive[:n] = True
+        centre = positions.mean(axis=0)
+        normal = _cross(positions - centre, np.roll(positions, -1, axis=0) - centre).sum(axis=0)
+        norm = float(np.linalg.norm(normal))
+        self.up[:n] = normal / norm if norm > 1e-300 else (0.0, 0.0, 1.0)
         path = 2 * k + reversed_.astype(np.int64)  # half-edges along the polygon (counter-clockwise)
         back = path ^ 1
         self.nxt[path] = np.roll(path, -1)
@@ -180,7 +185,7 @@ class _Map:
                 setattr(self, name, new)
         if ne > len(self.ev):
             cap = max(ne, 2 * len(self.ev))
-            for name in ("ev", "label", "age", "alive"):
+            for name in ("ev", "label", "age", "alive", "up"):
                 old = getattr(self, name)
                 new = np.zeros((cap, *old.shape[1:]), dtype=old.dtype)
                 new[:self.ne] = old[:self.ne]
@@ -209,19 +214,15 @@ class _Map:
     def n_alive(self) -> int:
         return int(np.count_nonzero(self.alive[:self.ne]))
 
-    def face_normals(self) -> np.ndarray:
-        """Unit area vector of every face (zero for the outside and for degenerate faces)."""
+    def face_areas(self) -> np.ndarray:
+        """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
         h = self.alive_halves()
         f = self.face[h]
         cr = _cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
         out = np.zeros((self.nf, 3))
         for axis in range(3):
-            out[:, axis] = np.bincount(f, weights=cr[:, axis], minlength=self.nf)
+            out[:, axis] = 0.5 * np.bincount(f, weights=cr[:, axis], minlength=self.nf)
         out[0] = 0.0
-        norm = np.linalg.norm(out, axis=1)
-        ok = norm > 1e-300
-        out[ok] /= norm[ok, None]
-        out[~ok] = 0.0
         return out
 
     def perimeter_mask(self) -> np.ndarray:
@@ -251,6 +252,7 @@ class _Map:
         self.ev[:m] = self.ev[keep]
         self.label[:m] = self.label[keep]
         self.age[:m] = self.age[keep]
+        self.up[:m] = self.up[keep]
         self.alive[:m] = True
         self.alive[m:self.ne] = False
         self.nxt[:2 * m] = nxt
@@ -397,26 +399,32 @@ class _Branches:
         return len(self.arrays()[0])
 
 
-def _frames(m: _Map, idx: np.ndarray, normals: np.ndarray):
-    """Start, length and (heading, left, up) of edges ``idx``; up follows the surface normal."""
+def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
+    """Start, length and (heading, left, up) of edges ``idx``.
+
+    Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge
+    (so it agrees with the map's orientation, and tiny regions count little); where that sum is
+    negligible or along the edge, the normal the edge was drawn with."""
     s, t = m.ev[idx, 0], m.ev[idx, 1]
     p, q = m.pos[s], m.pos[t]
     d = q - p
-    length = np.linalg.norm(d, axis=1)
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
     safe = np.where(length > 1e-300, length, 1.0)
     h = d / safe[:, None]
     h[length <= 1e-300] = (1.0, 0.0, 0.0)
-    n = normals[m.face[2 * idx]] + normals[m.face[2 * idx + 1]]
-    for fallback in ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
+    n = areas[m.face[2 * idx]] + areas[m.face[2 * idx + 1]]
+    size = np.sqrt(np.einsum("ij,ij->i", n, n))
+    weak = size <= 1e-9 * safe * safe
+    n = n / np.where(weak, 1.0, size)[:, None]
+    n[weak] = m.up[idx[weak]]
+    for fallback in (None, (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
         u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
-        un = np.linalg.norm(u, axis=1)
-        bad = un < 1e-9
+        un = np.sqrt(np.einsum("ij,ij->i", u, u))
+        bad = un < 1e-6
         if not np.any(bad):
             break
         n = n.copy()
-        n[bad] = fallback
-    u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
-    un = np.linalg.norm(u, axis=1)
+        n[bad] = m.up[idx[bad]] if fallback is None else fallback
     u = u / np.where(un > 1e-300, un, 1.0)[:, None]
     left = _cross(u, h)
     return s, t, p, length, h, left, u
@@ -534,9 +542,9 @@ class _Grower:
             return
         if m.n_alive() + grow_edges > self.max_edges:
             raise _Capped("edges")
-        normals = m.face_normals()
+        areas = m.face_areas()
         for part, tpl in batches:
-            self._rewrite(part, tpl, normals, pending)
+            self._rewrite(part, tpl, areas, pending)
 
     def _noisy(self, labels: np.ndarray) -> np.ndarray:
         p = self.env.label_noise
@@ -547,10 +555,10 @@ class _Grower:
         out[hit] = self.rng.choice(self.c.labels, size=int(hit.sum()))
         return out
 
-    def _rewrite(self, idx: np.ndarray, tpl: Template, normals: np.ndarray, pending: _Branches) -> None:
+    def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
         m = self.m
         n, k = len(idx), tpl.n_segments
-        s, t, p, length, h, left, up = _frames(m, idx, normals)
+        s, t, p, length, h, left, up = _frames(m, idx, areas)
         pts = tpl.points
         world = (p[:, None, :] + length[:, None, None]
                  * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
@@ -573,6 +581,7 @@ class _Grower:
         ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
         m.age[new_e] = np.maximum(ages, 0)
         m.alive[new_e] = True
+        m.up[new_e] = up[:, None, :]
         m.ne = ne0 + n * k
         # half-edges along the main line (start to end) and back
         fwd = 2 * new_e + rev.astype(np.int64)
@@ -704,10 +713,7 @@ class _Grower:
         if not len(pi):
             pending.checked = n
             return
-        d = m.pos[vert[pj]] - m.pos[vert[pi]]
-        dist = np.linalg.norm(d, axis=1)
-        ci = np.einsum("ij,ij->i", heading[pi], d) / dist
-        cj = -np.einsum("ij,ij->i", heading[pj], d) / dist
+        ci, cj, dist = self._aim(pi, pj, points, heading)
         score = -np.round(ci + cj, 9)
         order = np.lexsort((pj, pi, np.round(dist, 9), score))
         pi, pj = pi[order], pj[order]
@@ -759,29 +765,30 @@ class _Grower:
         2a from opposite, so h_i . h_j <= -cos(2a): a five-operation test per pair that removes
         most pairs of a large region before the exact test."""
         hr, hc = heading[rows], heading[cols]
-        limit = -math.cos(min(2.0 * math.acos(min(max(self.c.cos_cone, -1.0), 1.0)), math.pi)) + 1e-6
+        cone = math.acos(min(max(self.c.cos_cone, -1.0), 1.0))
+        limit = -math.cos(min(2.0 * cone, math.pi)) + 1e-6
         hh = hr[:, 0, None] * hc[None, :, 0]
         hh += hr[:, 1, None] * hc[None, :, 1]
         hh += hr[:, 2, None] * hc[None, :, 2]
         ok = hh <= limit
         ok &= rows[:, None] < cols[None, :]
-        ri, cj = np.nonzero(ok)
-        if len(ri):
-            d = points[cols[cj]] - points[rows[ri]]
-            front = (np.einsum("ij,ij->i", hr[ri], d) > -1e-12) & (np.einsum("ij,ij->i", hc[cj], d) < 1e-12)
-            ri, cj = ri[front], cj[front]
-        return ri, cj
+        return np.nonzero(ok)
+
+    @staticmethod
+    def _aim(pi, pj, points, heading):
+        """How well branches pi and pj point at each other's start vertex: the cosines of the angles
+        between each heading and the direction to the other vertex, and the distance between them."""
+        d = points[pj] - points[pi]
+        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+        safe = np.where(dist > 1e-300, dist, 1.0)
+        return (np.einsum("ij,ij->i", heading[pi], d) / safe,
+                -np.einsum("ij,ij->i", heading[pj], d) / safe, dist)
 
     def _pair_ok(self, pi, pj, points, heading, max_dist) -> np.ndarray:
         """Branch pairs that point at each other within the cone and the distance limit."""
         cos_cone = self.c.cos_cone - 1e-9
-        d = points[pj] - points[pi]
-        dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        ok = (dist > 1e-12) & (dist <= max_dist)
-        safe = np.where(ok, dist, 1.0)
-        ok &= np.einsum("ij,ij->i", heading[pi], d) >= cos_cone * safe
-        ok &= -np.einsum("ij,ij->i", heading[pj], d) >= cos_cone * safe
-        return ok
+        ci, cj, dist = self._aim(pi, pj, points, heading)
+        return (dist > 1e-12) & (dist <= max_dist) & (ci >= cos_cone) & (cj >= cos_cone)
 
     def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """For each half-edge leaving u, whether u already has an edge to the matching target."""
@@ -811,6 +818,7 @@ class _Grower:
         m.ev[e, 1] = np.where(flip, u, w)
         m.label[e] = label[a]
         m.age[e] = age[a]
+        m.up[e] = normal[a]
         m.alive[e] = True
         m.ne = ne0 + j
         x = 2 * e + flip.astype(np.int64)  # u -> w

@@ -286,3 +286,30 @@ def test_four_sided_tiles_seven_steps_is_fast():
     result = grow(system, steps=7)
     assert time.perf_counter() - t0 < 2.0
     assert result.steps[-1].n_regions == 16384
+
+
+@pytest.mark.parametrize("cone", [0.0, 15.0, 30.0, 60.0, 90.0])
+def test_large_region_prefilter_never_drops_a_joinable_pair(cone):
+    from genr8_dist.hemls.growth import _Grower
+
+    class _Compiled:
+        cos_cone = math.cos(math.radians(cone))
+
+    grower = _Grower.__new__(_Grower)
+    grower.c = _Compiled()
+    rng = np.random.default_rng(int(cone))
+    n = 300
+    points = rng.normal(size=(n, 3))
+    points[: n // 2, 2] = 0.0  # half of them flat, as most surfaces are
+    heading = rng.normal(size=(n, 3))
+    heading[: n // 2, 2] = 0.0
+    heading /= np.linalg.norm(heading, axis=1)[:, None]
+    # plant exact partners so that every cone has joinable pairs
+    heading[1] = (points[0] - points[1]) / np.linalg.norm(points[0] - points[1])
+    heading[0] = -heading[1]
+    idx = np.arange(n)
+    pi, pj = np.triu_indices(n, 1)
+    exact = set(zip(pi[grower._pair_ok(pi, pj, points, heading, math.inf)].tolist(),
+                    pj[grower._pair_ok(pi, pj, points, heading, math.inf)].tolist(), strict=True))
+    ri, cj = grower._prefilter(idx, idx, points, heading, math.inf)
+    assert exact and exact <= set(zip(ri.tolist(), cj.tolist(), strict=True))
