@@ -1,6 +1,6 @@
 """How fast one island evaluates individuals, and where the time goes (map, grow, score).
 
-    python bench/island.py                       # default universe, 4 and 5 steps, 40 x 3 generations
+    python bench/island.py                       # default universe, 4 and 5 steps, 50 x 4 generations
     python bench/island.py --population 60 --generations 4 --steps 3 4 5
 
 For each number of derivation steps it runs one island (plain Python, no Ray) for generation 0 and a
@@ -67,8 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--steps", type=int, nargs="+", default=[4, 5])
-    parser.add_argument("--population", type=int, default=40)
-    parser.add_argument("--generations", type=int, default=2, help="generations after generation 0")
+    parser.add_argument("--population", type=int, default=50)
+    parser.add_argument("--generations", type=int, default=3, help="generations after generation 0")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--universe", default="default")
     args = parser.parse_args(argv)
