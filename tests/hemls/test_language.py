@@ -164,3 +164,11 @@ def test_load_system_errors_and_files(tmp_path):
     assert load_system(path) == load_system("koch")
     assert load_system(path).name == "mine"
     assert load_system("four-sided-tiles") == load_system("four_sided_tiles")
+
+
+def test_keywords_are_case_insensitive_and_windows_line_ends_are_fine():
+    s = parse("Edge0 + Edge1 + Edge2\r\nEdge0_i -> Edge0_i+1 weight 2 -> Edge0 WEIGHT 1 if i < 2\r\n"
+              "angle 22.5\r\nsync\r\nbranchangle 45\r\n")
+    assert s.angle == 22.5 and s.sync and s.branch_angle == 45
+    assert s.rules[0].weights == (2.0, 1.0) and s.rules[0].condition == Condition("<", 2)
+    assert parse(s.to_text()) == s
