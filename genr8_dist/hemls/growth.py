@@ -851,11 +851,11 @@ class _Grower:
         m.nf += j
         m.face[x] = f
         m.face[y] = f
-        links = m.nxt.tolist() if np.any(open_) else None
+        step = m.nxt.item  # scalar reads: cheaper than converting the whole array for a few walks
         for r in np.flatnonzero(open_):  # long cycles on both sides: walk them one by one
             xr, yr, px, py = int(x[r]), int(y[r]), int(cx[r]), int(cy[r])
             while px != xr and py != yr:
-                px, py = links[px], links[py]
+                px, py = step(px), step(py)
             shorter_is_x[r] = px == xr
         start = np.where(shorter_is_x, x, y)
         short = ~open_
@@ -871,20 +871,22 @@ class _Grower:
             walk = []
             while True:
                 walk.append(h)
-                h = links[h]
+                h = step(h)
                 if h == h0:
                     break
             m.face[walk] = new_face[r]
         # pending branches whose corner was split: keep ha (sector from ha's direction round to the
         # new edge) or move to the new edge's half leaving the same vertex
-        lookup = np.full(2 * m.ne, -1, dtype=np.int64)
-        lookup[ha] = np.arange(j)
-        lookup[hb] = j + np.arange(j)
+        split_corners = np.concatenate([ha, hb])
+        order = np.argsort(split_corners)
+        sorted_corners = split_corners[order]
         waiting = np.flatnonzero(~used & (corner >= 0))
-        hit = waiting[lookup[corner[waiting]] >= 0]
+        at = np.minimum(np.searchsorted(sorted_corners, corner[waiting]), len(sorted_corners) - 1)
+        found = sorted_corners[at] == corner[waiting]
+        hit = waiting[found]
         if not len(hit):
             return
-        slot = lookup[corner[hit]]
+        slot = order[at[found]]
         at_a = slot < j
         pair = np.where(at_a, slot, slot - j)
         here = m.pos[vert[hit]]
