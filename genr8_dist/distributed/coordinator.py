@@ -139,6 +139,7 @@ class Coordinator:
         self.on_generation = on_generation
         self.on_commit = on_commit
         self.poll_seconds = poll_seconds
+        self._created = time.perf_counter()
         self.summary = RunSummary(hosts=hosts.size)
         self._versions = self._load_versions()
         latest = self._versions[-1][2]
@@ -214,8 +215,11 @@ class Coordinator:
         return {i: int(found.get(i, -1)) for i in range(self.n_islands)}
 
     def run(self) -> RunSummary:
-        """Run epochs until the last generation is committed or a stop is requested."""
-        started = time.perf_counter()
+        """Run epochs until the last generation is committed or a stop is requested.
+
+        ``wall_seconds`` counts from this coordinator's creation (its reads of the store included) to
+        its last write; ``wait_seconds`` is the time spent waiting for islands, ``store_seconds`` the
+        time in the store, and ``coordinator_seconds`` the rest."""
         committed = self.committed()
         try:
             while not self.stop and min(committed.values()) < self.last:
@@ -223,10 +227,7 @@ class Coordinator:
                 committed = self._epoch(committed, end)
         finally:
             self.summary.committed = committed
-            self.summary.wall_seconds = time.perf_counter() - started
-            self.summary.coordinator_seconds = max(
-                0.0, self.summary.wall_seconds - self.summary.wait_seconds - self.summary.store_seconds
-            )
+            self._close_books()
         low = min(committed.values())
         if low >= self.last:
             self.summary.status = "complete"
@@ -238,7 +239,13 @@ class Coordinator:
             detail = {"reason": self.stop.reason or "stopped",
                       "committed": {str(i): g for i, g in committed.items()}}
             self._timed_store(self.store.record_event, "interrupt", generation=max(0, low), detail=detail)
+        self._close_books()
         return self.summary
+
+    def _close_books(self) -> None:
+        s = self.summary
+        s.wall_seconds = time.perf_counter() - self._created
+        s.coordinator_seconds = max(0.0, s.wall_seconds - s.wait_seconds - s.store_seconds)
 
     def _migrants(self, generation: int, config: Any) -> dict[int, list[Individual]]:
         """The migrants that move after ``generation`` (from its committed populations)."""

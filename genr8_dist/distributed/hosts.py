@@ -22,6 +22,10 @@ from genr8_dist.errors import RunError
 
 __all__ = ["HostPool", "plan_hosts"]
 
+# Seconds a replacement host may take to start before its islands go to the surviving hosts instead
+# (the cluster's free CPUs, read just after a node died, may still count the dead node's).
+REPLACE_TIMEOUT = 20.0
+
 
 @dataclass(frozen=True, slots=True)
 class HostPlan:
@@ -136,7 +140,7 @@ class HostPool:
         if ray.available_resources().get("CPU", 0.0) >= self.plan.num_cpus:
             handle = self._new_host(self.plan.num_cpus)
             try:
-                ray.get(handle.ready.remote(), timeout=self.timeout)
+                ray.get(handle.ready.remote(), timeout=min(self.timeout, REPLACE_TIMEOUT))
             except (ray.exceptions.GetTimeoutError, ray.exceptions.RayActorError):
                 ray.kill(handle, no_restart=True)
             else:
