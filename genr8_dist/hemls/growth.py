@@ -425,12 +425,17 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
             break
         n = n.copy()
         n[bad] = m.up[idx[bad]] if fallback is None else fallback
+    else:
+        u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
+        un = np.sqrt(np.einsum("ij,ij->i", u, u))
     u = u / np.where(un > 1e-300, un, 1.0)[:, None]
     left = _cross(u, h)
     return s, t, p, length, h, left, u
 
 
 class _Grower:
+    """One growth: the map, the compiled system, the environment, the random stream and the caps."""
+
     def __init__(self, system: RewriteSystem, env, rng: np.random.Generator, deadline: float) -> None:
         self.c = _compile(system)
         self.env = env

@@ -15,8 +15,9 @@ import re
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from lark import Lark, Token, Transformer, Tree, v_args
+from lark import Lark, Token, Transformer, v_args
 from lark.exceptions import (
     UnexpectedCharacters,
     UnexpectedEOF,
@@ -125,7 +126,7 @@ class Condition:
     def __str__(self) -> str:
         return f"If i {self.op} {self.value}"
 
-    def holds(self, age):  # works on ints and numpy arrays alike
+    def holds(self, age: Any) -> Any:
         """Whether the condition holds for ``age`` (an int or an int array)."""
         v = self.value
         if self.op == "<":
@@ -399,9 +400,6 @@ class _Build(Transformer):
         return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"),
                 self._predecessor(c[2], "right context"), ())
 
-    def predecessor(self, c):  # pragma: no cover - every alternative is aliased
-        return c[0]
-
     def _symbols(self, children):
         out: list[Symbol] = []
         for ch in children:
@@ -559,10 +557,6 @@ def parse(text: str, source: str = "<text>", *, name: str = "") -> RewriteSystem
 def _end_position(text: str) -> tuple[int, int]:
     lines = text.rstrip("\n").split("\n")
     return len(lines), len(lines[-1]) + 1
-
-
-def _tree_text(tree: Tree) -> str:  # pragma: no cover - debugging aid
-    return tree.pretty()
 
 
 def load_system(name_or_path: str | Path) -> RewriteSystem:
