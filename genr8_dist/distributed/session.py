@@ -66,6 +66,20 @@ def _probe(address: str) -> None:
         ) from None
 
 
+def _find_local_cluster() -> str:
+    """The address of the cluster ``ray start`` started on this machine (what ``--address auto`` means),
+    or ``RunError`` when there is none; a stale record of a stopped one is refused by the probe."""
+    try:
+        from ray._private.utils import read_ray_address
+    except ImportError:  # pragma: no cover - Ray moved it: let ray.init resolve "auto" itself
+        return "auto"
+    found = read_ray_address()
+    if not found:
+        raise RunError("--address auto: no Ray cluster was started on this machine (`ray start --head`, "
+                       "or cluster/local_cluster.sh start); leave --address out to run on a local Ray")
+    return str(found)
+
+
 @contextmanager
 def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
     """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
@@ -73,6 +87,8 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
 
     import ray
 
+    if address == "auto" and not ray.is_initialized():
+        address = _find_local_cluster()
     if address is not None and address != "auto":
         _probe(address)
     if ray.is_initialized():
