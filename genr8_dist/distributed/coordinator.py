@@ -149,7 +149,9 @@ class Coordinator:
         self.summary.last_generation = self.last
         self.progress = progress or ProgressDisplay(total_generations=self.last, quiet=True)
         self._injections = self._load_injections()
-        self._migrated = {e.generation for e in self._events() if e.kind == "migration"}
+        history = self._events()
+        self._migrated = {e.generation for e in history if e.kind == "migration"}
+        self._completed = any(e.kind == "complete" and e.generation == self.last for e in history)
         self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
@@ -231,9 +233,10 @@ class Coordinator:
         low = min(committed.values())
         if low >= self.last:
             self.summary.status = "complete"
-            if not any(e.kind == "complete" and e.generation == self.last for e in self._events()):
+            if not self._completed:
                 self._timed_store(self.store.record_event, "complete", generation=self.last,
                                   detail={"committed": {str(i): g for i, g in committed.items()}})
+                self._completed = True
         else:
             self.summary.status = "interrupted"
             detail = {"reason": self.stop.reason or "stopped",
@@ -352,15 +355,19 @@ class Coordinator:
                 results: Mapping[int, Mapping[int, list[Individual]]]) -> dict[int, int]:
         rows = [ind for i in sorted(results) for g in sorted(results[i]) for ind in results[i][g]]
         events = list(self._pending_events)
+        after = dict(committed)
+        for i, gens in results.items():
+            if gens:
+                after[i] = max(gens)
+        if not self._completed and min(after.values()) >= self.last:   # the run ends with this commit
+            events.append(self._event("complete", self.last, None,
+                                      {"committed": {str(i): g for i, g in after.items()}}))
+            self._completed = True
         if not rows and not events:
             return committed
         self._timed_store(self.store.commit, rows, events=events)
         self._pending_events.clear()
         self.summary.individuals += len(rows)
-        after = dict(committed)
-        for i, gens in results.items():
-            if gens:
-                after[i] = max(gens)
         # Keep only what the next migration needs in memory: each island's newest generation.
         self._populations = {}
         for i, gens in results.items():
