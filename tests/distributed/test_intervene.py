@@ -1,0 +1,115 @@
+"""`genr8 edit` without Ray: what an edit records, and edits refused with the run directory unchanged."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import pytest
+from distributed_runs import new_run, tiny_toml
+
+from genr8_dist.distributed.coordinator import parse_config
+from genr8_dist.distributed.intervene import Edit, apply_edit, parse_assignment
+from genr8_dist.errors import ConfigError, Genr8Error, StoreError
+from genr8_dist.evolution.island import Island
+from genr8_dist.store import RunStore
+
+
+def _snapshot(root):
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def run_dir(tmp_path):
+    """A 2-island run with generation 0 committed (made by the islands themselves, without Ray)."""
+    path = tmp_path / "run"
+    store = new_run(path, tiny_toml(islands=2))
+    config = parse_config(tiny_toml(islands=2), "tiny")
+    store.commit([ind for i in range(2) for ind in Island(config, i).initial()])
+    return path
+
+
+def test_parse_assignment():
+    assert parse_assignment("fitness.size.weight=2") == (("fitness", "size", "weight"), 2)
+    assert parse_assignment("fitness.weights.size=2.5") == (("fitness", "size", "weight"), 2.5)
+    assert parse_assignment("fitness.targets.symmetry=1") == (("fitness", "symmetry", "target"), 1)
+    assert parse_assignment("islands.topology=random") == (("islands", "topology"), "random")
+    assert parse_assignment("environment.scale=[1, 1, 2]") == (("environment", "scale"), [1, 1, 2])
+    with pytest.raises(ConfigError, match="KEY=VALUE"):
+        parse_assignment("ea.mutation_rate")
+
+
+def test_an_edit_is_a_new_version_from_the_next_generation(run_dir):
+    result = apply_edit(str(run_dir), Edit(assignments=["ea.mutation_rate=0.1"], generations=3,
+                                           inject_copy=["1-0-2"]))
+    assert (result.version, result.effective_generation, result.last_generation) == (2, 1, 3)
+    store = RunStore.open(run_dir)
+    version = store.config_for(1)
+    assert version.version == 2 and store.config_for(0).version == 1
+    config = parse_config(version.toml, "v2")
+    assert config.ea.mutation_rate == 0.1 and config.ea.generations == 3
+    (event,) = [e for e in store.events().to_pylist() if e["kind"] == "intervention"]
+    detail = json.loads(event["detail"])
+    assert event["generation"] == 1 and detail["config_version"] == 2
+    (item,) = detail["injected"]
+    source = store.load_generation(1, 0)[2]
+    assert item == {"island": 1, "genome": list(source.genome), "copy_of": "1-0-2",
+                    "source": "copy of 1-0-2"}
+
+
+def test_injected_text_goes_through_the_inverse_mapping(run_dir, tmp_path):
+    from genr8_dist.grammar import load_universe
+
+    store = RunStore.open(run_dir)
+    text = next(ind.text for ind in store.load_generation(0, 0) if ind.valid)
+    path = tmp_path / "mine.hemls"
+    path.write_text(text)
+    result = apply_edit(str(run_dir), Edit(inject_text=[str(path)], island=1))
+    (item,) = result.injected
+    assert item["island"] == 1
+    assert load_universe("default").map(item["genome"], max_depth=4).text == text   # the run's max_depth
+
+
+def test_injected_from_another_run(run_dir, tmp_path):
+    other = tmp_path / "other"
+    store = new_run(other, tiny_toml(islands=1))
+    store.commit(Island(parse_config(tiny_toml(islands=1), "t"), 0).initial())
+    result = apply_edit(str(run_dir), Edit(inject_from=[f"{other}:0-0-4"]))
+    (item,) = result.injected
+    assert item["genome"] == list(RunStore.open(other).load_generation(0, 0)[4].genome)
+    assert item["source"] == f"{other}:0-0-4" and item["copy_of"] is None
+
+
+@pytest.mark.parametrize(("edit", "error", "words"), [
+    (Edit(assignments=["ea.mutaton_rate=0.1"]), ConfigError, "ea.mutaton_rate"),
+    (Edit(assignments=["fitness.beauty.weight=1"]), ConfigError, "fitness.beauty"),
+    (Edit(assignments=["ea.mutation_rate=7"]), ConfigError, "ea.mutation_rate"),
+    (Edit(assignments=["islands.count=5"]), ConfigError, "islands.count"),
+    (Edit(inject_copy=["0-9-0"]), StoreError, "0-9-0"),
+    (Edit(inject_copy=["zero"]), ConfigError, "ISLAND-GENERATION-INDEX"),
+    (Edit(inject_from=["nowhere:0-0-0"]), StoreError, "nowhere"),
+    (Edit(island=7, inject_copy=["0-0-0"]), ConfigError, "--island 7"),
+    (Edit(generations=0), ConfigError, "--generations"),
+])
+def test_refused_edits_leave_the_run_unchanged(run_dir, edit, error, words):
+    before = _snapshot(run_dir)
+    with pytest.raises(error) as info:
+        apply_edit(str(run_dir), edit)
+    assert words in str(info.value) and "\n" not in str(info.value)
+    assert _snapshot(run_dir) == before
+
+
+def test_text_the_universe_cannot_invert(run_dir, tmp_path):
+    path = tmp_path / "bad.hemls"
+    path.write_text("Edge0 -> -> Edge1\n")
+    before = _snapshot(run_dir)
+    with pytest.raises(Genr8Error):
+        apply_edit(str(run_dir), Edit(inject_text=[str(path)]))
+    assert _snapshot(run_dir) == before
+
+
+def test_a_run_with_nothing_committed_cannot_be_edited(tmp_path):
+    new_run(tmp_path / "fresh", tiny_toml())
+    with pytest.raises(StoreError, match="nothing to edit"):
+        apply_edit(str(tmp_path / "fresh"), Edit(assignments=["ea.mutation_rate=0.1"]))
