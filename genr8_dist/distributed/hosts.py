@@ -54,12 +54,12 @@ class HostPool:
     """The live island hosts of one run and which island each holds."""
 
     def __init__(self, run_dir: str, n_islands: int, *, max_hosts: int | None = None,
-                 timeout: float = 60.0) -> None:
+                 timeout: float = 60.0, settle: float = 5.0) -> None:
 
         self.run_dir = run_dir
         self.n_islands = n_islands
         self.timeout = timeout
-        self.plan = plan_hosts(n_islands, self._free_cpus(n_islands), max_hosts)
+        self.plan = plan_hosts(n_islands, self._free_cpus(n_islands, settle), max_hosts)
         self._hosts: list[Any] = []
         self._alive: list[bool] = []
         self.placement: dict[int, int] = {}

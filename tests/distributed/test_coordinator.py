@@ -160,7 +160,7 @@ def test_a_run_that_cannot_be_scheduled_is_refused(pool, tmp_path):
     blocker = HostPool(str(tmp_path / "blocker"), free) if free >= 1 else None
     try:
         with pytest.raises(RunError, match="no free CPU"):
-            HostPool(str(tmp_path / "run"), 2)
+            HostPool(str(tmp_path / "run"), 2, settle=0.5)
     finally:
         if blocker is not None:
             blocker.shutdown()
