@@ -8,6 +8,8 @@ Genr8Error
 ├── ParseError                        a rewrite system's text is malformed: names line and column
 ├── GrowthError                       growth cannot start (e.g. a boundary mesh cannot be read)
 ├── StoreError                        a run directory is missing, not a run, or corrupt
+├── HistoryError (also ValueError)    a history request names an id, criterion or generation the run
+│                                     lacks, or its SQL is malformed
 └── RunError                          a run cannot be scheduled, or its cluster cannot be reached
 
 A failed *individual* (it cannot be mapped, grown or scored) is not an exception: it is recorded as
@@ -22,6 +24,7 @@ __all__ = [
     "GenomeError",
     "Genr8Error",
     "GrowthError",
+    "HistoryError",
     "InversionError",
     "ParseError",
     "RunError",
@@ -69,6 +72,11 @@ class GrowthError(Genr8Error):
 
 class StoreError(Genr8Error):
     """A run directory is missing, is not a run, or holds a corrupt file (named in the message)."""
+
+
+class HistoryError(Genr8Error, ValueError):
+    """A history request names something the run does not hold (an id, a criterion, a generation) or is
+    malformed (an SQL statement); the message names the value at fault."""
 
 
 class RunError(Genr8Error):

@@ -4,7 +4,7 @@
 
     genr8 grow four-sided-tiles --steps 5 -o tiles.obj --png tiles.png
     genr8 grow my-system.hemls --env examples/environments/drape_sphere.toml -o drape.glb
-    genr8 map default 212 187 632 832 800 517 338 39 | genr8 grow - --png mapped.png
+    genr8 map --universe default --genome 212,187,632,832,800,517,338,39 | genr8 grow - --png mapped.png
     genr8 grow square --each-step -o square.ply        # square-step1.ply ... square-step4.ply
 """
 

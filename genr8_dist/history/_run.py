@@ -13,7 +13,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as pads
 
-from genr8_dist.errors import Genr8Error, StoreError
+from genr8_dist.errors import HistoryError, StoreError
 
 __all__ = [
     "HistoryError",
@@ -27,11 +27,6 @@ __all__ = [
 ]
 
 RunLike = Any  # a run directory (str / PathLike / URI) or an open ``RunStore``
-
-
-class HistoryError(Genr8Error, ValueError):
-    """A history request names something the run does not hold (an id, a criterion, a generation) or is
-    malformed (an SQL statement); the message names the value at fault."""
 
 
 def _label(run: RunLike) -> str:
