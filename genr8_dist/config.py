@@ -21,7 +21,6 @@ field with its default and meaning.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -29,6 +28,7 @@ from typing import Any
 
 from genr8_dist.errors import ConfigError, Genr8Error
 from genr8_dist.fitness import FitnessSpec
+from genr8_dist.tomlfile import read_toml
 
 __all__ = [
     "TOPOLOGIES",
@@ -325,14 +325,5 @@ def _read_environment(value: Any, source: str, base_dir: Path) -> Any:
 def load_config(path: str | Path) -> RunConfig:
     """Read and validate the run configuration in the TOML file ``path``."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: configuration file not found") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read the configuration: {exc.strerror or exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "configuration file")
     return RunConfig.from_dict(data, source=str(path), base_dir=path.parent)

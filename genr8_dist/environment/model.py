@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -28,6 +27,7 @@ from genr8_dist.environment._fields import (
 from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
 from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
 from genr8_dist.errors import ConfigError
+from genr8_dist.tomlfile import read_toml
 
 __all__ = ["Environment", "SizeIncrease", "load_environment"]
 
@@ -321,14 +321,5 @@ class Environment:
 def load_environment(path: str | Path) -> Environment:
     """Read an environment TOML file; every problem raises ConfigError naming the file and the field."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: environment file not found") from None
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read environment file: {exc.strerror or exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    data = read_toml(path, "environment file")
     return Environment.from_dict(data, source=str(path), base_dir=path.resolve().parent)

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["RepairContext", "hemls_repair", "rule_predecessors"]
+__all__ = ["RepairContext", "hemls_repair", "predecessor_label", "rule_predecessors"]
 
 
 @dataclass
@@ -43,18 +43,19 @@ def rule_predecessors(text: str, label_of: Callable[[str], int | None]) -> set[i
     A rule is a line holding ``->``; its predecessor is the edge after ``<`` when there is a left
     context, otherwise the line's first edge (``A > B ->`` and ``A B ->`` rewrite ``A``).
     """
-    has: set[int] = set()
-    for line in text.splitlines():
-        if "->" not in line:
-            continue
-        pred = line.split("->", 1)[0]
-        if "<" in pred:
-            pred = pred.split("<", 1)[1]
-        words = pred.split()
-        label = label_of(words[0]) if words else None
-        if label is not None:
-            has.add(label)
-    return has
+    labels = (predecessor_label(line, label_of) for line in text.splitlines())
+    return {label for label in labels if label is not None}
+
+
+def predecessor_label(line: str, label_of: Callable[[str], int | None]) -> int | None:
+    """The label a rule line rewrites (the edge after ``<``, else the first edge); None if no rule."""
+    if "->" not in line:
+        return None
+    pred = line.split("->", 1)[0]
+    if "<" in pred:
+        pred = pred.split("<", 1)[1]
+    words = pred.split()
+    return label_of(words[0]) if words else None
 
 
 def hemls_repair(ctx: RepairContext) -> None:

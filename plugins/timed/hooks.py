@@ -8,7 +8,7 @@ no new labels (the built-in HEMLS repair counts conditioned rules too).
 
 from __future__ import annotations
 
-from genr8_dist.grammar.hooks import RepairContext
+from genr8_dist.grammar.hooks import RepairContext, predecessor_label
 
 
 def _unconditioned(text: str, label_of) -> tuple[set[int], int]:
@@ -23,11 +23,7 @@ def _unconditioned(text: str, label_of) -> tuple[set[int], int]:
         end = offset
         if " If " in line:
             continue
-        pred = line.split("->", 1)[0]
-        if "<" in pred:
-            pred = pred.split("<", 1)[1]
-        words = pred.split()
-        label = label_of(words[0]) if words else None
+        label = predecessor_label(line, label_of)
         if label is not None:
             has.add(label)
     return has, end
