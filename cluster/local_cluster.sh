@@ -11,6 +11,8 @@
 #   GENR8_HEAD_CPUS       CPUs the head offers to islands      (default 1)
 #   GENR8_WORKER_CPUS     CPUs each worker node offers         (default 1)
 #   GENR8_CLUSTER_DIR     where PID files and logs are kept    (default /tmp/genr8-local-cluster-$USER)
+#   GENR8_DASHBOARD=1     start Ray's dashboard, for `ray job submit --address http://127.0.0.1:8265`
+#   GENR8_DASHBOARD_PORT  its port                             (default 8265)
 #   RAY                   the ray command                      (default: the one on PATH)
 #   PYTHON                a Python with ray installed          (default: the python next to RAY)
 #
@@ -20,11 +22,17 @@ set -euo pipefail
 PORT="${GENR8_RAY_PORT:-6390}"
 HEAD_CPUS="${GENR8_HEAD_CPUS:-1}"
 WORKER_CPUS="${GENR8_WORKER_CPUS:-1}"
+DASHBOARD_PORT="${GENR8_DASHBOARD_PORT:-8265}"
 STATE="${GENR8_CLUSTER_DIR:-/tmp/genr8-local-cluster-${USER:-$(id -u)}}"
 RAY="${RAY:-$(command -v ray || true)}"
 PY="${PYTHON:-$(dirname "${RAY:-/usr/bin/ray}")/python}"
 [[ -x "$PY" ]] || PY="$(command -v python3)"
 export RAY_USAGE_STATS_ENABLED=0
+# Ray's token authentication: `ray start --head` turns it on when ~/.ray/auth_token exists (any local
+# ray.init creates one) but worker nodes do not, and then cannot join. Decide once, for every node.
+if [[ -z "${RAY_AUTH_MODE:-}" && -f "${RAY_AUTH_TOKEN_PATH:-$HOME/.ray/auth_token}" ]]; then
+  export RAY_AUTH_MODE=token
+fi
 
 die() { echo "local_cluster.sh: $*" >&2; exit 2; }
 
@@ -65,7 +73,9 @@ cmd_start() {
   [[ "$workers" =~ ^[0-9]+$ ]] || die "WORKERS must be a number, got '$workers'"
   if compgen -G "$STATE/*.pid" >/dev/null; then die "already started (PID files in $STATE); stop it first"; fi
   mkdir -p "$STATE"
-  start_node head --head --port "$PORT" --num-cpus "$HEAD_CPUS" --include-dashboard false
+  local dashboard=(--include-dashboard false)
+  if [[ "${GENR8_DASHBOARD:-0}" == 1 ]]; then dashboard=(--include-dashboard true --dashboard-port "$DASHBOARD_PORT"); fi
+  start_node head --head --port "$PORT" --num-cpus "$HEAD_CPUS" "${dashboard[@]}"
   wait_for_port "$PORT" || { cmd_stop; die "the head did not come up; see $STATE/head.log"; }
   # one node at a time: nodes on one machine register by IP, and concurrent starts race
   for i in $(seq 1 "$workers"); do
@@ -77,6 +87,9 @@ cmd_start() {
   echo "Ray cluster: head + $workers worker node(s), $((HEAD_CPUS + workers * WORKER_CPUS)) CPUs"
   echo "address: 127.0.0.1:$PORT"
   echo "run on it:  genr8 run CONFIG --run-dir DIR --address 127.0.0.1:$PORT"
+  if [[ "${GENR8_DASHBOARD:-0}" == 1 ]]; then
+    echo "or submit:  ray job submit --address http://127.0.0.1:$DASHBOARD_PORT --runtime-env cluster/runtime_env.yaml -- python -m genr8_dist.cli run CONFIG --run-dir /abs/DIR"
+  fi
   echo "stop it:    $0 stop"
 }
 

@@ -95,6 +95,14 @@ class HostPool:
 
         try:
             ray.get([h.ready.remote() for h in handles], timeout=self.timeout)
+        except ray.exceptions.RayActorError as exc:
+            for h in handles:
+                ray.kill(h, no_restart=True)
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise RunError(
+                f"could not start {what}: {first} (if the cluster's token authentication differs from "
+                "this machine's, set RAY_AUTH_MODE as the cluster has it); the run was not started"
+            ) from None
         except ray.exceptions.GetTimeoutError:
             for h in handles:
                 ray.kill(h, no_restart=True)

@@ -80,11 +80,24 @@ def _find_local_cluster() -> str:
     return str(found)
 
 
+def _token_auth_like_ray_start() -> None:
+    """Use Ray's token authentication when a token exists and ``RAY_AUTH_MODE`` is unset, as
+    ``ray start --head`` does: Ray 2.5x/2.6x clients joining such a cluster otherwise fail to
+    authenticate (they switch to token mode after Ray's configuration is read, so this must run before
+    ``import ray``)."""
+    token = os.environ.get("RAY_AUTH_TOKEN_PATH") or os.path.join(os.path.expanduser("~"), ".ray",
+                                                                   "auth_token")
+    if "RAY_AUTH_MODE" not in os.environ and (os.environ.get("RAY_AUTH_TOKEN") or os.path.isfile(token)):
+        os.environ["RAY_AUTH_MODE"] = "token"
+
+
 @contextmanager
 def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
     """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
     import logging
 
+    if "ray" not in sys.modules and (address is not None or os.environ.get("RAY_ADDRESS")):
+        _token_auth_like_ray_start()
     import ray
 
     if address == "auto" and not ray.is_initialized():
