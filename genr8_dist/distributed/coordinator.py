@@ -331,7 +331,9 @@ class Coordinator:
                         cause = getattr(exc, "cause", None)
                         if isinstance(cause, Genr8Error):
                             raise cause from None
-                        raise
+                        what = f"{type(cause).__name__}: {cause}" if cause is not None else str(exc)
+                        raise RunError(f"island {island} failed at generation {g} on its host: "
+                                       f"{what.strip().splitlines()[0]}") from exc
                     results[island][g] = population
                     cursor[island] = g
                     if g < end:
