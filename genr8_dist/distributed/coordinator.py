@@ -148,8 +148,8 @@ class Coordinator:
         self.last = last_generation(latest)
         self.summary.last_generation = self.last
         self.progress = progress or ProgressDisplay(total_generations=self.last, quiet=True)
-        self._injections = self._load_injections()
         history = self._events()
+        self._injections = self._load_injections(history)
         self._migrated = {e.generation for e in history if e.kind == "migration"}
         self._completed = any(e.kind == "complete" and e.generation == self.last for e in history)
         self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
@@ -185,10 +185,11 @@ class Coordinator:
                 chosen = version
         return chosen[0], chosen[2]
 
-    def _load_injections(self) -> dict[tuple[int, int], list[Any]]:
+    @staticmethod
+    def _load_injections(history: Sequence[StoredEvent]) -> dict[tuple[int, int], list[Any]]:
         """(generation, island) -> the individuals a user injected, from the intervention events."""
         out: dict[tuple[int, int], list[Any]] = {}
-        for event in self._events():
+        for event in history:
             if event.kind != "intervention":
                 continue
             for item in event.detail.get("injected", ()):
