@@ -40,6 +40,9 @@ def run_once(n_islands: int, generations: int | None, workdir: Path, population:
              max_hosts: int | None = None) -> dict:
     """One run of the default configuration with ``n_islands`` islands (on at most ``max_hosts``
     hosts); its figures."""
+    import pyarrow.compute
+    import pyarrow.parquet  # noqa: F401  (imported before timing starts, as session.drive does)
+
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator
     from genr8_dist.distributed.hosts import HostPool

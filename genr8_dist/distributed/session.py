@@ -157,6 +157,9 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
           stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
     """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
+    import pyarrow.compute
+    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s, done here)
+
     from genr8_dist.distributed.hosts import HostPool
 
     out = out if out is not None else sys.stdout
