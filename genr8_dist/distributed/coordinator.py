@@ -257,6 +257,9 @@ class Coordinator:
         islands = config.islands
         plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
                               generation)
+        if self.n_islands > 1 and islands.migrants:
+            self.progress.message(f"migration after generation {generation}: {islands.migrants} "
+                                  f"migrant(s) per island, {islands.topology} topology")
         if generation not in self._migrated:
             self._migrated.add(generation)
             moves = {str(dest): [m.id for m in migrants] for dest, migrants in plan.items()}
