@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
+from collections.abc import Callable
 
 from genr8_dist.errors import ConfigError, GenomeError, InversionError
 
@@ -139,10 +141,30 @@ def _invert(args: argparse.Namespace) -> int:
                 text = handle.read()
     except UnicodeDecodeError as exc:
         raise InversionError(f"{args.file}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    genome = universe.invert(text, max_depth=args.max_depth)
+    source = "<stdin>" if args.file == "-" else args.file
+    kept, original_line = _without_comments(text)
+    try:
+        genome = universe.invert(kept, max_depth=args.max_depth)
+    except InversionError as exc:
+        message = re.sub(r"^line (\d+)", lambda m: f"line {original_line(int(m.group(1)))}", str(exc))
+        raise InversionError(f"{source}: {message}") from None
     if args.json:
         mapped = universe.map(genome, max_depth=args.max_depth)
         print(json.dumps({"universe": universe.name, "genome": list(genome), "text": mapped.text}))
     else:
         print(",".join(map(str, genome)))
     return 0
+
+
+def _without_comments(text: str) -> tuple[str, Callable[[int], int]]:
+    """``text`` without its comment lines (``//`` or ``#``) and blank lines, which no universe derives,
+    and a function from a line number of the result to the line number in ``text``."""
+    kept: list[str] = []
+    numbers: list[int] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith(("//", "#")):
+            continue
+        kept.append(line)
+        numbers.append(number)
+    return "\n".join(kept) + "\n", lambda n: numbers[n - 1] if 0 < n <= len(numbers) else n

@@ -115,3 +115,20 @@ def test_map_then_invert_round_trip_through_the_cli(capsys, monkeypatch):
     assert code == 0
     _, again, _ = run(capsys, "map", "--universe", "symmetric", "--genome", out.strip())
     assert again == text
+
+
+def test_invert_skips_comment_lines_and_names_the_file_and_original_line(tmp_path, capsys):
+    text = load_universe("default").map([5, 9, 14, 3, 7, 1, 8, 2, 6, 4] * 20).text
+    commented = tmp_path / "commented.hemls"
+    commented.write_text("// written by hand\n\n# keep this\n" + text)
+    assert main(["invert", "--universe", "default", str(commented)]) == 0
+    genome = [int(v) for v in capsys.readouterr().out.strip().split(",")]
+    assert load_universe("default").map(genome).text == text
+
+    outside = tmp_path / "tiles.hemls"
+    outside.write_text("// four-sided tiles\nEdge0 + ~ Edge1 + ~ Edge0 + Edge1\n"
+                       "Edge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0\nAngle 90\n")
+    assert main(["invert", "--universe", "default", str(outside)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"genr8: error: {outside}: line 3, column ")
+    assert err.count("\n") == 1
