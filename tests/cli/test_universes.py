@@ -105,7 +105,7 @@ def test_invert_reads_standard_input_and_reports_texts_outside_the_universe(caps
     monkeypatch.setattr("sys.stdin", io.StringIO("Edge0 + Edge1\nAngle 30\n"))
     code, out, err = run(capsys, "invert", "--universe", "default", "-")
     assert code == 2 and out == ""
-    assert "genr8: error: line 1, column 14:" in err and "universe 'default'" in err
+    assert "genr8: error: <stdin>: line 1, column 14:" in err and "universe 'default'" in err
 
 
 def test_map_then_invert_round_trip_through_the_cli(capsys, monkeypatch):
