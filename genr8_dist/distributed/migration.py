@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+from genr8_dist.config import TOPOLOGIES
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.rng import stream
@@ -34,9 +35,6 @@ __all__ = [
     "plan_migration",
     "select_emigrants",
 ]
-
-TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
-
 
 def _rank_key(individual: Individual) -> tuple[float, int, int]:
     fitness = individual.fitness if not math.isnan(individual.fitness) else math.inf

@@ -152,6 +152,17 @@ def latest_config(store: Any) -> Any:
     return parse_config(newest.toml, f"{store.path} configuration v{newest.version}")
 
 
+def _creation_config(store: Any) -> Any:
+    """The configuration a damaged run was created with (``StoreError`` from ``repair`` when that very
+    file is damaged: the run has no intact state to fall back to)."""
+    try:
+        first = store.config_for(0)
+    except StoreError:
+        store.repair()
+        raise
+    return parse_config(first.toml, f"{store.path} configuration v{first.version}")
+
+
 def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_generation: Callable[[Coordinator, int], None] | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
@@ -257,7 +268,11 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     out = out if out is not None else sys.stdout
     store = RunStore.open(run_dir)
     problems = store.verify()
-    latest = latest_config(store)
+    # A damaged run is repaired once Ray and the hosts are up (nothing is written before); until then
+    # its newest configuration may be the damaged file, so read the one the run was created with
+    # (islands.count cannot change during a run). Damage to that one leaves nothing to fall back to,
+    # which repair() says, naming the file, without writing anything.
+    latest = _creation_config(store) if problems else latest_config(store)
     committed = store.committed_generations()
     n = int(latest.islands.count)
     last = int(latest.ea.generations)
