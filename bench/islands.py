@@ -15,6 +15,10 @@ codons per island, the default environment) on a local Ray and prints
   kept busy; islands differ in how costly their surfaces are, so this shows the parallelism better
   than individuals/s does).
 
+Besides 1, 2, 4 and 8 islands, it runs the 2-island work on 1 host (1 CPU): the fair measure of the
+speedup (the same individuals, the same surfaces), since 1 island and 2 islands do not grow equally
+costly surfaces. The "2 islands vs 1" line is the issue's own measure, printed as well.
+
 Wall time is the coordinator's life (its store reads and writes included, actor start-up excluded).
 Ray's workers run at nice 15 by default; the benchmark runs them at nice 0 so that, on a busy machine,
 they get a fair share of it. The two targets it checks (and
@@ -125,8 +129,10 @@ def main(argv: list[str] | None = None) -> int:
     by_n = {r["islands"]: r for r in results if r["hosts"] == min(r["islands"], args.cpus)}
     same = [r for r in results if r["islands"] == 2 and r["hosts"] == 1]
     if same and 2 in by_n:
-        print(f"2 islands on 2 hosts vs the same 2 islands on 1 host: "
-              f"{same[0]['wall_s'] / by_n[2]['wall_s']:.2f}x faster")
+        fair = by_n[2]["ind_per_s"] / same[0]["ind_per_s"]
+        print(f"fair speedup, the same 2-island work on 2 hosts (2 CPUs) vs on 1 host (1 CPU): "
+              f"{by_n[2]['ind_per_s']:.1f} vs {same[0]['ind_per_s']:.1f} individuals/s = {fair:.2f}x "
+              f"(target >= 1.7x): {'PASS' if fair >= 1.7 else 'FAIL'}")
     if 1 in by_n and 2 in by_n:
         speedup = by_n[2]["ind_per_s"] / by_n[1]["ind_per_s"]
         verdict = "PASS" if speedup >= 1.7 else ("FAIL" if args.cpus >= 2 else "n/a (1 CPU)")
