@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-__all__ = ["RepairContext", "hemls_repair", "predecessor_label", "rule_predecessors"]
+__all__ = ["RepairContext", "add_rules", "hemls_repair", "predecessor_label", "rule_predecessors"]
 
 
 @dataclass
@@ -64,15 +64,21 @@ def hemls_repair(ctx: RepairContext) -> None:
     Labels are repaired smallest first; a repaired rule's successor may mention a label that still
     lacks a rule, which is then repaired too. The new rules go after the last rewrite rule.
     """
-    has = set(ctx.has_rule)
-    occurring = set(ctx.occurring)
-    missing = occurring - has
     text = ctx.text
     arrow = text.rfind("->")
-    if not missing or arrow < 0:
+    if arrow < 0:
         return
     end = text.find("\n", arrow)
-    end = len(text) if end < 0 else end + 1
+    add_rules(ctx, set(ctx.has_rule), len(text) if end < 0 else end + 1)
+
+
+def add_rules(ctx: RepairContext, has: set[int], end: int) -> None:
+    """Insert at character ``end`` of ``ctx.text`` a rule ``EdgeL -> <expanded successor>`` for every
+    occurring label L not in ``has``, smallest first; labels a new successor mentions are repaired too."""
+    occurring = set(ctx.occurring)
+    missing = occurring - has
+    if not missing:
+        return
     new: list[str] = []
     while missing:
         label = min(missing)
@@ -81,4 +87,4 @@ def hemls_repair(ctx: RepairContext) -> None:
         has.add(label)
         occurring |= ctx.labels_in(successor)
         missing = occurring - has
-    ctx.text = text[:end] + "\n".join(new) + "\n" + text[end:]
+    ctx.text = ctx.text[:end] + "\n".join(new) + "\n" + ctx.text[end:]

@@ -8,7 +8,7 @@ no new labels (the built-in HEMLS repair counts conditioned rules too).
 
 from __future__ import annotations
 
-from genr8_dist.grammar.hooks import RepairContext, predecessor_label
+from genr8_dist.grammar.hooks import RepairContext, add_rules, predecessor_label
 
 
 def _unconditioned(text: str, label_of) -> tuple[set[int], int]:
@@ -32,16 +32,5 @@ def _unconditioned(text: str, label_of) -> tuple[set[int], int]:
 def repair(ctx: RepairContext) -> None:
     """Add ``EdgeL_i -> successor`` for every occurring label L without an unconditioned rule."""
     has, end = _unconditioned(ctx.text, ctx.label_of)
-    occurring = set(ctx.occurring)
-    missing = occurring - has
-    if not missing or not end:
-        return
-    new = []
-    while missing:
-        label = min(missing)
-        successor = ctx.expand()
-        new.append(" ".join([ctx.edge(label), "->", *successor]))
-        has.add(label)
-        occurring |= ctx.labels_in(successor)
-        missing = occurring - has
-    ctx.text = ctx.text[:end] + "\n".join(new) + "\n" + ctx.text[end:]
+    if end:
+        add_rules(ctx, has, end)
