@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
@@ -52,6 +52,9 @@ EVENT_KINDS: tuple[str, ...] = (
 TIMING_COLUMNS: tuple[str, ...] = ("eval_seconds", "map_seconds", "grow_seconds", "score_seconds")
 
 _INT_FIELDS = ("codons_used", "wraps", "n_vertices", "n_edges", "n_regions", "steps_done")
+# Individual fields stored unchanged in a column of the same name (genome, parents and criteria are
+# converted; run_id and id are the run's and derived).
+_PLAIN_FIELDS = tuple(f.name for f in fields(Individual) if f.name not in ("genome", "parents", "criteria"))
 
 
 def criteria_names() -> tuple[str, ...]:
@@ -193,25 +196,11 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
             )
         cols["run_id"].append(run_id)
         cols["id"].append(ind.id)
-        cols["island"].append(ind.island)
-        cols["generation"].append(ind.generation)
-        cols["index"].append(ind.index)
         cols["genome"].append(ind.genome)
-        cols["text"].append(ind.text)
-        cols["valid"].append(ind.valid)
-        cols["stage"].append(ind.stage)
-        cols["error"].append(ind.error)
-        cols["fitness"].append(ind.fitness)
+        cols["parents"].append(ind.parents)
         for name, col in crit_cols:
             col.append(ind.criteria.get(name))
-        cols["origin"].append(ind.origin)
-        cols["parents"].append(ind.parents)
-        cols["config_version"].append(ind.config_version)
-        for name in _INT_FIELDS:
-            cols[name].append(getattr(ind, name))
-        cols["capped"].append(ind.capped)
-        cols["surface_digest"].append(ind.surface_digest)
-        for name in TIMING_COLUMNS:
+        for name in _PLAIN_FIELDS:
             cols[name].append(getattr(ind, name))
     arrays = []
     for f in schema:
@@ -236,31 +225,10 @@ def individuals_from_table(table: pa.Table) -> list[Individual]:
                 crit[name] = value
         out.append(
             Individual(
-                island=py["island"][i],
-                generation=py["generation"][i],
-                index=py["index"][i],
                 genome=tuple(py["genome"][i]),
-                origin=py["origin"][i],
                 parents=tuple(py["parents"][i]),
-                text=py["text"][i],
-                valid=py["valid"][i],
-                stage=py["stage"][i],
-                error=py["error"][i],
-                fitness=py["fitness"][i],
                 criteria=crit,
-                config_version=py["config_version"][i],
-                codons_used=py["codons_used"][i],
-                wraps=py["wraps"][i],
-                n_vertices=py["n_vertices"][i],
-                n_edges=py["n_edges"][i],
-                n_regions=py["n_regions"][i],
-                steps_done=py["steps_done"][i],
-                capped=py["capped"][i],
-                surface_digest=py["surface_digest"][i],
-                eval_seconds=py["eval_seconds"][i],
-                map_seconds=py["map_seconds"][i],
-                grow_seconds=py["grow_seconds"][i],
-                score_seconds=py["score_seconds"][i],
+                **{name: py[name][i] for name in _PLAIN_FIELDS},
             )
         )
     return out
