@@ -175,6 +175,19 @@ class Evaluator:
         if len(cache) > self.cache_size:
             cache.popitem(last=False)
 
+    def holds(self, genome: Sequence[int]) -> bool:
+        """Whether ``genome``'s evaluation is cached (evaluating it again costs nothing)."""
+        return tuple(genome) in self._genomes
+
+    def adopt(self, genome: Sequence[int], evaluation: Evaluation) -> None:
+        """Cache ``evaluation``, made elsewhere under this configuration, as ``genome``'s own."""
+        key = _check_genome(genome)
+        self.evaluations += 1
+        if evaluation.text is not None and evaluation.stage != "map":
+            self.growths += 1
+            self._remember(self._texts, evaluation.text, evaluation)
+        self._remember(self._genomes, key, evaluation)
+
     def evaluate(self, genome: Sequence[int]) -> Evaluation:
         """The evaluation of ``genome``; a repeat of a cached genome comes back with zero timings."""
         key = _check_genome(genome)

@@ -21,11 +21,17 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
 Individuals of generation g-1 evaluated under another ``config_version`` (the fitness, the environment
 or the universe changed: an intervention) are re-evaluated before selection, so they compete under the
 configuration now in force. Identical genomes are evaluated once (``Evaluator``'s cache).
+
+A generation is built in two parts: ``breed`` draws every genome with its origin and parents (cheap,
+sequential, seeded), then ``complete`` evaluates the genomes not yet evaluated and makes the
+individuals. Evaluation is a pure function of (genome, configuration), so the genomes ``pending``
+evaluation may be evaluated anywhere (an island host shares them with idle hosts) and passed to
+``complete``: the generation is the same as ``step`` builds alone.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,7 +47,7 @@ from genr8_dist.evolution.operators import (
 )
 from genr8_dist.rng import stream
 
-__all__ = ["Injected", "Island", "IslandStats"]
+__all__ = ["Birth", "Injected", "Island", "IslandStats"]
 
 # What a user may inject: a genome, a rewrite system's text, or an existing individual (a copy).
 Injected = Sequence[int] | str | Individual
@@ -57,6 +63,17 @@ class IslandStats:
     grown: int = 0           # distinct texts grown this generation
     cache_hits: int = 0
     invalid: int = 0
+
+
+@dataclass(frozen=True, slots=True)
+class Birth:
+    """An individual of a generation before evaluation: its genome, how it came to be, and its
+    evaluation when already known (a migrant or elite kept as it was), else ``None``."""
+
+    genome: tuple[int, ...]
+    origin: str
+    parents: tuple[str, ...] = ()
+    evaluation: Evaluation | None = None
 
 
 class Island:
@@ -76,6 +93,7 @@ class Island:
         self.evaluator = evaluator if evaluator is not None and evaluator.config is config \
             else Evaluator(config)
         self.stats = IslandStats()
+        self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
 
     # -- random streams -----------------------------------------------------------------------
@@ -126,14 +144,15 @@ class Island:
 
     def initial(self) -> list[Individual]:
         """Generation 0: ``ea.population`` random genomes, evaluated (origin ``random``)."""
-        before = self._counters()
-        rng = self.rng(0, "genomes")
-        g = self.config.genome
-        population = []
-        for index in range(self.config.ea.population):
-            genome = random_genome(rng, g.length, g.codon_max)
-            population.append(self._make(0, index, genome, "random", (), self.evaluate(genome)))
-        return self._finish(0, population, before)
+        return self.complete(0, self.breed(0))
+
+    def step(self, previous: Sequence[Individual], generation: int,
+             migrants: Sequence[Individual] = (), injected: Sequence[Injected] = ()) -> list[Individual]:
+        """Generation ``generation`` from generation ``generation - 1`` (``previous``), the
+        ``migrants`` arriving now and the ``injected`` individuals; see the module docstring."""
+        if generation < 1:
+            raise ValueError(f"step builds generation >= 1; use initial() for generation 0, got {generation}")
+        return self.complete(generation, self.breed(generation, previous, migrants, injected))
 
     def _injected_genome(self, item: Injected) -> tuple[tuple[int, ...], tuple[str, ...]]:
         if isinstance(item, Individual):
@@ -143,32 +162,28 @@ class Island:
             return tuple(int(c) for c in genome), ()
         return tuple(int(c) for c in item), ()
 
-    def step(self, previous: Sequence[Individual], generation: int,
-             migrants: Sequence[Individual] = (), injected: Sequence[Injected] = ()) -> list[Individual]:
-        """Generation ``generation`` from generation ``generation - 1`` (``previous``), the
-        ``migrants`` arriving now and the ``injected`` individuals; see the module docstring."""
-        if generation < 1:
-            raise ValueError(f"step builds generation >= 1; use initial() for generation 0, got {generation}")
+    def breed(self, generation: int, previous: Sequence[Individual] = (),
+              migrants: Sequence[Individual] = (), injected: Sequence[Injected] = ()) -> list[Birth]:
+        """The genomes of ``generation`` in index order, unevaluated where new: generation 0 random,
+        a later one from ``previous`` (generation ``generation - 1``), ``migrants`` and ``injected``."""
+        self._bred_at = self._counters()
+        ea = self.config.ea
+        g = self.config.genome
+        if generation == 0:
+            rng = self.rng(0, "genomes")
+            return [Birth(tuple(random_genome(rng, g.length, g.codon_max)), "random")
+                    for _ in range(ea.population)]
         if not previous:
             raise ValueError(f"generation {generation} needs a non-empty previous generation")
-        ea = self.config.ea
-        incoming = len(migrants) + len(injected)
-        if incoming > ea.population:
+        if len(migrants) + len(injected) > ea.population:
             raise ConfigError(
                 f"{len(migrants)} migrants and {len(injected)} injected individuals do not fit in a "
                 f"population of {ea.population} (ea.population)"
             )
-        before = self._counters()
-        population: list[Individual] = []
-
-        def add(genome: Sequence[int], origin: str, parents: tuple[str, ...], evaluation: Evaluation):
-            population.append(self._make(generation, len(population), genome, origin, parents, evaluation))
-
-        for m in migrants:
-            add(m.genome, "migrant", (m.id,), self._kept(m))
+        births = [Birth(tuple(m.genome), "migrant", (m.id,), self._kept(m)) for m in migrants]
         for item in injected:
             genome, parents = self._injected_genome(item)
-            add(genome, "injected", parents, self.evaluate(genome))
+            births.append(Birth(genome, "injected", parents))
 
         # Generation g-1 as it competes now: re-evaluated where its configuration was another one.
         pool = [p if p.config_version == self.config_version
@@ -177,15 +192,14 @@ class Island:
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
 
-        room = ea.population - len(population)
+        room = ea.population - len(births)
         for i in select_elites(fitnesses, min(ea.elites, room)):
-            add(pool[i].genome, "elite", (parent_ids[i],), self._kept(pool[i]))
+            births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
 
         select_rng = self.rng(generation, "selection")
         cross_rng = self.rng(generation, "crossover")
         mutate_rng = self.rng(generation, "mutation")
-        codon_max = self.config.genome.codon_max
-        while len(population) < ea.population:
+        while len(births) < ea.population:
             a = tournament_select(select_rng, fitnesses, ea.tournament)
             b = tournament_select(select_rng, fitnesses, ea.tournament)
             crossed = bool(cross_rng.random() < ea.crossover_rate)
@@ -196,12 +210,36 @@ class Island:
                 children = (pool[a].genome, pool[b].genome)
                 lineage = ((parent_ids[a],), (parent_ids[b],))
             for child, parents in zip(children, lineage, strict=True):
-                if len(population) >= ea.population:
+                if len(births) >= ea.population:
                     break
-                genome, flipped = int_flip_mutation(mutate_rng, child, ea.mutation_rate, codon_max,
+                genome, flipped = int_flip_mutation(mutate_rng, child, ea.mutation_rate, g.codon_max,
                                                     at_least_one=not crossed)
                 origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
-                add(genome, origin, parents, self.evaluate(genome))
+                births.append(Birth(tuple(int(c) for c in genome), origin, parents))
+        return births
+
+    def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
+        """The distinct genomes of ``births`` that need an evaluation this island has not cached."""
+        return list(dict.fromkeys(b.genome for b in births
+                                  if b.evaluation is None and not self.evaluator.holds(b.genome)))
+
+    def complete(self, generation: int, births: Sequence[Birth],
+                 evaluated: Mapping[tuple[int, ...], Evaluation] | None = None) -> list[Individual]:
+        """Generation ``generation``: ``births`` evaluated (by ``evaluated`` where it has the genome,
+        computed elsewhere; here otherwise) and made individuals, index by index."""
+        before, self._bred_at = self._bred_at or self._counters(), None
+        fresh = dict(evaluated or {})
+        for genome, evaluation in fresh.items():
+            if not self.evaluator.holds(genome):   # evaluated by another host, not here
+                self.evaluator.adopt(genome, evaluation)
+        population = []
+        for index, birth in enumerate(births):
+            evaluation = birth.evaluation
+            if evaluation is None:
+                # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
+                evaluation = fresh.pop(birth.genome, None) or self.evaluate(birth.genome)
+            population.append(self._make(generation, index, birth.genome, birth.origin, birth.parents,
+                                         evaluation))
         return self._finish(generation, population, before)
 
     def run(self, generations: int | None = None) -> list[list[Individual]]:

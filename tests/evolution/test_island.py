@@ -139,6 +139,34 @@ def test_identical_genomes_are_evaluated_once(history):
     assert island.stats.evaluated <= config.ea.population - 6 - config.ea.elites + 1
 
 
+def test_genomes_evaluated_elsewhere_complete_the_generation_step_builds(history):
+    from genr8_dist.evolution import Evaluator
+
+    config, hist = history
+    donor = hist[2][3]
+    kwargs = {"migrants": hist[2][:2], "injected": [list(donor.genome)] * 3}
+    alone = Island(config, 1).step(hist[2], 3, **kwargs)
+
+    island = Island(config, 1)
+    births = island.breed(3, hist[2], **kwargs)
+    pending = island.pending(births)
+    # migrants and elites keep their evaluations; a genome born three times is evaluated once
+    assert len(pending) == len(set(pending)) <= config.ea.population - 2 - config.ea.elites - 2
+    assert donor.genome in pending
+    elsewhere = Evaluator(config)
+    shared = island.complete(3, births, {genome: elsewhere.evaluate(genome) for genome in pending})
+    assert [untimed(i) for i in shared] == [untimed(i) for i in alone]
+    unevaluated = sum(1 for b in births if b.evaluation is None)
+    assert island.stats.evaluated == len(pending)
+    assert island.stats.cache_hits == unevaluated - len(pending) >= 2
+    # each evaluation made elsewhere keeps its timing at its first use, as a local one does
+    first = {}
+    for ind in shared:
+        if ind.origin not in ("migrant", "elite"):
+            first.setdefault(ind.genome, ind)
+    assert all(ind.eval_seconds > 0 for ind in first.values())
+
+
 def test_invalid_individuals_are_data_not_exceptions():
     config = small_config(genome={"length": 3, "max_wraps": 0})
     hist = Island(config, 0).run(2)
