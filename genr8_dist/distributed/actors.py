@@ -9,24 +9,38 @@ that lacks the generation before the one asked for (it was just created to repla
 it adopted an island from one) reads it from the run store: per-generation traffic stays small, and a
 restarted actor rebuilds its state from the last commit. Because ``Island.step`` is a pure function of
 its inputs, the rebuilt island produces exactly what the lost one would have.
+
+A host with nothing left to do in an epoch helps another: the coordinator names idle hosts as the
+``helpers`` of a generation it submits, or ``offer``s one to a generation under way (the offer is
+served by a thread of its own while ``advance`` runs). The owner of the island hands each helper an
+equal share of the genomes it has not evaluated yet (``evaluate``), evaluates its own share, and
+completes the generation. Evaluation is a pure function of (genome, configuration), so the generation
+is the one the owner would have built alone; a helper that dies meanwhile only means its share is
+evaluated by the owner.
 """
 
 from __future__ import annotations
 
 import os
 import socket
+from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
 from genr8_dist.evolution.individual import Individual
 
-__all__ = ["IslandHost", "remote_host_class"]
+__all__ = ["OFFERS", "IslandHost", "remote_host_class"]
+
+# The actor's concurrency group serving ``offer`` while ``advance`` runs in the default one.
+OFFERS = "offers"
 
 
 class IslandHost:
     """Hosts islands of one run; ``run_dir`` is where it reads a generation it does not hold."""
 
     def __init__(self, run_dir: str) -> None:
+        self._offers: deque[Any] = deque()   # helpers offered while a generation is under way
+        self._helped = 0                      # genomes evaluated for other hosts' islands
         self.bind(run_dir)
 
     def bind(self, run_dir: str) -> None:
@@ -35,6 +49,7 @@ class IslandHost:
         self._islands: dict[tuple[int, int], Any] = {}
         self._configs: dict[int, Any] = {}
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
+        self._evaluators: dict[int, Any] = {}   # configuration version -> Evaluator, for helping
         self._store: Any = None
 
     def ready(self) -> dict[str, Any]:
@@ -73,21 +88,86 @@ class IslandHost:
         config_version: int,
         migrants: Sequence[Individual] = (),
         injected: Sequence[Any] = (),
+        helpers: Sequence[Any] = (),
+        ticket: int | None = None,
     ) -> list[Individual]:
         """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
 
         ``config`` is the configuration version ``config_version``; the coordinator sends it once per
-        host and version, and ``None`` afterwards (the host keeps it)."""
+        host and version, and ``None`` afterwards (the host keeps it). ``helpers`` (Ray handles of idle
+        hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``."""
         model = self._island(island, config, config_version)
         if generation == 0:
-            population = list(model.initial())
+            births = model.breed(0)
         else:
             previous = self._previous(island, generation - 1)
-            population = list(
-                model.step(previous, generation, migrants=tuple(migrants), injected=tuple(injected))
-            )
+            births = model.breed(generation, previous, migrants=tuple(migrants), injected=tuple(injected))
+        evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
+        population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
         return population
+
+    def offer(self, ticket: int, helper: Any) -> bool:
+        """Offer ``helper`` (an idle host) to the generation submitted with ``ticket``. Tickets grow
+        in the order the coordinator submits, which is the order a host runs its generations in, so
+        an offer for a generation already done is dropped (its helper may be busy again by then)."""
+        self._offers.append((ticket, helper))
+        return True
+
+    def _evaluate(self, model: Any, genomes: list[tuple[int, ...]], helpers: Sequence[Any],
+                  ticket: int | None) -> dict[tuple[int, ...], Any]:
+        """``genomes`` evaluated here, but for the shares handed to ``helpers`` and to helpers
+        offered meanwhile: each takes an interleaved share of what is left when it comes."""
+        todo = deque(genomes)
+        offered = list(helpers)
+        shares: list[tuple[Any, list[tuple[int, ...]]]] = []
+        out: dict[tuple[int, ...], Any] = {}
+        while True:
+            later = []
+            while self._offers:
+                offered_for, helper = self._offers.popleft()
+                if ticket is not None and offered_for == ticket:
+                    offered.append(helper)
+                elif ticket is None or offered_for > ticket:   # for a generation queued behind this one
+                    later.append((offered_for, helper))
+            self._offers.extend(later)
+            if offered and len(todo) > 1:
+                left = list(todo)
+                parts = min(len(offered) + 1, len(left))
+                todo = deque(left[0::parts])
+                for k, helper in enumerate(offered[:parts - 1], start=1):
+                    share = left[k::parts]
+                    shares.append((helper.evaluate.remote(model.config_version, model.config, share), share))
+            offered = []
+            if not todo:
+                break
+            genome = todo.popleft()
+            out[genome] = model.evaluate(genome)
+        if shares:
+            import ray
+
+            for ref, share in shares:
+                try:
+                    found = ray.get(ref)
+                except ray.exceptions.RayError:   # the helper died or failed: its share is evaluated here
+                    found = [model.evaluate(genome) for genome in share]
+                out.update(zip(share, found, strict=True))
+        return out
+
+    def evaluate(self, config_version: int, config: Any, genomes: Sequence[Sequence[int]]) -> list[Any]:
+        """The evaluations of ``genomes`` under configuration version ``config_version`` (``config``),
+        for the host of another island."""
+        from genr8_dist.evolution.evaluate import Evaluator
+
+        evaluator = self._evaluators.get(config_version)
+        if evaluator is None:
+            evaluator = self._evaluators[config_version] = Evaluator(config)
+        self._helped += len(genomes)
+        return [evaluator.evaluate(genome) for genome in genomes]
+
+    def helped(self) -> int:
+        """How many genomes this host has evaluated for other hosts' islands."""
+        return self._helped
 
     def forget(self, island: int) -> None:
         """Drop what this host holds of ``island`` (it moved to another host)."""
@@ -102,5 +182,5 @@ def remote_host_class(num_cpus: float) -> Any:
     coordinator replaces a dead host and reloads its islands from the store."""
     import ray
 
-    return ray.remote(IslandHost).options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0,
-                                         scheduling_strategy="SPREAD")
+    actor = ray.remote(concurrency_groups={OFFERS: 1})(IslandHost)
+    return actor.options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0, scheduling_strategy="SPREAD")

@@ -16,17 +16,26 @@ computes is a pure function of the committed history, so:
 - when a host dies (its process, or its node), its islands restart from their last committed
   generation on a new host (``recovery`` event) and the run's rows are those of a fault-free run.
 
+Islands grow surfaces of different cost, so some hosts finish an epoch early. A host with no island
+left to advance in the epoch is lent to one generation at a time: named as a helper of the next
+generation submitted, or offered to one under way (the island with the most generations left). It
+evaluates a share of that generation's genomes (``actors.IslandHost``), which changes where the work
+is done, never what it computes.
+
 Hooks (``on_generation``, ``on_commit``) let a caller watch the run (tests use them to inject faults).
 """
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from genr8_dist.distributed.actors import OFFERS
 from genr8_dist.distributed.migration import is_migration_generation, plan_migration
 from genr8_dist.distributed.progress import ProgressDisplay
 from genr8_dist.errors import Genr8Error, RunError
@@ -42,6 +51,10 @@ __all__ = [
     "parse_config",
     "stored_events",
 ]
+
+
+# Submission tickets: increasing in submission order within this process (see ``IslandHost.offer``).
+_TICKETS = itertools.count(1)
 
 
 def last_generation(config: Any) -> int:
@@ -279,8 +292,15 @@ class Coordinator:
         cursor = dict(committed)
         results: dict[int, dict[int, list[Individual]]] = {i: {} for i in range(self.n_islands)}
         pending: dict[Any, tuple[int, int]] = {}
+        tickets: dict[Any, int] = {}
+        lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
+        offers: list[Any] = []
         migrants_after: dict[int, dict[int, list[Individual]]] = {}
         shown = min(committed.values())
+
+        def free() -> list[int]:
+            busy = {i for i, c in cursor.items() if c < end}
+            return [n for n in self.hosts.idle(busy) if n not in lent]
 
         def submit(island: int) -> None:
             g = cursor[island] + 1
@@ -294,8 +314,22 @@ class Coordinator:
             host = self.hosts.host_of(island)
             send = (id(host), version) not in self._sent
             self._sent.add((id(host), version))
-            ref = host.advance.remote(island, g, config if send else None, version, migrants, injected)
+            helpers = free()
+            ticket = next(_TICKETS)
+            ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
+                                      [self.hosts.handle(n) for n in helpers], ticket)
             pending[ref] = (island, g)
+            tickets[ref] = ticket
+            lent.update(dict.fromkeys(helpers, ref))
+
+        def lend() -> None:
+            """Offer each free idle host to a generation under way, most generations left first."""
+            targets = sorted(pending, key=lambda r: (cursor[pending[r][0]] - end, pending[r][0]))
+            for n, ref in zip(free(), targets, strict=False):
+                owner = self.hosts.host_of(pending[ref][0])
+                offers.append(owner.offer.options(concurrency_group=OFFERS).remote(
+                    tickets[ref], self.hosts.handle(n)))
+                lent[n] = ref
 
         def recover(island: int, exc: BaseException) -> None:
             moved = self.hosts.replace(island)
@@ -319,6 +353,7 @@ class Coordinator:
                 submit(island)
         try:
             while pending and not self.stop:
+                lend()
                 t = time.perf_counter()
                 ready, _ = ray.wait(list(pending), num_returns=1, timeout=self.poll_seconds)
                 self.summary.wait_seconds += time.perf_counter() - t
@@ -326,6 +361,8 @@ class Coordinator:
                     if ref not in pending:
                         continue
                     island, g = pending.pop(ref)
+                    for n in [n for n, r in lent.items() if r == ref]:
+                        del lent[n]
                     try:
                         population = ray.get(ref)
                     except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
@@ -347,8 +384,21 @@ class Coordinator:
                         shown += 1
                         self._show(shown, results)
         finally:
+            self._settle(offers)
             committed = self._commit(committed, results)
         return committed
+
+    @staticmethod
+    def _settle(offers: Sequence[Any]) -> None:
+        """Collect the answers to offers of help (an offer to a host that died meanwhile fails)."""
+        import ray
+
+        if not offers:
+            return
+        done, _ = ray.wait(list(offers), num_returns=len(offers), timeout=1.0)
+        for ref in done:
+            with contextlib.suppress(ray.exceptions.RayError):
+                ray.get(ref)
 
     def _show(self, generation: int, results: Mapping[int, Mapping[int, list[Individual]]]) -> None:
         populations = {i: r[generation] for i, r in results.items() if generation in r}

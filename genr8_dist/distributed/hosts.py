@@ -135,6 +135,22 @@ class HostPool:
         """The islands dealt to host number ``host``."""
         return sorted(i for i, h in self.placement.items() if h == host)
 
+    def idle(self, busy: set[int]) -> list[int]:
+        """The numbers of the live hosts holding none of the ``busy`` islands (free to help others)."""
+        occupied = {self.placement[i] for i in busy}
+        return [n for n, alive in enumerate(self._alive) if alive and n not in occupied]
+
+    def handle(self, host: int) -> Any:
+        """The actor handle of host number ``host``."""
+        return self._hosts[host]
+
+    def helped(self) -> int:
+        """Genomes the live hosts have evaluated for other hosts' islands, all runs together."""
+        import ray
+
+        return sum(ray.get([h.helped.remote() for h, alive in zip(self._hosts, self._alive, strict=True)
+                            if alive]))
+
     def replace(self, island: int) -> list[int]:
         """The host of ``island`` died: replace it; returns every island that was on it (now moved)."""
         import ray

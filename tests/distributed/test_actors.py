@@ -1,5 +1,6 @@
-"""The island host without Ray: it advances islands, keeps configurations it was sent, and a new host
-rebuilds an island from the run store exactly."""
+"""The island host: it advances islands, keeps configurations it was sent, a new host rebuilds an
+island from the run store exactly, and idle hosts (Ray actors) evaluate shares of a generation
+without changing it."""
 
 from __future__ import annotations
 
@@ -34,3 +35,45 @@ def test_a_new_host_rebuilds_an_island_from_the_store(tmp_path):
     again = fresh.advance(1, 1, config, 1)
     assert _untimed(again) == _untimed(gen1)
     assert RunStore.open(run_dir).committed_generations() == {1: 0}
+
+
+@pytest.fixture
+def two_hosts(ray_local, tmp_path):
+    """Two island hosts as Ray actors, serving a new 2-island run."""
+    from genr8_dist.distributed.actors import remote_host_class
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml(islands=2))
+    actor = remote_host_class(0.5)
+    hosts = [actor.remote(str(run_dir)) for _ in range(2)]
+    yield run_dir, hosts
+    for host in hosts:
+        ray_local.kill(host, no_restart=True)
+
+
+def test_a_helper_evaluates_half_of_a_generation_and_changes_nothing(two_hosts, ray_local):
+    run_dir, (owner, helper) = two_hosts
+    config = parse_config(tiny_toml(islands=2), "tiny")
+    alone = IslandHost(str(run_dir))
+    gen0 = alone.advance(0, 0, config, 1)
+    assert len({ind.genome for ind in gen0}) == 6
+    shared = ray_local.get(owner.advance.remote(0, 0, config, 1, (), (), [helper]))
+    assert _untimed(shared) == _untimed(gen0)
+    assert ray_local.get(helper.helped.remote()) == 3          # 6 new genomes, an interleaved half each
+
+    ray_local.kill(helper, no_restart=True)                     # a dead helper: the owner does it all
+    gen1 = ray_local.get(owner.advance.remote(0, 1, None, 1, (), (), [helper]))
+    assert _untimed(gen1) == _untimed(alone.advance(0, 1, None, 1))
+
+
+def test_an_offer_helps_its_own_generation_only(two_hosts, ray_local):
+    run_dir, (stale, later) = two_hosts
+    config = parse_config(tiny_toml(islands=2), "tiny")
+    owner = IslandHost(str(run_dir))
+    owner.offer(3, stale)          # for a generation already done: dropped
+    owner.offer(9, later)          # for a generation queued behind the next one: kept for it
+    owner.advance(1, 0, config, 1, ticket=5)
+    assert ray_local.get([stale.helped.remote(), later.helped.remote()]) == [0, 0]
+    owner.advance(1, 1, None, 1, ticket=9)
+    assert ray_local.get(stale.helped.remote()) == 0
+    assert ray_local.get(later.helped.remote()) > 0

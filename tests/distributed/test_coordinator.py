@@ -50,6 +50,17 @@ def test_three_islands_with_migration_complete_with_every_row(reference):
     assert "gen 6/6" in log and "ind/s" in log
 
 
+def test_an_idle_host_helps_the_busy_one_and_no_row_changes(reference, pool, tmp_path):
+    # 3 islands on 2 hosts: the host of one island is idle while the other advances two
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    before = pool.helped()
+    summary, _ = drive_to_end(run_dir, pool)
+    assert summary.status == "complete"
+    assert pool.helped() > before
+    assert rows(run_dir) == rows(reference[0])
+
+
 @pytest.mark.parametrize("at", [0, 1, 3, 5])
 def test_interrupted_and_resumed_equals_uninterrupted(reference, pool, tmp_path, at):
     run_dir = tmp_path / "run"
