@@ -2,6 +2,7 @@
 
     python bench/islands.py                 # default configuration, local Ray of 2 CPUs (about 4 minutes)
     python bench/islands.py --cpus 4 --islands 1 2 4 8 --generations 20 --repeat 1
+    python bench/islands.py --islands 1 2 --seeds 0 1 2 3 4 5 6 7    # 2 islands vs 1 over 8 run seeds
 
 For each island count it runs the default run configuration (``RunConfig()``: 30 individuals of 100
 codons per island, the default environment) on a local Ray ``--repeat`` times (default 3) and prints
@@ -22,7 +23,8 @@ the run of median wall time:
 
 Besides 1, 2, 4 and 8 islands, it runs the 2-island work on 1 host (1 CPU): the fair measure of the
 speedup (the same individuals, the same surfaces), since 1 island and 2 islands do not grow equally
-costly surfaces. The "2 islands vs 1" line is the issue's own measure, printed as well.
+costly surfaces. The "2 islands vs 1" line is the issue's own measure, printed as well; ``--seeds``
+repeats it over several run seeds, since which island grows costly surfaces is a matter of the seed.
 
 Wall time is the coordinator's life (its store reads and writes included, actor start-up excluded).
 Ray's workers run at nice 15 by default; the benchmark runs them at nice 0 so that, on a busy machine,
@@ -46,7 +48,7 @@ def _dir_bytes(path: Path) -> int:
 
 
 def run_once(n_islands: int, generations: int | None, workdir: Path, population: int | None,
-             max_hosts: int | None = None) -> dict:
+             max_hosts: int | None = None, seed: int | None = None) -> dict:
     """One run of the default configuration with ``n_islands`` islands (on at most ``max_hosts``
     hosts); its figures."""
     import pyarrow.compute
@@ -61,6 +63,8 @@ def run_once(n_islands: int, generations: int | None, workdir: Path, population:
     if population:
         ea["population"] = population
     config = RunConfig().replace(ea=ea, islands={"count": n_islands})
+    if seed is not None:
+        config = config.replace(seed=seed)
     run_dir = workdir / f"islands-{n_islands}-{max_hosts}"
     t0 = time.perf_counter()
     hosts = HostPool(str(run_dir), n_islands, max_hosts=max_hosts)
@@ -100,6 +104,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="default: the configuration's 20 for 1 and 2 islands, 10 for more")
     parser.add_argument("--population", type=int, default=None, help="default: the configuration's (30)")
     parser.add_argument("--cpus", type=int, default=2, help="CPUs of the local Ray (default 2)")
+    parser.add_argument("--seeds", type=int, nargs="*", default=[],
+                        help="also run 1 and 2 islands once with each of these run seeds and compare "
+                             "their individuals/s pooled over the seeds")
     parser.add_argument("--repeat", type=int, default=3,
                         help="runs of each configuration; the one of median wall time is shown (default 3)")
     args = parser.parse_args(argv)
@@ -125,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
                           file=sys.stderr, flush=True)
                 results.append(sorted(runs, key=lambda r: r["wall_s"])[len(runs) // 2])
                 results[-1]["generations"] = gens
+            by_seed = {n: [run_once(n, args.generations or 20, Path(tmp) / f"seed-{seed}", args.population,
+                                    seed=seed) for seed in args.seeds] for n in (1, 2) if args.seeds}
     finally:
         ray.shutdown()
 
@@ -153,6 +162,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"2 islands vs 1: {speedup:.2f}x individuals/s (target >= 1.7x on 2 CPUs): {verdict}; "
               f"their surfaces cost {by_n[1]['ms_per_ind']:.1f} and {by_n[2]['ms_per_ind']:.1f} ms per "
               f"individual; busy CPUs {by_n[1]['busy']:.2f} -> {by_n[2]['busy']:.2f}")
+    if args.seeds:
+        pooled = {n: sum(r["individuals"] for r in runs) / sum(r["wall_s"] for r in runs)
+                  for n, runs in by_seed.items()}
+        each = " ".join(f"{two['ind_per_s'] / one['ind_per_s']:.2f}"
+                        for one, two in zip(by_seed[1], by_seed[2], strict=True))
+        print(f"2 islands vs 1 over seeds {' '.join(map(str, args.seeds))}: {pooled[2]:.1f} vs "
+              f"{pooled[1]:.1f} individuals/s = {pooled[2] / pooled[1]:.2f}x pooled (per seed: {each})")
     return 0
 
 
