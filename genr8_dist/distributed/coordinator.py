@@ -322,6 +322,12 @@ class Coordinator:
             tickets[ref] = ticket
             lent.update(dict.fromkeys(helpers, ref))
 
+        def release(ref: Any) -> tuple[int, int]:
+            """Forget the generation ``ref`` (done or lost) and free the hosts lent to it."""
+            for n in [n for n, r in lent.items() if r == ref]:
+                del lent[n]
+            return pending.pop(ref)
+
         def lend() -> None:
             """Offer each free idle host to a generation under way, most generations left first."""
             targets = sorted(pending, key=lambda r: (cursor[pending[r][0]] - end, pending[r][0]))
@@ -335,7 +341,7 @@ class Coordinator:
             moved = self.hosts.replace(island)
             for isl in moved:
                 for ref in [r for r, (i, _) in pending.items() if i == isl]:
-                    del pending[ref]
+                    release(ref)
                 results[isl].clear()
                 cursor[isl] = committed[isl]
                 self.summary.recoveries += 1
@@ -360,9 +366,7 @@ class Coordinator:
                 for ref in ready:
                     if ref not in pending:
                         continue
-                    island, g = pending.pop(ref)
-                    for n in [n for n, r in lent.items() if r == ref]:
-                        del lent[n]
+                    island, g = release(ref)
                     try:
                         population = ray.get(ref)
                     except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
