@@ -9,6 +9,7 @@ canonical text and ``parse(system.to_text()) == system``. docs/hemls.md is the u
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -227,6 +228,31 @@ class RewriteSystem:
     def __str__(self) -> str:
         return self.to_text()
 
+    def never_firing(self) -> list[tuple[Rule, Rule]]:
+        """Rules that can never fire, each with the earlier rule that takes all its edges first.
+
+        Rules for one label are tried in order and the first whose condition and context hold
+        rewrites the edge; a later rule whose condition and context are each absent from, or equal
+        to, an earlier rule's is never reached (two rules for one label are a fallback, not a draw:
+        write the alternatives as successors of one rule, or with ``p =`` on each)."""
+        out: list[tuple[Rule, Rule]] = []
+        for i, rule in enumerate(self.rules):
+            for earlier in self.rules[:i]:
+                if earlier.predecessor.name != rule.predecessor.name:
+                    continue
+                if all(mine is None or mine == theirs for mine, theirs in (
+                        (earlier.condition, rule.condition), (earlier.left, rule.left),
+                        (earlier.right, rule.right))) and earlier.chain in ((), rule.chain):
+                    out.append((rule, earlier))
+                    break
+        return out
+
+    def warnings(self) -> list[str]:
+        """One line per rule that can never fire (``never_firing``), naming both rules' lines."""
+        return [f"line {rule.line}: the rule for {rule.predecessor.name} can never fire: the rule on "
+                f"line {earlier.line} rewrites every such edge first (for a random choice write the "
+                f"successors in one rule, or 'p =' on each)" for rule, earlier in self.never_firing()]
+
     def segment_names(self) -> tuple[str, ...]:
         """Every label name used, in order of first appearance."""
         seen: dict[str, None] = {}
@@ -423,8 +449,12 @@ class _Build(Transformer):
         return symbols
 
     def weight(self, children):
-        tok = children[0]
+        tok = children[-1]
         value = float(tok)
+        if len(children) == 2:  # thesis Table 2.3: 'p = 0.5', the probability of this production
+            if not 0.0 <= value <= 1.0:
+                raise self._fail(f"a probability p must be between 0 and 1, got {tok}", tok)
+            return _Weight(value, probability=True)
         if not math.isfinite(value) or value < 0:
             raise self._fail(f"Weight must be a number >= 0, got {tok}", tok)
         return _Weight(value)
@@ -432,8 +462,10 @@ class _Build(Transformer):
     @v_args(meta=True)
     def alternative(self, meta, children):
         symbols = children[0]
-        weight = children[1].value if len(children) > 1 else None
-        return Successor(symbols, weight)
+        if len(children) > 1:
+            weight = children[1]
+            return _Alternative(Successor(symbols, weight.value), weight.probability)
+        return _Alternative(Successor(symbols), False)
 
     def condition(self, children):
         op, value = children
@@ -442,13 +474,15 @@ class _Build(Transformer):
     @v_args(meta=True)
     def rule(self, meta, children):
         left, pred, right, chain = children[0]
-        succs = tuple(c for c in children[1:] if isinstance(c, Successor))
+        succs = tuple(c.successor for c in children[1:] if isinstance(c, _Alternative))
+        stochastic = any(c.probability for c in children[1:] if isinstance(c, _Alternative))
         cond = next((c for c in children[1:] if isinstance(c, Condition)), None)
-        return ("rule", Rule(pred, succs, left, right, cond, line=meta.line, chain=chain), meta)
+        rule = Rule(pred, succs, left, right, cond, line=meta.line, chain=chain)
+        return ("stochastic rule" if stochastic else "rule", rule, meta)
 
     @v_args(meta=True)
     def continuation(self, meta, children):
-        succs = tuple(c for c in children if isinstance(c, Successor))
+        succs = tuple(c.successor for c in children if isinstance(c, _Alternative))
         cond = next((c for c in children if isinstance(c, Condition)), None)
         return ("continuation", (succs, cond), meta)
 
@@ -477,6 +511,8 @@ class _Build(Transformer):
         for kind, value, meta in children[1:]:
             if kind == "rule":
                 rules.append(value)
+            elif kind == "stochastic rule":
+                merge_stochastic(rules, value)
             elif kind == "continuation":
                 if not rules or rules[-1].condition is not None:
                     why = ("a continuation line (beginning with '->') must follow a rewrite rule"
@@ -513,6 +549,27 @@ class _Pos:
 @dataclass(frozen=True)
 class _Weight:
     value: float
+    probability: bool = False
+
+
+@dataclass(frozen=True)
+class _Alternative:
+    successor: Successor
+    probability: bool
+
+
+def merge_stochastic(rules: list[Rule], rule: Rule) -> None:
+    """Append a rule written with ``p =`` probabilities (thesis Table 2.3: one production per line,
+    ``D -> + D - - D p = 0.5``) to ``rules``: its successors join those of the first earlier rule with
+    the same predecessor, context and condition, the probabilities becoming weights, so that
+    ``D -> A p = 0.5`` and ``D -> B p = 0.5`` on two lines are one rule ``D -> A Weight 0.5 -> B
+    Weight 0.5``. Without such an earlier rule it is appended as it is."""
+    key = (rule.left, rule.predecessor, rule.right, rule.chain, rule.condition)
+    for i, earlier in enumerate(rules):
+        if (earlier.left, earlier.predecessor, earlier.right, earlier.chain, earlier.condition) == key:
+            rules[i] = dataclasses.replace(earlier, successors=earlier.successors + rule.successors)
+            return
+    rules.append(rule)
 
 
 # -- the direct reader ---------------------------------------------------------------------------------

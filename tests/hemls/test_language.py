@@ -174,6 +174,45 @@ def test_keywords_are_case_insensitive_and_windows_line_ends_are_fine():
     assert parse(s.to_text()) == s
 
 
+TABLE_2_3 = """D + D + D + D
+D -> + D - - D p = 0.5
+D -> - D + + D p=0.5
+Angle 45
+"""
+
+
+def test_table_2_3_probabilities_on_separate_rules_become_one_weighted_rule():
+    system = parse(TABLE_2_3)
+    assert len(system.rules) == 1
+    rule = system.rules[0]
+    assert rule.weights == (0.5, 0.5)
+    assert [str(s) for s in rule.successors] == ["+ D - - D Weight 0.5", "- D + + D Weight 0.5"]
+    assert system.warnings() == []
+    assert parse(system.to_text()) == system
+
+
+def test_probabilities_merge_only_rules_of_the_same_context_and_condition():
+    system = parse("A + A + A\nA -> A A p = 0.3 If i < 2\nB < A -> A p = 1\nA -> A A A p = 0.7 If i < 2\n"
+                   "A -> A\n")
+    assert [len(r.successors) for r in system.rules] == [2, 1, 1]
+    assert system.rules[0].weights == (0.3, 0.7)
+
+
+def test_a_probability_above_one_is_refused_with_its_position():
+    with pytest.raises(ParseError, match=r"2:14: a probability p must be between 0 and 1, got 1.5"):
+        parse("A + A + A\nA -> A A p = 1.5\n")
+
+
+def test_rules_that_can_never_fire_are_named_with_the_rule_that_shadows_them():
+    system = parse("A + B + A + B\nA -> A B\nA -> B A\nB < A -> A\nB -> B If i < 2\nB -> B B If i < 2\n"
+                   "B -> A\nB > A -> B\n")
+    shadowed = [(r.line, e.line) for r, e in system.never_firing()]
+    assert shadowed == [(3, 2), (4, 2), (6, 5), (8, 7)]
+    assert system.warnings()[0].startswith("line 3: the rule for A can never fire: the rule on line 2")
+    # a fallback after a condition or a context does fire
+    assert parse(AA_TIMED).warnings() == []
+
+
 # -- the direct reader agrees with Lark ------------------------------------------------------------------
 
 def _universe_texts(per_universe: int) -> list[str]:
@@ -224,7 +263,7 @@ def test_direct_reader_reads_every_universe_text_as_lark_does():
 EDITS = ["", " ", "\n", "~", "+", "-", "->", "[", "]", "<", ">", "Weight", "Weight 2", "Weight -1",
          "If i < 2", "If i", "Angle 30", "Angle 400", "Sync", "BranchAngle 95", "Edge1", "Edge1_i",
          "Edge1_i+2", "A", "2", "0.5", "i", "==", "!=", ";", "// c", "#", "\t", "Edge", "1e999", "Weight 0",
-         "_i"]
+         "_i", "p = 0.5", "p=1", "p = 2"]
 
 
 def test_direct_reader_and_lark_agree_on_edited_texts():
