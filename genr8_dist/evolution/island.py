@@ -23,7 +23,8 @@ No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent 
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
 parent's or an earlier member's of the generation is mutated again before it is evaluated, and one
 whose surface repeats a parent's or an earlier member's after it, each up to ``ea.unique_retries``
-times (draws from the generation's ``revary`` streams). Generation 0 likewise redraws a founder that is
+times (draws from the generation's ``revary`` streams; each redraws at least one codon the mapper
+read, since a copy's read codons are what make it a copy). Generation 0 likewise redraws a founder that is
 trivial (invalid, or a surface of at most one region: the axiom left as it was) or repeats an earlier
 founder's surface, up to ``ea.founder_retries`` times; founders are random genomes or, with
 ``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
@@ -92,7 +93,6 @@ class Birth:
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
     avoid: frozenset[str] = frozenset()   # the parents' texts and surface digests (copies to avoid)
-    codons: int = 0                       # the codons of the genome the variation may touch (0: all)
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
@@ -151,17 +151,17 @@ class Island:
                                   codon_max=g.codon_max, max_depth=g.max_depth, first=first)
         return [random_genome(rng, g.length, g.codon_max) for _ in range(count)]
 
-    def _text(self, genome: Genome) -> str | None:
-        """The rewrite system ``genome`` maps to (mapping only; ``None`` when invalid)."""
+    def _mapped(self, genome: Genome) -> tuple[str | None, int]:
+        """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
         g = self.config.genome
-        return self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps).text
+        result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
+        return result.text, result.codons_used
 
     def _revary(self, rng, genome: Genome, codons: int) -> Genome:
-        """``genome`` mutated again: at least one codon redrawn (within ``codons`` if set)."""
-        ea = self.config.ea
-        within = codons if ea.within_used and codons > 0 else None
-        return int_flip_mutation(rng, genome, ea.mutation_rate, self.config.genome.codon_max,
-                                 at_least_one=True, within=within)[0]
+        """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
+        a copy because its read codons are: flipping an unread one would change nothing)."""
+        return int_flip_mutation(rng, genome, self.config.ea.mutation_rate, self.config.genome.codon_max,
+                                 at_least_one=True, within=codons if codons > 0 else None)[0]
 
     # -- building individuals -----------------------------------------------------------------
 
@@ -300,18 +300,18 @@ class Island:
                 if unique:
                     for i in parents:
                         avoid |= _keys(pool[i])
-                    text = self._text(genome)
+                    text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
                         if text is None or (text not in avoid and text not in texts):
                             break
-                        genome = self._revary(revary_rng, genome, codons)
-                        text = self._text(genome)
+                        genome = self._revary(revary_rng, genome, read)
+                        text, read = self._mapped(genome)
                         self.stats.revaried_text += 1
                         if origin == "crossover":
                             origin = "crossover+mutation"
                     texts.add(text)
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid), codons))
+                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
         return births
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
@@ -379,7 +379,7 @@ class Island:
             if not repeats(evaluation):
                 return genome, evaluation, origin
             rng = rng or self.rng(generation, "revary", index)
-            genome = self._revary(rng, genome, evaluation.codons_used or birth.codons)
+            genome = self._revary(rng, genome, evaluation.codons_used)
             evaluation = self.evaluate(genome)
             self.stats.revaried_surface += 1
             if origin == "crossover":

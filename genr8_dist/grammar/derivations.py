@@ -10,11 +10,12 @@ This module walks a universe's compiled grammar exactly as the GE mapper reads c
 (:mod:`genr8_dist.grammar.mapper`: a codon per rule expansion and per inline choice, ``codon mod
 n`` among the alternatives eligible at the *mapper's* ``max_depth``; a codon per option and per
 repetition round; a codon per edge label drawn), choosing each alternative by the tree's own policy and
-writing the codon that makes the mapper take it (``index + n * r``, ``r`` random, so the codons look
-like any others). The derivation is followed by random codons up to the genome's length (a repair
-rule, if the universe has one, reads them). It needs nothing but the grammar: it works for every
-universe, built-in or plugin. ``derive_tokens`` returns the tokens the sampler meant, for tests that
-check the mapper reads the genome the same way.
+writing the codon that makes the mapper take it (``index + n * r``, ``r`` random, so the codons
+look like any others); numbers and edge labels take a random codon, as a random genome would. The
+derivation is followed by random codons up to the genome's length (a repair rule, if the universe
+has one, reads them). It needs nothing but the grammar: it works for every universe, built-in or
+plugin. A ``DerivationSample`` keeps the tokens the sampler meant, so tests check that the mapper
+reads the genome the same way.
 """
 
 from __future__ import annotations
@@ -120,6 +121,9 @@ class _Sampler:
                     scope[letter] = self.label()
                 lab = scope[letter]
             self.out.tokens.append(self.tables[template].text(lab))
+        elif kind == "num":
+            values = node[1]
+            self.out.tokens.append(values[self.any_codon() % len(values)])
         elif kind == "rule":
             self.rule(node[1], depth + 1)
         elif kind == "seq":
