@@ -293,6 +293,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                 for problem in problems:
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
+                print(f"repaired: {store.last_repair}", file=out, flush=True)
+            else:
+                store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
