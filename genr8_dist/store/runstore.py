@@ -48,6 +48,16 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
+from genr8_dist.store.pending import (
+    LOCK_NAME,
+    QUEUE_DIR,
+    Queued,
+    RunLock,
+    dequeue,
+    enqueue,
+    lock_holder,
+    queued,
+)
 from genr8_dist.store.schema import (
     SCHEMA_VERSION,
     Event,
@@ -263,7 +273,7 @@ class RunStore:
                     "choose a new directory, or resume that run"
                 )
             if state == "foreign":
-                foreign = [n for n in rfs.listdir() if n not in _LAYOUT]
+                foreign = [n for n in rfs.listdir() if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]
                 raise StoreError(
                     f"{rfs.show()}: exists and is not empty (holds {foreign[0]!r}); "
                     "a new run needs a new or empty directory"
@@ -478,6 +488,27 @@ class RunStore:
         version = len(self._m["configs"]) + 1
         _check_toml(toml_text, f"configuration version {version}")
         return self._publish_config(toml_text, effective_generation, events)
+
+    # --- the run's lock and its queue of pending interventions (store/pending.py) ------------
+    def lock(self, role: str, *, wait: float = 10.0) -> RunLock:
+        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit)."""
+        return RunLock(self._fs, role, wait=wait)
+
+    def running(self) -> dict[str, Any] | None:
+        """Who runs the run now (role, pid, host, since), or None when no process holds its lock."""
+        return lock_holder(self._fs)
+
+    def enqueue(self, request: dict[str, Any]) -> Queued:
+        """Queue an intervention for the running run's next epoch (plain JSON data)."""
+        return enqueue(self._fs, request)
+
+    def queued(self) -> list[Queued]:
+        """The pending interventions, in the order the coordinator takes them."""
+        return queued(self._fs)
+
+    def dequeue(self, item: Queued) -> None:
+        """Remove a pending intervention that has been recorded (only the run's writer does this)."""
+        dequeue(self._fs, item)
 
     # --- reads -------------------------------------------------------------------------------
     def committed_generations(self) -> dict[int, int]:
@@ -1129,11 +1160,11 @@ def half_created(rfs: RunFS) -> str:
     names = rfs.listdir()
     if not names:
         return "empty"
-    if [n for n in names if n not in _LAYOUT]:
-        return "foreign"
     manifest, _ = _load_state(rfs)
     if manifest is not None:
         return "run"
+    if [n for n in names if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]:
+        return "foreign"
     data = [n for f in ("individuals", "events") for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
     return "damaged" if data else "half-created"
 
