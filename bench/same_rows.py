@@ -85,7 +85,8 @@ def rows_of(checkout: Path, config: Path, extra: dict) -> tuple[dict, list[dict]
         out = subprocess.run([sys.executable, "-c", _RUNNER, str(config), json.dumps(extra), tmp],
                              capture_output=True, text=True, env=env, cwd=checkout)
     if out.returncode != 0:
-        raise SystemExit(f"{checkout}: {out.stderr.strip().splitlines()[-1] if out.stderr.strip() else 'failed'}")
+        last = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else "failed"
+        raise SystemExit(f"{checkout}: {last}")
     lines = out.stdout.strip().splitlines()
     head = json.loads(lines[0])
     return head["applied"], [json.loads(line) for line in lines[1:]]
@@ -112,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
         extra[key.strip()] = tomllib.loads(f"v = {value}")["v"]
     applied_a, a = rows_of(args.before.resolve(), args.config.resolve(), extra)
     applied_b, b = rows_of(args.after.resolve(), args.config.resolve(), extra)
-    print(f"config {args.config}; environment additions: before {applied_a or 'none'}, after {applied_b or 'none'}")
+    print(f"config {args.config}; environment additions: before {applied_a or 'none'}, "
+          f"after {applied_b or 'none'}")
     key = ("island", "generation", "index")
     a = sorted(a, key=lambda r: tuple(r[k] for k in key))
     b = sorted(b, key=lambda r: tuple(r[k] for k in key))

@@ -224,8 +224,8 @@ def _universe_texts(per_universe: int) -> list[str]:
     texts = []
     for info in list_universes():
         universe = load_universe(info.name)
-        if phenotype_of(universe) is not SURFACES:   # a plugin's texts in a language of its own
-            continue
+        if phenotype_of(universe) is not SURFACES:
+            continue  # its texts are not HEMLS
         rng = stream(0, "test", "direct reader", info.name)
         for _ in range(per_universe):
             mapped = universe.map(random_genome(rng, 100, 255))
