@@ -43,6 +43,8 @@ from genr8_dist.store.schema import (
     individuals_from_table,
     individuals_schema,
     individuals_table,
+    reading_schema,
+    run_columns,
 )
 
 if TYPE_CHECKING:
@@ -50,6 +52,9 @@ if TYPE_CHECKING:
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
     import pyarrow.fs as pafs
+
+    from genr8_dist.config import RunConfig
+    from genr8_dist.fitness import FitnessSpec
 
 __all__ = [
     "COMPACT_EVERY",
@@ -143,6 +148,7 @@ class RunStore:
         self._m = manifest
         self.compact_every = compact_every
         self._config_cache: dict[int, str] = {}
+        self._parsed: dict[tuple[int, str], RunConfig] = {}
 
     # --- building ----------------------------------------------------------------------------
     @classmethod
@@ -152,13 +158,15 @@ class RunStore:
         config_toml: str,
         *,
         run_id: str | None = None,
+        criteria: Sequence[str] | None = None,
         filesystem: pafs.FileSystem | None = None,
         compact_every: int | None = COMPACT_EVERY,
     ) -> RunStore:
         """A new run at ``path_or_uri`` whose configuration version 1 is ``config_toml`` (generation 0).
 
         Refuses a directory that is already a run, or that holds anything else, and leaves it as it was.
-        ``run_id`` defaults to the directory's name.
+        ``run_id`` defaults to the directory's name; ``criteria`` (default: every registered surface
+        criterion) and the columns declared now are the run's for good (its manifest keeps them).
         """
         rfs = resolve(path_or_uri, filesystem)
         kind = rfs.kind()
@@ -197,6 +205,8 @@ class RunStore:
             )
         from genr8_dist.store.schema import criteria_names
 
+        names = list(criteria_names() if criteria is None else criteria)
+        columns = [list(c) for c in run_columns(names)]
         for folder in sorted(_LAYOUT):
             rfs.makedirs(folder)
         created = _now().isoformat()
@@ -204,7 +214,8 @@ class RunStore:
             "format": FORMAT,
             "schema_version": SCHEMA_VERSION,
             "run_id": run_id,
-            "criteria": list(criteria_names()),
+            "criteria": names,
+            "columns": columns,
             "created": created,
             "version": 0,
             "configs": [],
@@ -265,9 +276,23 @@ class RunStore:
         return tuple(self._m["criteria"])
 
     @property
+    def schema_version(self) -> int:
+        """The store schema version this run was created with (it keeps it for good)."""
+        return int(self._m["schema_version"])
+
+    @property
     def schema(self) -> pa.Schema:
-        """The individuals table's schema for this run."""
-        return individuals_schema(self.criteria)
+        """The individuals table's schema for this run: the columns its manifest records, or (a run of
+        schema version 1) the columns of that version."""
+        columns = self._m.get("columns")
+        if columns is None:
+            columns = run_columns(self.criteria, version=self.schema_version)
+        return individuals_schema(columns=columns, version=self.schema_version)
+
+    @property
+    def reading_schema(self) -> pa.Schema:
+        """What readers see: this run's schema, and every column declared since as nulls."""
+        return reading_schema(self.schema)
 
     @property
     def version(self) -> int:
@@ -284,7 +309,7 @@ class RunStore:
         Returns the commit number (the manifest version)."""
         if not individuals and not events:
             return self.version
-        table = individuals_table(individuals, self.run_id, self.criteria)
+        table = individuals_table(individuals, self.run_id, self.criteria, self.schema)
         return self.commit_table(table, events)
 
     def commit_table(self, table: pa.Table, events: Sequence[Event] = ()) -> int:
@@ -387,8 +412,9 @@ class RunStore:
     def individuals(
         self, columns: Sequence[str] | None = None, filter: pc.Expression | None = None
     ) -> pa.Table:
-        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``."""
-        schema = self.schema
+        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``;
+        columns declared since the run was written read as nulls."""
+        schema = self.reading_schema
         if columns is not None:
             for name in columns:
                 if name not in schema.names:
@@ -413,7 +439,7 @@ class RunStore:
         import pyarrow.dataset as ds
 
         try:
-            return ds.dataset(self.individual_files(), schema=self.schema, format="parquet",
+            return ds.dataset(self.individual_files(), schema=self.reading_schema, format="parquet",
                               filesystem=self._fs.fs)
         except OSError as exc:
             if self._refreshed():
@@ -430,6 +456,37 @@ class RunStore:
     def configs(self) -> list[ConfigVersion]:
         """Every configuration version, oldest first."""
         return [self._config(e) for e in self._m["configs"]]
+
+    def config(self, version: int | ConfigVersion) -> RunConfig:
+        """Configuration ``version`` (a number, or one of ``configs()``) as a ``RunConfig``, its fitness
+        over the criteria this run stores: the one place a stored configuration is parsed. A
+        configuration that no longer validates is a ``ConfigError`` naming the run and the version."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        key = (cv.version, cv.toml)
+        parsed = self._parsed.get(key)
+        if parsed is None:
+            from genr8_dist.config import RunConfig
+
+            source = f"{self.path} configuration v{cv.version}"
+            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria)
+            self._parsed[key] = parsed
+        return parsed
+
+    def fitness(self, version: int | ConfigVersion) -> FitnessSpec:
+        """The fitness specification of configuration ``version`` alone (what history queries need;
+        cheaper than ``config``: no environment or universe is built)."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        from genr8_dist.fitness import FitnessSpec
+
+        data = tomllib.loads(cv.toml)
+        return FitnessSpec.from_dict(data.get("fitness"), names=self.criteria,
+                                     source=f"{self.path} configuration v{cv.version}")
+
+    def _config_version(self, version: int) -> ConfigVersion:
+        for e in self._m["configs"]:
+            if int(e["version"]) == int(version):
+                return self._config(e)
+        raise StoreError(f"{self._fs.show()}: no configuration version {version}")
 
     def config_for(self, generation: int) -> ConfigVersion:
         """The configuration version in force at ``generation``."""
@@ -535,7 +592,11 @@ class RunStore:
                     continue
                 if version is None:
                     version = self._next_version()
-                table = pa.concat_tables([self._read_whole(e) for e in group])
+                tables = [self._read_whole(e) for e in group]
+                if key == "individuals":  # files written before a resume may order columns otherwise
+                    schema = self.schema
+                    tables = [t.select(schema.names).cast(schema) for t in tables]
+                table = pa.concat_tables(tables)
                 first, last = _first_commit(group[0]), group[-1]["commits"][1]
                 entry = self._write_parquet(f"{prefix}-{first:010d}-{last:010d}.parquet", table)
                 entry["commits"] = [first, last]
@@ -716,7 +777,7 @@ class RunStore:
         import pyarrow.dataset as ds
 
         try:
-            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.schema,
+            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
                                  format="parquet", filesystem=self._fs.fs)
             return dataset.to_table(columns=list(columns) if columns is not None else None, filter=filter)
         except (pa.ArrowException, OSError) as exc:
