@@ -55,6 +55,12 @@ def _edit(args: argparse.Namespace) -> int:
     result = apply_edit(args.run_dir, edit)
     what = [f"{k} = {v!r}" for k, v in result.changes.items()]
     what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
+    if result.queued:
+        print(f"{args.run_dir}: the run is running; the edit is queued ({result.queued}) and takes effect "
+              f"at its next epoch (generation {result.effective_generation} or later)")
+        for line in what:
+            print(f"  {line}")
+        return 0
     print(f"{args.run_dir}: configuration version {result.version} in force from generation "
           f"{result.effective_generation} (the run now ends at generation {result.last_generation})")
     for line in what:
@@ -84,10 +90,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_resume)
 
     p = subparsers.add_parser(
-        "edit", help="intervene in a stopped run: change its configuration, inject individuals",
+        "edit", help="intervene in a run: change its configuration, inject individuals",
         description="Record a new configuration version of the run in DIR, in force from the "
                     "generation after the last committed one, and individuals to inject there. "
-                    "Then `genr8 resume DIR`.")
+                    "Then `genr8 resume DIR`. On a run that is running, the edit is queued and the run "
+                    "takes it at its next epoch, without stopping.")
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change a configuration value (TOML syntax), e.g. fitness.size.weight=2, "

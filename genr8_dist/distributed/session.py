@@ -17,7 +17,7 @@ import os
 import socket
 import sys
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -27,7 +27,7 @@ from genr8_dist.distributed.interrupts import stop_on_signals
 from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import RunError, StoreError
 
-__all__ = ["RunOptions", "connect_ray", "drive", "latest_config", "resume_run", "start_run"]
+__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run"]
 
 CONNECT_TIMEOUT = 5.0
 
@@ -163,6 +163,22 @@ def _creation_config(store: Any) -> Any:
     return store.config(first)
 
 
+@contextmanager
+def hold_run_lock(store: Any) -> Iterator[None]:
+    """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
+    then queue their interventions for the coordinator instead of writing. Refuses a run that another
+    process is running."""
+    lock = store.lock("run")
+    if not lock.acquire():
+        holder = store.running() or {}
+        raise RunError(f"{store.path}: the run is running already (pid {holder.get('pid', '?')} on "
+                       f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+    try:
+        yield
+    finally:
+        lock.release()
+
+
 def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_generation: Callable[[Coordinator, int], None] | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
@@ -238,12 +254,13 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     out = out if out is not None else sys.stdout
     config = load_config(config_path)
     _check_new_run_dir(run_dir)
-    with connect_ray(options.address, options.num_cpus):
+    with connect_ray(options.address, options.num_cpus), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
             store = RunStore.create(run_dir, config.to_toml())
+            stack.enter_context(hold_run_lock(store))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
                 "address": options.address or "local"})
@@ -281,7 +298,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
               f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus):
+    with connect_ray(options.address, options.num_cpus), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

@@ -1,13 +1,15 @@
 """Growth: the derivation step (journal 4.3) applied to a map held as half-edge arrays.
 
 A derivation step is (1) increase size (``Environment.increase_size``), (2) apply the rewrite rules
-and (3) join branches. Rules are grouped by predecessor label and the groups are applied in the order
-of their first rule; every edge carrying the label when its group starts (including edges made
-earlier in the same step by other labels' rules or by joined branches) is rewritten by the first rule
-of the group whose context and condition match, one successor drawn by weight. The successor's
-template (genr8_dist.hemls.turtle) is placed on the edge's frame: heading along the edge, up along
-the surface normal (the mean normal of the regions on both sides). Branches join after each group
-(default) or once after all groups (``Sync``); unjoined branches are dropped at the end of the step.
+and (3) join branches; at its end every vertex, new ones included, is on the allowed side of every
+hard boundary (``Environment.constrain``). Rules are grouped by predecessor label and the groups are
+applied in the order of their first rule; every edge carrying the label when its group starts
+(including edges made earlier in the same step by other labels' rules or by joined branches) is
+rewritten by the first rule of the group whose context and condition match, one successor drawn by
+weight. The successor's template (genr8_dist.hemls.turtle) is placed on the edge's frame: heading
+along the edge, up along the surface normal (the mean normal of the regions on both sides). Branches
+join after each group (default) or once after all groups (``Sync``); unjoined branches are dropped
+at the end of the step.
 
 The map is a half-edge structure: edge e has half-edges 2e (start to end) and 2e+1 (end to start);
 ``nxt``/``prv`` link the half-edges around each face, faces lying to the left of their half-edges
@@ -465,6 +467,18 @@ class _Grower:
                 self._join(pending, max_dist)
         finally:
             m.compact()
+            self._constrain()
+
+    def _constrain(self) -> None:
+        """Hard boundaries hold at the end of the step: the vertices rewriting placed on the wrong
+        side (a new vertex on an edge that is a chord of a sphere) go to the wall's nearest allowed
+        point, and stop there at a cut-off wall (``Environment.constrain``)."""
+        if not self.env.boundaries:
+            return
+        m = self.m
+        fixed = self.env.constrain(m.pos[:m.nv], stopped=m.stopped[:m.nv])
+        m.pos[:m.nv] = fixed.positions
+        m.stopped[:m.nv] = fixed.stopped
 
     def _check_time(self) -> None:
         if time.perf_counter() > self.deadline:

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
+from genr8_dist.store.pending import Queued, RunLock, dequeue, enqueue, lock_holder, queued
 from genr8_dist.store.schema import (
     SCHEMA_VERSION,
     Event,
@@ -361,6 +362,27 @@ class RunStore:
         version = len(self._m["configs"]) + 1
         _check_toml(toml_text, f"configuration version {version}")
         return self._publish_config(toml_text, effective_generation, events)
+
+    # --- the run's lock and its queue of pending interventions (store/pending.py) ------------
+    def lock(self, role: str, *, wait: float = 10.0) -> RunLock:
+        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit)."""
+        return RunLock(self._fs, role, wait=wait)
+
+    def running(self) -> dict[str, Any] | None:
+        """Who runs the run now (role, pid, host, since), or None when no process holds its lock."""
+        return lock_holder(self._fs)
+
+    def enqueue(self, request: dict[str, Any]) -> Queued:
+        """Queue an intervention for the running run's next epoch (plain JSON data)."""
+        return enqueue(self._fs, request)
+
+    def queued(self) -> list[Queued]:
+        """The pending interventions, in the order the coordinator takes them."""
+        return queued(self._fs)
+
+    def dequeue(self, item: Queued) -> None:
+        """Remove a pending intervention that has been recorded (only the run's writer does this)."""
+        dequeue(self._fs, item)
 
     # --- reads -------------------------------------------------------------------------------
     def committed_generations(self) -> dict[int, int]:
