@@ -132,17 +132,25 @@ def _local_path(run_dir: str) -> Path | None:
 
 
 def _check_new_run_dir(run_dir: str) -> None:
-    """Refuse, before anything starts, a local run directory that holds a run or anything else."""
+    """Refuse, before anything starts, a local run directory that holds a run or anything else (a
+    creation that stopped before its first commit is finished by ``RunStore.create``)."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.runstore import half_created
+
     path = _local_path(run_dir)
     if path is None or not path.exists():
         return
     if not path.is_dir():
         raise StoreError(f"{run_dir}: exists and is not a directory; choose another --run-dir")
-    if (path / "_manifest").is_dir():
+    state = half_created(resolve(run_dir))
+    if state == "run":
         raise StoreError(
             f"{run_dir}: already holds a run; go on with `genr8 resume {run_dir}` or choose another --run-dir"
         )
-    if any(path.iterdir()):
+    if state == "damaged":
+        raise StoreError(f"{run_dir}: holds a damaged run (data but no intact manifest); choose another "
+                         "--run-dir")
+    if state == "foreign":
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
@@ -310,6 +318,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                 for problem in problems:
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
+                print(f"repaired: {store.last_repair}", file=out, flush=True)
+            else:
+                store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
