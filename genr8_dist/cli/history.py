@@ -25,6 +25,26 @@ def _generation(text: str) -> int:
         raise argparse.ArgumentTypeError(f"not a generation number: {text!r}") from None
 
 
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: must be 0 or more")
+    return value
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not 0 < value < 1e9:
+        raise argparse.ArgumentTypeError(f"{text}: must be a positive number of seconds")
+    return value
+
+
 def register(subparsers: Any) -> None:
     """Add the history commands to ``genr8``."""
     p = subparsers.add_parser(
@@ -83,7 +103,9 @@ def register(subparsers: Any) -> None:
     out = p.add_mutually_exclusive_group()
     out.add_argument("--csv", metavar="OUT.csv", help="write the result as CSV")
     out.add_argument("--parquet", metavar="OUT.parquet", help="write the result as Parquet")
-    p.add_argument("--max-rows", type=int, default=100, help="rows printed at most (default 100)")
+    p.add_argument("--max-rows", type=_count, default=100, help="rows printed at most (default 100)")
+    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="interrupt a statement running longer (default 60)")
     p.set_defaults(handler=_query)
 
     p = subparsers.add_parser(
@@ -234,8 +256,14 @@ def _query(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
 
-    table = history.query(args.run, args.sql)
+    timeout = args.timeout if args.timeout is not None else history.QUERY_TIMEOUT
     target = args.csv or args.parquet
+    if target:
+        inside = history.run_directory_holding(target)
+        if inside is not None:
+            raise history.HistoryError(f"{target}: is inside the run directory {inside}; query never "
+                                       "writes into a run: choose a path outside it")
+    table = history.query(args.run, args.sql, timeout=timeout)
     if target:
         history.write_table(table, target, format="csv" if args.csv else "parquet")
         _print(f"wrote {table.num_rows} rows to {target}")

@@ -106,13 +106,28 @@ def as_numpy(column: pa.ChunkedArray | pa.Array, fill: float = math.nan) -> np.n
     return column.to_numpy()
 
 
+def run_directory_holding(path: str | os.PathLike) -> Path | None:
+    """The run directory ``path`` lies in (itself or a folder above it holding ``_manifest/``), or None."""
+    here = Path(os.path.realpath(path))
+    for folder in (here, *here.parents):
+        if (folder / "_manifest").is_dir():
+            return folder
+    return None
+
+
 def atomic_write(path: str | os.PathLike, write: Any) -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``: a reader never sees half
-    a file, and a failure leaves ``path`` as it was. The folder must exist."""
+    a file, and a failure leaves ``path`` as it was. The folder must exist, and must not be inside a
+    run directory: the history commands only read runs (a file written there could replace one the
+    run is made of)."""
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise FileNotFoundError(2, "no such directory", str(folder))
+    inside = run_directory_holding(target)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
     tmp = folder / f".{target.name}.tmp-{os.getpid()}"
     try:
         write(str(tmp))

@@ -364,29 +364,59 @@ def _one_line(message: str) -> str:
     return head + (f" ({'; '.join(rest)})" if rest else "")
 
 
-def query(run: RunLike, sql: str) -> pa.Table:
-    """The result of ``sql`` (DuckDB's dialect) over the views ``individuals``, ``events`` and
-    ``configs`` of the run. A malformed statement is a ``HistoryError`` with DuckDB's one-line reason.
-    Needs the ``sql`` extra (``pip install 'genr8-dist[sql]'``)."""
+QUERY_TIMEOUT = 60.0
+"""Seconds a ``query`` statement may run before it is interrupted (``genr8 query --timeout``)."""
+
+_SANDBOX = {
+    "enable_external_access": False,      # no files, no network: read_csv, COPY, ATTACH, INSTALL...
+    "python_enable_replacements": False,  # no Python variables as tables, only the three registered
+    "autoinstall_known_extensions": False,
+    "autoload_known_extensions": False,
+    "temp_directory": "",                 # never spill to disk: query writes nothing anywhere
+    "lock_configuration": True,           # and no SET can undo any of it
+}
+
+
+def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table:
+    """The result of ``sql`` (DuckDB's dialect) over the tables ``individuals``, ``events`` and
+    ``configs`` of the run. Read-only and confined: the tables are the run's files as the store reads
+    them (each checked against the manifest's sha256), registered in an in-memory database that can
+    reach no file, network or extension and cannot be reconfigured; nothing is written anywhere. A
+    statement running over ``timeout`` seconds is interrupted. A malformed or refused statement is a
+    ``HistoryError`` with DuckDB's one-line reason. Needs the ``sql`` extra
+    (``pip install 'genr8-dist[sql]'``)."""
+    import threading
+
     try:
         import duckdb
     except ImportError:
         raise HistoryError("query needs DuckDB: pip install 'genr8-dist[sql]'") from None
     if not str(sql).strip():
         raise HistoryError("query: the SQL statement is empty")
+    if not (isinstance(timeout, (int, float)) and 0 < timeout < 1e9):
+        raise HistoryError(f"query: the timeout must be a positive number of seconds, got {timeout!r}")
     store = open_run(run)
-    data = dataset(store)
-    con = duckdb.connect(":memory:")
+    individuals = dataset(store)
+    tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    timer = threading.Timer(float(timeout), con.interrupt)
     try:
-        con.register("individuals", data)
-        con.register("events", store.events())
-        con.register("configs", configs(store))
+        for name, table in tables.items():
+            con.register(name, table)
+        timer.start()
         try:
             relation = con.sql(sql)
             if relation is None:
                 return pa.table({})
             return relation.to_arrow_table()
+        except duckdb.InterruptException:
+            raise HistoryError(f"query: stopped after {timeout:g} s, the statement timeout "
+                               "(--timeout SECONDS allows more)") from None
+        except duckdb.PermissionException as exc:
+            raise HistoryError(f"query: refused: {_one_line(str(exc))} (query reads only the run's "
+                               "tables individuals, events and configs)") from None
         except duckdb.Error as exc:
             raise HistoryError(f"query: {_one_line(str(exc))}") from None
     finally:
+        timer.cancel()
         con.close()
