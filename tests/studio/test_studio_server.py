@@ -174,7 +174,7 @@ def test_security_rule(studio, run_dir):
         with pytest.raises(urllib.error.HTTPError) as info:
             get(studio, path)
         assert info.value.code == 404, path
-    assert get(studio, "/static/vendor/three/build/three.module.min.js")[0] == 200
+    assert get(studio, "/static/vendor/three/three.module.min.js")[0] == 200
     assert is_loopback("127.0.0.1") and is_loopback("::1") and not is_loopback("0.0.0.0")
 
 

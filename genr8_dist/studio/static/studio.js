@@ -9,7 +9,8 @@ const $ = (id) => document.getElementById(id);
 const ISLAND_COLOURS = ["#f2a541", "#59c3c3", "#e0662f", "#9b8cf2", "#7bd389", "#ef6f6c", "#f7d774",
   "#4f9de0", "#d77fb8", "#a3c76c", "#c9925a", "#6fd0b0", "#b3a4ff", "#ff9e7a", "#8fb8de", "#e6c07b"];
 const islandColour = (i) => ISLAND_COLOURS[i % ISLAND_COLOURS.length];
-const fmt = (v, d = 4) => (v === null || v === undefined || !isFinite(v)) ? "–" : Number(v).toPrecision(d).replace(/\.?0+(e|$)/, "$1");
+const fmt = (v, d = 4) => (v === null || v === undefined || !isFinite(v)) ? "–" :
+  Math.abs(v) < 1e-9 ? "0" : Number(v).toPrecision(d).replace(/\.?0+(e|$)/, "$1");
 const fmtTime = (s) => {
   if (s === null || s === undefined || !isFinite(s)) return "–";
   s = Math.round(s);
@@ -274,8 +275,8 @@ function layout() {
     const d = ui.designs.get(id); if (!d || !d.object) return;
     const col = k % cols, row = Math.floor(k / cols);
     d.holder.position.set((col - (cols - 1) / 2) * cell, -(row - (Math.ceil(ui.order.length / cols) - 1) / 2) * cell, 0);
-    d.label.position.set(d.centre.x, d.centre.y - size * 0.62, 0.02);
-    d.label.scale.set(size * 0.62, size * 0.116, 1);
+    d.label.position.set(d.centre.x, d.centre.y - size * 0.66, 0.02);
+    d.label.scale.set(size * 0.9, size * 0.169, 1);
   });
   ui.cell = cell;
   const rows = Math.ceil(ui.order.length / cols);
