@@ -52,10 +52,11 @@ def write_synthetic_run(
         raise StoreError(
             f"write_synthetic_run: genome_length must be (lo, hi) with 1 <= lo <= hi, got {genome_length}"
         )
-    config = (
+    config = (   # a run configuration (readers such as the studio parse it) of the history's shape
         "# synthetic history written by genr8_dist.store.synthetic; its surfaces cannot be regrown\n"
-        f"[run]\nseed = {seed}\nislands = {n_islands}\ngenerations = {n_generations}\n"
-        f"population = {pop}\nmigration_interval = {generations_per_commit}\n"
+        f'universe = "default"\nseed = {seed}\n\n[ea]\npopulation = {pop}\n'
+        f"generations = {n_generations - 1}\n\n[islands]\ncount = {n_islands}\n"
+        f"migration_interval = {generations_per_commit}\nmigrants = {min(2, pop - 1)}\n"
     )
     store = RunStore.create(path, config, filesystem=filesystem)
     texts = _text_pool(seed)
