@@ -24,7 +24,7 @@ field with its default and meaning.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -313,12 +313,14 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "<config>",
-                  base_dir: str | Path | None = None) -> RunConfig:
+                  base_dir: str | Path | None = None, criteria: Sequence[str] | None = None) -> RunConfig:
         """Build and validate from a parsed TOML table. ``environment`` may be a table or a path
-        (resolved against ``base_dir``, default the current directory). Errors name ``source`` and the
+        (resolved against ``base_dir``, default the current directory); the fitness covers
+        ``criteria`` (a run's; default every registered criterion). Errors name ``source`` and the
         field."""
         try:
-            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd())
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd(),
+                                  criteria)
         except ConfigError as exc:
             message = str(exc)
             if message.startswith(source):
@@ -326,7 +328,21 @@ class RunConfig:
             raise ConfigError(f"{source}: {message}") from None
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path) -> RunConfig:
+    def from_toml(cls, text: str, *, source: str = "<config>",
+                  criteria: Sequence[str] | None = None) -> RunConfig:
+        """Build and validate from TOML text (a run's stored configuration: the environment inline);
+        malformed TOML is a ``ConfigError`` naming ``source``."""
+        import tomllib
+
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_dict(data, source=source, criteria=criteria)
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path,
+                   criteria: Sequence[str] | None = None) -> RunConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"the configuration must be a table, got {data!r}")
         for key in data:
@@ -336,8 +352,8 @@ class RunConfig:
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
-        if "fitness" in data:
-            kwargs["fitness"] = FitnessSpec.from_dict(data["fitness"])
+        if "fitness" in data or criteria is not None:
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)
