@@ -268,3 +268,23 @@ def test_no_individual_is_mated_with_itself_when_others_differ():
     for child in crossed:
         a, b = child.parents
         assert a != b and (texts[a] != texts[b] or texts[a] is None)
+
+
+def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(history):
+    """Generation g-1 made under version 1 competes in generation g under version 2 (other targets
+    and weights): judged again from its rows, not grown again, with the rows evaluation would give."""
+    from genr8_dist.evolution import evaluate as ev
+
+    config, hist = history
+    changed = config.replace(fitness={"size": {"weight": 7.0, "target": 3.0}})
+    ev._DEVELOPED.clear()
+    plain = Island(changed, 0, config_version=2)
+    regrown = plain.step(hist[2], 3)
+    ev._DEVELOPED.clear()
+    island = Island(changed, 0, config_version=2, config_of={1: config, 2: changed}.get)
+    rescored = island.step(hist[2], 3)
+    assert [i.untimed() for i in rescored] == [i.untimed() for i in regrown]
+    pool_texts = {p.text for p in hist[2] if p.text and p.stage != "map"}
+    assert island.evaluator.growths < plain.evaluator.growths
+    assert plain.evaluator.growths - island.evaluator.growths >= len(pool_texts) - len(
+        pool_texts & {i.text for i in rescored if i.origin != "elite"})
