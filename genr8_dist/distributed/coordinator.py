@@ -322,7 +322,7 @@ class Coordinator:
         populations = {i: self._population(i, generation) for i in range(self.n_islands)}
         islands = config.islands
         plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
-                              generation)
+                              generation, islands.emigrants)
         if self.n_islands > 1 and islands.migrants:
             self.progress.message(f"migration after generation {generation}: {islands.migrants} "
                                   f"migrant(s) per island, {islands.topology} topology")
