@@ -46,6 +46,7 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -61,9 +62,10 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
+from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
-__all__ = ["Birth", "Injected", "Island", "IslandStats"]
+__all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
 # What a user may inject: a genome, a rewrite system's text, or an existing individual (a copy).
 Injected = Sequence[int] | str | Individual
@@ -100,6 +102,14 @@ class Birth:
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
+
+
+def pareto_objectives(config: Any) -> tuple[str, ...]:
+    """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
+    with a weight above 0."""
+    if config.search.objectives:
+        return tuple(config.search.objectives)
+    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
 
 
 def is_trivial(evaluation: Evaluation) -> bool:
@@ -277,8 +287,14 @@ class Island:
             fitnesses.append(float(fitness))
 
         room = ea.population - len(births)
-        for i in select_elites(fitnesses, min(ea.elites, room)):
+        scores, elites, mates = self._selection(pool, fitnesses, room)
+        for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
+
+        def pick(rng) -> int:
+            if mates:
+                return mates[int(rng.integers(0, len(mates)))]
+            return tournament_select(rng, scores, ea.tournament)
 
         select_rng = self.rng(generation, "selection")
         cross_rng = self.rng(generation, "crossover")
@@ -287,12 +303,12 @@ class Island:
         unique = ea.unique_retries > 0
         texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
         while len(births) < ea.population:
-            a = tournament_select(select_rng, fitnesses, ea.tournament)
-            b = tournament_select(select_rng, fitnesses, ea.tournament)
+            a = pick(select_rng)
+            b = pick(select_rng)
             tries = 0
             while unique and tries < _MATE_RETRIES and (
                     b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
-                b = tournament_select(select_rng, fitnesses, ea.tournament)
+                b = pick(select_rng)
                 tries += 1
             self.stats.mates_redrawn += tries
             used_a, used_b = pool[a].codons_used, pool[b].codons_used
@@ -330,6 +346,39 @@ class Island:
                 births.append(Birth(tuple(int(c) for c in genome), origin,
                                     tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
         return births
+
+    def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
+                   ) -> tuple[list[float], list[int], list[int]]:
+        """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
+        of the elites to keep, and the positions parents are drawn from uniformly (empty: by
+        tournament).
+
+        ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
+        crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
+        first front, least crowded first, at least ``ea.elites`` and up to half the room. ``map-elites``:
+        the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
+        the population, and parents drawn uniformly from it."""
+        ea, search = self.config.ea, self.config.search
+        if search.mode == "pareto":
+            from genr8_dist.evolution.pareto import objectives_of, pareto_order
+
+            names = pareto_objectives(self.config)
+            ranks, position = pareto_order(objectives_of([p.criteria for p in pool], [p.valid for p in pool],
+                                                         self.config.fitness, names))
+            scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
+            front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
+                           key=lambda i: scores[i])
+            keep = min(room, max(min(ea.elites, room), min(len(front), room // 2)))
+            return scores, front[:keep], []
+        if search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(search)
+            cap = max(0, room - math.ceil(search.offspring * ea.population))
+            where = {id(p): i for i, p in enumerate(pool)}
+            elites = [where[id(ind)] for ind in grid.elites(pool, cap)]
+            return list(fitnesses), elites, list(elites)
+        return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
         """The distinct genomes of ``births`` that need an evaluation this island has not cached."""
