@@ -8,9 +8,10 @@ for a vertex of mass ``m`` at distance ``d`` the displacement's magnitude is
 
 - ``law = "inverse"`` (Genr8's default): ``f = c · d^-e / m``, singular at ``d = 0``; with the
   default ``e = 2`` it is the inverse-square law of the journal;
-- ``law = "bounded"`` (the thesis's variant without the singularity): ``f = c · d^-e / m`` for
-  ``d > 1`` and ``f = c · d / m`` for ``d <= 1``, so it rises linearly from 0 at the charge to
-  ``c / m`` at distance 1 and is continuous there.
+- ``law = "bounded"`` (thesis 2.7.1's function without the singularity): ``f = c · d^-e / m`` for
+  ``d > 1`` and ``f = c · d`` for ``d <= 1`` (the mass is not in the near part, as the thesis writes
+  it), so it rises linearly from 0 at the charge to ``c`` at distance 1; it is continuous there when
+  ``m = 1`` (the default vertex mass).
 
 An attractor moves the vertex towards itself, a repeller away from itself. Gravity is a uniform
 displacement vector, the same for every vertex whatever its mass or position.
@@ -53,7 +54,7 @@ class PointForce:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             far = self.constant * np.power(d, -self.exponent) / mass
             if self.law == "bounded":
-                return np.where(d > 1.0, far, self.constant * d / mass)
+                return np.where(d > 1.0, far, self.constant * d * np.ones_like(mass))
             return np.where(d > 0.0, far, 0.0)
 
     def to_dict(self) -> dict[str, Any]:

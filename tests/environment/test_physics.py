@@ -106,6 +106,13 @@ def test_bounded_law_has_no_singularity():
     np.testing.assert_allclose(bounded.magnitude(d[3:], m[3:]), inverse.magnitude(d[3:], m[3:]))
 
 
+def test_bounded_law_near_part_is_c_times_d_whatever_the_mass():
+    # thesis 2.7.1: f = c / (m d^e) for d > 1, c · d for d <= 1
+    bounded = PointForce(constant=3.0, exponent=2.0, law="bounded")
+    d = np.array([0.5, 1.0, 2.0])
+    np.testing.assert_allclose(bounded.magnitude(d, np.full(3, 2.0)), [1.5, 3.0, 3.0 / (2.0 * 4.0)])
+
+
 def test_fixed_perimeter_keeps_perimeter_vertices_in_place():
     p, e, per = grid()
     env = Environment(fixed_perimeter=True, gravity=(0.0, 0.0, -0.3),
