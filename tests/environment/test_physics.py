@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from genr8_dist.environment import Environment, PointForce
+from genr8_dist.errors import ConfigError
 from genr8_dist.rng import stream
 
 
@@ -206,3 +209,22 @@ def test_shape_mismatch_is_a_growth_error():
     with pytest.raises(GrowthError, match="masses"):
         Environment().increase_size(p, step=1, masses=np.ones(3), stopped=np.zeros(len(p), bool),
                                     perimeter=per, edges=e, rng=stream(0))
+
+
+def test_repelling_points_reach_every_vertex_with_radius_minus_one():
+    from genr8_dist.environment.forces import repelling_displacement
+
+    points = np.array([[0.0, 0, 0], [1.0, 0, 0], [10.0, 0, 0]])
+    masses = np.array([1.0, 1.0, 2.0])
+    every = repelling_displacement(points, masses, 0.5, math.inf, 1.0)
+    # thesis 2.7.2: each vertex pushes all the others, (L/d)^2 with L = 1
+    np.testing.assert_allclose(every[2], [0.5 * (1 / 100 + 1 / 81) / 2.0, 0, 0])
+    np.testing.assert_allclose(every[0], [-0.5 * (1 + 1 / 100), 0, 0])
+    near = repelling_displacement(points, masses, 0.5, 2.0, 1.0)
+    np.testing.assert_allclose(near[2], 0.0)
+    np.testing.assert_allclose(near[0], [-0.5 * (1 - 1 / 4), 0, 0])  # shifted to 0 at R = 2
+    env = Environment(repelling_points=0.5, repelling_radius=-1)
+    np.testing.assert_allclose(env.repelling(points, masses, 1.0), every)
+    for bad in (0, -2):
+        with pytest.raises(ConfigError, match=r"repelling_radius.*-1 \(every vertex, the thesis\) or > 0"):
+            Environment(repelling_radius=bad)
