@@ -304,7 +304,8 @@ class RunConfig:
 
         criteria = tuple(self.fitness.names)
         _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
-        _names(self.search.descriptors, "search.descriptors", criteria + DESCRIPTOR_COUNTS, 1, 3)
+        if self.search.mode == "map-elites":
+            _names(self.search.descriptors, "search.descriptors", criteria + DESCRIPTOR_COUNTS, 1, 3)
         if self.islands.migrants >= self.ea.population:
             raise _fail(
                 "islands.migrants",
