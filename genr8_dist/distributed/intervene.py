@@ -260,6 +260,9 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
             raise ConfigError(f"hand fitness {value!r} for {ident}: a fitness is a finite number >= 0 "
                               "(lower is better)")
         source = _individual(store, ident, "hand fitness")
+        if not source.valid:
+            raise ConfigError(f"hand fitness for {ident}: it failed at {source.stage} ({source.error}) "
+                              "and has no surface to judge; favour or score a valid design")
         hand.append({"id": source.id, "island": source.island % n, "fitness": float(value),
                      "computed": float(source.fitness)})
 
