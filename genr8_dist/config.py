@@ -133,7 +133,7 @@ class IslandSettings:
 
 
 _SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings}
-_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands")
+_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "stored_universe")
 
 
 def _section(cls: type, data: Any, name: str) -> Any:
@@ -155,25 +155,37 @@ def _default_environment() -> Any:
     return Environment()
 
 
-def _known_universes() -> list[str]:
-    from genr8_dist import grammar
-
-    return [info.name for info in grammar.list_universes()]
-
-
-def _check_universe(name: Any) -> str:
+def _resolve_universe(name: Any, base_dir: Path | None) -> tuple[str, Any]:
+    """The universe ``name`` (a name, or a path resolved against ``base_dir``) read into a source and
+    checked (no plugin code runs): ``(its name, its UniverseSource)``."""
     if not isinstance(name, str) or not name:
-        raise _fail("universe", f"must be a universe name, got {name!r}")
-    from genr8_dist.grammar import load_universe
+        raise _fail("universe", f"must be a universe name or path, got {name!r}")
+    from genr8_dist.grammar.discovery import find_source
 
     try:
-        load_universe(name)
+        source, _origin = find_source(name, base_dir)
+        _check_source(source)
+        if not source.code_digest:  # code-free: parse a sample of derivations now (no code runs)
+            from genr8_dist.grammar.universe import build_universe
+
+            build_universe(source, check=True)
     except Genr8Error as exc:
-        message = str(exc)
-        if "known" not in message:
-            message += f" (known: {', '.join(_known_universes())})"
-        raise _fail("universe", message) from None
-    return name
+        raise _fail("universe", str(exc)) from None
+    return source.name, source
+
+
+def _check_source(source: Any) -> None:
+    """Compile the grammar and check the hook names of ``source`` (cached per digest; runs no code)."""
+    from genr8_dist.grammar.compiler import compile_grammar
+
+    if source.digest in _CHECKED:
+        return
+    source.check_hook_names()
+    compile_grammar(source.grammar_text, source.where(source.grammar_file))
+    _CHECKED.add(source.digest)
+
+
+_CHECKED: set[str] = set()
 
 
 @dataclass(frozen=True, slots=True)
@@ -187,9 +199,26 @@ class RunConfig:
     fitness: FitnessSpec = field(default_factory=FitnessSpec)
     environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
     islands: IslandSettings = field(default_factory=IslandSettings)
+    universe_source: Any = None  # the universe's files (a grammar.UniverseSource; None: look it up)
 
     def __post_init__(self) -> None:
-        _set(self, "universe", _check_universe(self.universe))
+        source = self.universe_source
+        if source is None:
+            name, source = _resolve_universe(self.universe, None)
+            _set(self, "universe", name)
+            _set(self, "universe_source", source)
+        else:
+            from genr8_dist.grammar.source import UniverseSource
+
+            if not isinstance(source, UniverseSource):
+                raise _fail("stored_universe", f"must be a UniverseSource, got {type(source).__name__}")
+            if self.universe != source.name:
+                raise _fail("universe", f"names {self.universe!r} but the stored universe is "
+                                        f"{source.name!r}")
+            try:
+                _check_source(source)
+            except Genr8Error as exc:
+                raise _fail("stored_universe", str(exc)) from None
         _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
@@ -234,7 +263,18 @@ class RunConfig:
         for key in data:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
-        kwargs: dict[str, Any] = {k: data[k] for k in ("universe", "seed") if k in data}
+        kwargs: dict[str, Any] = {k: data[k] for k in ("seed",) if k in data}
+        if "stored_universe" in data:
+            from genr8_dist.grammar.source import UniverseSource
+
+            try:
+                stored = UniverseSource.from_dict(data["stored_universe"], f"{source} [stored_universe]")
+            except Genr8Error as exc:
+                raise _fail("stored_universe", str(exc)) from None
+            kwargs["universe"] = data.get("universe", stored.name)
+            kwargs["universe_source"] = stored
+        elif "universe" in data:
+            kwargs["universe"], kwargs["universe_source"] = _resolve_universe(data["universe"], base_dir)
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
@@ -255,13 +295,14 @@ class RunConfig:
             out[name] = {f.name: getattr(section, f.name) for f in fields(section)}
         out["fitness"] = self.fitness.to_dict()
         out["environment"] = _drop_none(self.environment.to_dict())
+        out["stored_universe"] = self.universe_source.to_dict()
         return out
 
     def to_toml(self) -> str:
         """The configuration as TOML text that ``load_config`` reads back to an equal configuration."""
         import tomli_w
 
-        return tomli_w.dumps(self.to_dict())
+        return tomli_w.dumps(self.to_dict(), multiline_strings=True)
 
     def replace(self, **changes: Any) -> RunConfig:
         """A validated copy with ``changes`` merged in: top-level values (``seed=3``), or per section a
@@ -271,6 +312,8 @@ class RunConfig:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
         kwargs: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        if "universe" in changes and changes["universe"] != self.universe:
+            kwargs["universe_source"] = None    # another universe: look it up and store it anew
         for key, value in changes.items():
             current = kwargs[key]
             if key in _SECTIONS and isinstance(value, Mapping):

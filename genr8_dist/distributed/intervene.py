@@ -38,6 +38,7 @@ class Edit:
     inject_from: Sequence[str] = ()            # "OTHER_RUN:ID"
     island: int | None = None                  # island the injections go to (default: see apply_edit)
     generations: int | None = None             # this many more generations after the last committed
+    trust_hooks: bool = False                  # run the universe's stored Python code (--inject-text)
 
 
 @dataclass(frozen=True)
@@ -119,6 +120,8 @@ def apply_edit(run_dir: str, edit: Edit) -> EditResult:
             raise ConfigError(f"--set {key}: cannot change during a run (it has {current.islands.count} "
                               "islands); start a new run instead")
         _assign(data, path, value)
+        if key == "universe":
+            data.pop("stored_universe", None)  # another universe: looked up now, then stored
         changes[key] = value
     if edit.generations is not None:
         if edit.generations < 1:
@@ -142,11 +145,16 @@ def apply_edit(run_dir: str, edit: Edit) -> EditResult:
         injected.append({"island": island, "genome": list(source.genome), "copy_of": source.id,
                          "source": f"copy of {source.id}"})
     if edit.inject_text:
-        from genr8_dist.grammar import load_universe
+        from genr8_dist.evolution.evaluate import universe_for
+        from genr8_dist.grammar.trust import consent_for_stored
 
-        universe = load_universe(config.universe)
+        consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks, command=f"edit {run_dir}")
+        universe = universe_for(config)
         for name in edit.inject_text:
-            text = Path(name).read_text(encoding="utf-8")
+            try:
+                text = Path(name).read_text(encoding="utf-8")
+            except UnicodeDecodeError as exc:
+                raise ConfigError(f"--inject-text {name}: not UTF-8 text ({exc.reason})") from None
             genome = universe.invert(text, max_depth=config.genome.max_depth)
             injected.append({"island": edit.island or 0, "genome": [int(c) for c in genome],
                              "copy_of": None, "source": f"text {name}"})

@@ -110,7 +110,8 @@ def _find(text: str, name: str) -> tuple[int, int]:
 
 def _find_definition(text: str, name: str) -> tuple[int, int]:
     """Line and column of the definition ``name: ...`` (rule or terminal) in ``text``."""
-    pattern = re.compile(r"^\s*[?!]?" + re.escape(name) + r"(?:\.-?\d+)?\s*(?:\{[^}]*\})?\s*:", re.MULTILINE)
+    pattern = re.compile(r"^[ \t]*[?!]?" + re.escape(name) + r"(?:\.-?\d+)?\s*(?:\{[^}]*\})?\s*:",
+                         re.MULTILINE)
     m = pattern.search(text)
     if not m:
         return 0, 0
@@ -120,9 +121,10 @@ def _find_definition(text: str, name: str) -> tuple[int, int]:
 
 
 _LARK_NAMES = {"_COLON": "':'", "_DOT": "'.'", "_OR": "'|'", "_LPAR": "'('", "_RPAR": "')'",
-               "_NL": "a line break", "RULE": "a rule name", "TOKEN": "a terminal name",
-               "STRING": "a string", "REGEXP": "a regular expression", "OP": "an operator",
-               "_LBRA": "'['", "_RBRA": "']'", "TERMINAL": "a terminal name"}
+               "_NL": "line break", "RULE": "rule name", "TOKEN": "terminal name",
+               "STRING": "string", "REGEXP": "regular expression", "OP": "operator",
+               "_LBRA": "'['", "_RBRA": "']'", "TERMINAL": "terminal name", "_LBRACE": "'{'",
+               "_RBRACE": "'}'", "_TO": "'->'", "NUMBER": "number"}
 
 
 def _lark_error(exc: Exception, ctx: _Ctx) -> UniverseError:

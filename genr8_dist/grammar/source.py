@@ -29,7 +29,7 @@ from genr8_dist.errors import UniverseError, located
 
 __all__ = ["KNOWN_HOOKS", "MAX_FILE_BYTES", "UniverseSource", "load_modules"]
 
-KNOWN_HOOKS: tuple[str, ...] = ("repair", "parse")   # the functions hooks.py may define
+KNOWN_HOOKS: tuple[str, ...] = ("repair",)   # the functions hooks.py may define
 MAX_FILE_BYTES = 1_000_000                             # one file of a universe, at most
 _FILE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\.(lark|py)$")
 
@@ -137,6 +137,11 @@ class UniverseSource:
     def code_digest(self) -> str:
         code = tuple(f for f in self.files if f[0].endswith(".py"))
         return _digest(code) if code else ""
+
+    @property
+    def folder(self) -> str:
+        """Where the files were read (a folder), or the run that stores them."""
+        return str(Path(self.origin).parent) if self.origin.endswith(".lark") else self.origin or self.name
 
     def where(self, file_name: str) -> str:
         """How errors name ``file_name`` of this universe: its path when the files were read from a

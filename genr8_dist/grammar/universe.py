@@ -87,6 +87,7 @@ def _rebuild(source: UniverseSource, origin: str, path: str) -> Universe:
 
 _BUILT: dict[tuple[str, str, str], Universe] = {}
 _BUILT_LOCK = threading.Lock()
+_SAMPLED: set[str] = set()   # digests whose derivations were parsed (check_sample passed)
 SAMPLE_GENOMES = 48     # derivations parsed when a universe is loaded
 SAMPLE_LENGTH = 200     # codons each
 
@@ -101,18 +102,19 @@ def build_universe(source: UniverseSource, *, origin: str | None = None, path: P
     """
     origin = origin if origin is not None else source.origin or "stored"
     key = (source.digest, source.name, origin)
-    with _BUILT_LOCK:
-        found = _BUILT.get(key)
-    if found is not None:
-        return found
     source.check_hook_names()
-    path = path if path is not None else Path(source.where(source.grammar_file))
-    modules = load_modules(source)
-    universe = Universe(source.name, origin, path, source.grammar_text, modules.get("hooks"), source=source)
-    if check:
-        universe.check_sample()
+    modules = load_modules(source)   # refuses code this process has not consented to, cached or not
     with _BUILT_LOCK:
-        _BUILT[key] = universe
+        universe = _BUILT.get(key)
+    if universe is None:
+        path = path if path is not None else Path(source.where(source.grammar_file))
+        universe = Universe(source.name, origin, path, source.grammar_text, modules.get("hooks"),
+                            source=source)
+        with _BUILT_LOCK:
+            universe = _BUILT.setdefault(key, universe)
+    if check and source.digest not in _SAMPLED:
+        universe.check_sample()
+        _SAMPLED.add(source.digest)
     return universe
 
 

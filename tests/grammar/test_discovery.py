@@ -12,7 +12,8 @@ import pytest
 from genr8_dist.errors import UniverseError
 from genr8_dist.grammar import ENTRY_POINT_GROUP, list_universes, load_universe
 
-MINI = '//@ description a tiny test universe\nstart: EDGE "+" EDGE "+" EDGE\nEDGE: /Edge[0-9]+/\n%ignore " "\n'
+MINI = ('//@ description a tiny test universe\nstart: EDGE "+" EDGE "+" EDGE\nEDGE: /Edge[0-9]+/\n'
+        '%ignore " "\n')
 
 
 def plugin(root: Path, name: str, text: str = MINI) -> Path:
