@@ -38,6 +38,8 @@ __all__ = [
     "export_scaffold",
     "mesh_of",
     "render_png",
+    "save_png",
+    "write_mesh",
 ]
 
 MESH_FORMATS = ("obj", "ply", "stl", "glb")
@@ -103,9 +105,14 @@ def mesh_of(surface: SurfaceLike) -> Any:
 
 def export_mesh(surface: SurfaceLike, path: str | Path) -> Path:
     """Write the triangulated regions to ``path`` (OBJ, PLY, STL or GLB by suffix); returns the path."""
+    return write_mesh(mesh_of(surface), path)
+
+
+def write_mesh(mesh: Any, path: str | Path) -> Path:
+    """Write a ``trimesh.Trimesh`` to ``path`` atomically (OBJ, PLY, STL or GLB by suffix, the same
+    bytes for the same mesh); returns the path. Phenotype plugins export through this too."""
     path = Path(path)
     kind = _suffix(path, MESH_FORMATS, "mesh")
-    mesh = mesh_of(surface)
     if kind == "obj":
         data = mesh.export(file_type="obj", include_normals=False, include_texture=False, digits=17,
                            header="genr8_dist")
@@ -178,6 +185,21 @@ def _pyplot() -> Any:
     import matplotlib.pyplot as plt
 
     return plt
+
+
+def save_png(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
+    """Save a matplotlib figure as the PNG ``path`` atomically and close it; returns the path."""
+    path = Path(path)
+    plt = _pyplot()
+    try:
+        if path.suffix.lower() != ".png":
+            raise ConfigError(f"{path}: a preview is a .png file")
+        with _atomic(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=dpi, bbox_inches="tight", pad_inches=0.15,
+                        facecolor="white")
+    finally:
+        plt.close(fig)
+    return path
 
 
 def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any) -> np.ndarray:

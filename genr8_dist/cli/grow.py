@@ -128,6 +128,8 @@ def _handle(args: argparse.Namespace) -> int:
     _check_outputs(args)
     env = _environment(args)
     system = load_system(args.system)
+    for warning in system.warnings():
+        print(f"genr8: warning: {system.name or args.system}: {warning}", file=sys.stderr)
     name = "rewrite system from stdin" if args.system == "-" else (
         getattr(system, "name", "") or Path(args.system).stem).replace("_", " ")
     writes = args.each_step and any((args.output, args.scaffold, args.png))

@@ -1,4 +1,4 @@
-"""``genr8 run``, ``genr8 resume`` and ``genr8 edit``: start a foray, go on with it, intervene in it.
+"""``genr8 run``, ``resume``, ``repair`` and ``edit``: start a foray, go on with it, mend it, intervene.
 
 Interruption, intervention and resumption (thesis 4.2): Ctrl-C (or SIGTERM, what ``ray job stop``
 sends) stops a run after committing every complete generation and prints how to resume; ``genr8 edit``
@@ -55,6 +55,23 @@ def _resume(args: argparse.Namespace) -> int:
     return 0
 
 
+def _repair(args: argparse.Namespace) -> int:
+    from genr8_dist.store import RunStore
+
+    store = RunStore.open(args.run_dir)
+    problems = store.verify()
+    if not problems:
+        print(f"{args.run_dir}: intact (commit {store.version}); nothing to repair")
+        return 0
+    for problem in problems:
+        print(f"damaged: {problem}")
+    store.repair()
+    print(f"repaired: {store.last_repair}")
+    print(f"{args.run_dir}: now at commit {store.version}; islands committed up to "
+          + ", ".join(f"{i}: {g}" for i, g in store.committed_generations().items()))
+    return 0
+
+
 def _edit(args: argparse.Namespace) -> int:
     from genr8_dist.distributed.intervene import Edit, apply_edit
 
@@ -64,6 +81,12 @@ def _edit(args: argparse.Namespace) -> int:
     result = apply_edit(args.run_dir, edit)
     what = [f"{k} = {v!r}" for k, v in result.changes.items()]
     what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
+    if result.queued:
+        print(f"{args.run_dir}: the run is running; the edit is queued ({result.queued}) and takes effect "
+              f"at its next epoch (generation {result.effective_generation} or later)")
+        for line in what:
+            print(f"  {line}")
+        return 0
     print(f"{args.run_dir}: configuration version {result.version} in force from generation "
           f"{result.effective_generation} (the run now ends at generation {result.last_generation})")
     for line in what:
@@ -73,7 +96,7 @@ def _edit(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``run``, ``resume`` and ``edit``."""
+    """Add ``run``, ``resume``, ``repair`` and ``edit``."""
     p = subparsers.add_parser(
         "run", help="start an evolution run (islands on Ray) in a new run directory",
         description="Start an evolution run of the configuration CONFIG in the new directory DIR, on a "
@@ -93,10 +116,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(handler=_resume)
 
     p = subparsers.add_parser(
-        "edit", help="intervene in a stopped run: change its configuration, inject individuals",
+        "repair", help="check every file of a run and mend what is damaged, keeping every intact commit",
+        description="Check every committed file of the run in DIR against its manifest. A damaged "
+                    "configuration is restored from the manifest's copy; a damaged data file is replaced "
+                    "by the files it was compacted from, or dropped alone (later commits stay). What is "
+                    "dropped is printed in one line and recorded as a recovery event.")
+    p.add_argument("run_dir", metavar="DIR", help="the run directory")
+    p.set_defaults(handler=_repair)
+
+    p = subparsers.add_parser(
+        "edit", help="intervene in a run: change its configuration, inject individuals",
         description="Record a new configuration version of the run in DIR, in force from the "
                     "generation after the last committed one, and individuals to inject there. "
-                    "Then `genr8 resume DIR`.")
+                    "Then `genr8 resume DIR`. On a run that is running, the edit is queued and the run "
+                    "takes it at its next epoch, without stopping.")
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change a configuration value (TOML syntax), e.g. fitness.size.weight=2, "

@@ -116,14 +116,26 @@ def _map(args: argparse.Namespace) -> int:
     else:
         genome = parse_genome(args.genome)
     result = universe.map(genome, max_depth=args.max_depth, max_wraps=args.max_wraps)
+    warnings: list[str] = []
+    if result.valid:
+        from genr8_dist.errors import ParseError
+        from genr8_dist.hemls import parse
+
+        try:
+            warnings = parse(result.text, source="mapped").warnings()
+        except ParseError as exc:  # a universe whose texts the HEMLS parser does not take
+            warnings = [f"the rewrite system does not parse: {exc}"]
     if args.json:
         print(json.dumps({"universe": universe.name, "genome": genome, "text": result.text,
                           "valid": result.valid, "reason": result.reason,
-                          "codons_used": result.codons_used, "wraps": result.wraps}))
+                          "codons_used": result.codons_used, "wraps": result.wraps,
+                          "warnings": warnings}))
         return 0 if result.valid else 1
     if not result.valid:
         print(f"genr8: invalid genome: {result.reason}", file=sys.stderr)
         return 1
+    for warning in warnings:
+        print(f"genr8: warning: {warning}", file=sys.stderr)
     sys.stdout.write(result.text)
     return 0
 

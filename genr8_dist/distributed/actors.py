@@ -90,18 +90,21 @@ class IslandHost:
         injected: Sequence[Any] = (),
         helpers: Sequence[Any] = (),
         ticket: int | None = None,
+        hand: Sequence[tuple[Individual, float]] = (),
     ) -> list[Individual]:
         """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
 
         ``config`` is the configuration version ``config_version``; the coordinator sends it once per
         host and version, and ``None`` afterwards (the host keeps it). ``helpers`` (Ray handles of idle
-        hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``."""
+        hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``. ``hand``:
+        individuals with the fitness a designer gave them, parents of this generation (``Island.breed``)."""
         model = self._island(island, config, config_version)
         if generation == 0:
             births = model.breed(0)
         else:
             previous = self._previous(island, generation - 1)
-            births = model.breed(generation, previous, migrants=tuple(migrants), injected=tuple(injected))
+            births = model.breed(generation, previous, migrants=tuple(migrants), injected=tuple(injected),
+                                 hand=tuple(hand))
         evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)

@@ -22,6 +22,10 @@ generation submitted, or offered to one under way (the island with the most gene
 evaluates a share of that generation's genomes (``actors.IslandHost``), which changes where the work
 is done, never what it computes.
 
+Interventions queued while the run runs (``genr8 edit`` on a running run, the studio) are taken
+before each epoch and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
+``pause`` holds the run between epochs, with Ray up, until a ``continue``.
+
 Hooks (``on_generation``, ``on_commit``) let a caller watch the run (tests use them to inject faults).
 """
 
@@ -163,11 +167,13 @@ class Coordinator:
         self.progress = progress or ProgressDisplay(total_generations=self.last, quiet=True)
         history = self._events()
         self._injections = self._load_injections(history)
+        self.paused = False
         self._migrated = {e.generation for e in history if e.kind == "migration"}
         self._completed = any(e.kind == "complete" and e.generation == self.last for e in history)
         self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
+        self._hand = self._load_hand(history)
 
     # -- reading the store ----------------------------------------------------------------------
 
@@ -217,6 +223,49 @@ class Coordinator:
                     out.setdefault(key, []).append(genome)
         return out
 
+    def _load_hand(self, history: Sequence[StoredEvent]) -> dict[tuple[int, int], list[Any]]:
+        """(generation, island) -> (individual, fitness) pairs a designer scored by hand, from the
+        intervention events (``intervene`` module docstring)."""
+        out: dict[tuple[int, int], list[Any]] = {}
+        for event in history:
+            if event.kind != "intervention":
+                continue
+            for item in event.detail.get("hand_fitness", ()):
+                island, generation, index = (int(p) for p in str(item["id"]).split("-"))
+                marked = self._population(island, generation)[index]
+                out.setdefault((int(event.generation), int(item["island"])), []).append(
+                    (marked, float(item["fitness"])))
+        return out
+
+    def _take_interventions(self) -> None:
+        """Record the interventions queued while the run runs (``intervene.take_queued``) and take
+        them into account from the next generation: new configuration versions, injections, hand
+        fitness, a longer run; ``pause`` and ``continue`` set ``paused``."""
+        from genr8_dist.distributed.intervene import take_queued
+
+        taken = self._timed_store(take_queued, self.store)
+        if not taken:
+            return
+        for kind, outcome in taken:
+            if kind == "edit":
+                self.progress.message(f"intervention: configuration version {outcome.version} in force from "
+                                      f"generation {outcome.effective_generation}")
+            elif kind == "refused":
+                self.progress.message(f"intervention refused: {outcome}")
+            else:
+                self.paused = kind == "pause"
+                self.progress.message(f"{'paused' if self.paused else 'continuing'} before generation "
+                                      f"{outcome}")
+        if any(kind == "edit" for kind, _ in taken):
+            self._versions = self._load_versions()
+            latest = self._versions[-1][2]
+            self.interval = int(latest.islands.migration_interval)
+            self.last = self.summary.last_generation = last_generation(latest)
+            self.progress.total_generations = self.last
+            history = self._events()
+            self._injections = self._load_injections(history)
+            self._hand = self._load_hand(history)
+
     def _population(self, island: int, generation: int) -> list[Individual]:
         held = self._populations.get(generation, {}).get(island)
         if held is not None:
@@ -238,7 +287,13 @@ class Coordinator:
         time in the store, and ``coordinator_seconds`` the rest."""
         committed = self.committed()
         try:
-            while not self.stop and min(committed.values()) < self.last:
+            while not self.stop:
+                self._take_interventions()
+                while self.paused and not self.stop:
+                    time.sleep(self.poll_seconds)
+                    self._take_interventions()
+                if self.stop or min(committed.values()) >= self.last:
+                    break
                 end = epoch_end(min(committed.values()), self.interval, self.last)
                 committed = self._epoch(committed, end)
         finally:
@@ -311,13 +366,14 @@ class Coordinator:
                     migrants_after[g - 1] = self._migrants(g - 1, config)
                 migrants = migrants_after[g - 1][island]
             injected = self._injections.get((g, island), ())
+            hand = self._hand.get((g, island), ())
             host = self.hosts.host_of(island)
             send = (id(host), version) not in self._sent
             self._sent.add((id(host), version))
             helpers = free()
             ticket = next(_TICKETS)
             ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                      [self.hosts.handle(n) for n in helpers], ticket)
+                                      [self.hosts.handle(n) for n in helpers], ticket, hand)
             pending[ref] = (island, g)
             tickets[ref] = ticket
             lent.update(dict.fromkeys(helpers, ref))

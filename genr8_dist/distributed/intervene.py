@@ -7,6 +7,18 @@ injected genomes to their island at that generation (provenance ``injected``). E
 before anything is written: a wrong key, a text the universe cannot invert or an unknown individual is
 a one-line error and the run directory is left as it was.
 
+A run that is running (its driver holds the run's lock, ``store/pending.py``) is not written to: the
+edit is checked, then queued in the run directory, and the coordinator records it exactly so (a
+configuration version and its ``intervention`` event, in force from the generation after the epoch it
+is taken at) before its next epoch, without stopping Ray (``take_queued``).
+
+Besides configuration changes and injections, an edit may *favour* individuals (copies join the next
+generation on their own island, as ``--inject-copy``) and *hand-set a fitness* (the thesis' interactive
+option): the ``hand_fitness`` entries of the event put the marked individuals into their island's
+parent pool for the generation the edit takes effect at, with the designer's fitness in place of the
+computed one, for the choice of elites and tournament parents there. Stored rows keep the computed
+fitness; the event keeps both.
+
 Keys (``--set KEY=VALUE``, VALUE in TOML syntax, bare words taken as strings) are the configuration's
 own: ``fitness.size.weight=2``, ``ea.mutation_rate=0.05``, ``environment.scale=[1.5, 1.5, 1.2]``,
 ``islands.topology=random``. ``fitness.weights.NAME`` and ``fitness.targets.NAME`` are accepted for
@@ -15,6 +27,7 @@ own: ``fitness.size.weight=2``, ``ea.mutation_rate=0.05``, ``environment.scale=[
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -23,7 +36,7 @@ from typing import Any
 
 from genr8_dist.errors import ConfigError, StoreError
 
-__all__ = ["Edit", "EditResult", "apply_edit", "parse_assignment"]
+__all__ = ["Edit", "EditResult", "apply_edit", "parse_assignment", "record_edit", "take_queued"]
 
 FROZEN_KEYS: tuple[str, ...] = ("islands.count",)
 
@@ -39,17 +52,56 @@ class Edit:
     island: int | None = None                  # island the injections go to (default: see apply_edit)
     generations: int | None = None             # this many more generations after the last committed
     trust_hooks: bool = False                  # run the universe's stored Python code (--inject-text)
+    inject_systems: Sequence[tuple[str, str]] = ()   # (label, rewrite-system text) written by hand
+    favour: Sequence[str] = ()                 # ids whose copies join the next generation (studio)
+    hand_fitness: Sequence[tuple[str, float]] = ()   # (id, fitness the designer gives it)
+
+    def request(self) -> dict[str, Any]:
+        """This edit as queue data: plain JSON, the files of ``inject_text`` read now."""
+        systems = [list(pair) for pair in self.inject_systems]
+        for name in self.inject_text:
+            systems.append([f"text {name}", _read_text(name)])
+        return {"kind": "edit", "edit": {
+            "assignments": list(self.assignments), "inject_copy": list(self.inject_copy),
+            "inject_from": list(self.inject_from), "island": self.island, "generations": self.generations,
+            "inject_systems": systems, "favour": list(self.favour),
+            "hand_fitness": [[str(i), float(f)] for i, f in self.hand_fitness]}}
+
+    @classmethod
+    def from_request(cls, data: Mapping[str, Any]) -> Edit:
+        """The edit a queued request holds (``request()``'s inverse); ``ConfigError`` if malformed."""
+        try:
+            return cls(assignments=tuple(str(a) for a in data.get("assignments") or ()),
+                       inject_copy=tuple(str(a) for a in data.get("inject_copy") or ()),
+                       inject_from=tuple(str(a) for a in data.get("inject_from") or ()),
+                       island=None if data.get("island") is None else int(data["island"]),
+                       generations=None if data.get("generations") is None else int(data["generations"]),
+                       inject_systems=tuple((str(a), str(b)) for a, b in data.get("inject_systems") or ()),
+                       favour=tuple(str(a) for a in data.get("favour") or ()),
+                       hand_fitness=tuple((str(a), float(b)) for a, b in data.get("hand_fitness") or ()))
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(f"a queued intervention is malformed: {exc}") from None
 
 
 @dataclass(frozen=True)
 class EditResult:
-    """The new configuration version and what the edit did."""
+    """The new configuration version and what the edit did; ``queued`` names the queue entry when
+    the run was running (then ``version`` and ``effective_generation`` are what it would be now)."""
 
     version: int
     effective_generation: int
     changes: dict[str, Any] = field(default_factory=dict)
     injected: list[dict[str, Any]] = field(default_factory=list)
     last_generation: int = 0
+    hand_fitness: list[dict[str, Any]] = field(default_factory=list)
+    queued: str | None = None
+
+
+def _read_text(name: str) -> str:
+    try:
+        return Path(name).read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"--inject-text {name}: not a UTF-8 text file") from None
 
 
 def _value(text: str) -> Any:
@@ -99,16 +151,47 @@ def _individual(store: Any, ident: str, what: str) -> Any:
     return population[index]
 
 
-def apply_edit(run_dir: str, edit: Edit) -> EditResult:
-    """Check ``edit`` against the run in ``run_dir`` and record it; see the module docstring."""
-    from genr8_dist.config import RunConfig
-    from genr8_dist.distributed.session import latest_config
-    from genr8_dist.store import Event, RunStore
+def apply_edit(run_dir: str, edit: Edit, *, source: str = "edit") -> EditResult:
+    """Check ``edit`` against the run in ``run_dir`` and record it; see the module docstring. When the
+    run is running (a driver holds its lock) the edit is checked now and queued for its next epoch."""
+    from genr8_dist.store import RunStore
 
     store = RunStore.open(run_dir)
+    lock = store.lock("edit")
+    if not lock.acquire():
+        request = dict(edit.request(), source=source)
+        _, _, result = _prepare(store, Edit.from_request(request["edit"]))
+        item = store.enqueue(request)
+        return EditResult(result.version, result.effective_generation, result.changes, result.injected,
+                          result.last_generation, result.hand_fitness, queued=item.name)
+    with lock:
+        store.refresh()
+        return record_edit(store, edit, source=source)
+
+
+def record_edit(store: Any, edit: Edit, *, source: str = "edit", request_id: str | None = None) -> EditResult:
+    """Record ``edit`` in ``store`` (held by its one writer): a configuration version in force from the
+    generation after the last committed one, with its ``intervention`` event."""
+    from genr8_dist.store import Event
+
+    config, detail, result = _prepare(store, edit)
+    detail["source"] = source
+    if request_id is not None:
+        detail["queued"] = request_id
+    event = Event("intervention", result.effective_generation, None, detail)
+    store.add_config(config.to_toml(), result.effective_generation, events=[event])
+    return result
+
+
+def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
+    """Everything ``edit`` would record, checked: the new configuration, the event detail, the result."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.distributed.session import latest_config
+    from genr8_dist.store import RunStore
+
     committed = store.committed_generations()
     if not committed:
-        raise StoreError(f"{run_dir}: no generation is committed yet; there is nothing to edit")
+        raise StoreError(f"{store.path}: no generation is committed yet; there is nothing to edit")
     effective = max(committed.values()) + 1
     current = latest_config(store)
     data = current.to_dict()
@@ -144,20 +227,22 @@ def apply_edit(run_dir: str, edit: Edit) -> EditResult:
         island = edit.island if edit.island is not None else source.island % n
         injected.append({"island": island, "genome": list(source.genome), "copy_of": source.id,
                          "source": f"copy of {source.id}"})
-    if edit.inject_text:
+    for ident in edit.favour:
+        source = _individual(store, ident, "favour")
+        injected.append({"island": source.island % n, "genome": list(source.genome), "copy_of": source.id,
+                         "source": f"favoured {source.id}", "favoured": True})
+    systems = [*edit.inject_systems, *((f"text {name}", _read_text(name)) for name in edit.inject_text)]
+    if systems:
         from genr8_dist.evolution.evaluate import universe_for
         from genr8_dist.grammar.trust import consent_for_stored
 
-        consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks, command=f"edit {run_dir}")
+        consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks,
+                           command=f"edit {store.path}")
         universe = universe_for(config)
-        for name in edit.inject_text:
-            try:
-                text = Path(name).read_text(encoding="utf-8")
-            except UnicodeDecodeError as exc:
-                raise ConfigError(f"--inject-text {name}: not UTF-8 text ({exc.reason})") from None
+        for label, text in systems:
             genome = universe.invert(text, max_depth=config.genome.max_depth)
             injected.append({"island": edit.island or 0, "genome": [int(c) for c in genome],
-                             "copy_of": None, "source": f"text {name}"})
+                             "copy_of": None, "source": label})
     for ref in edit.inject_from:
         other_dir, sep, ident = ref.rpartition(":")
         if not sep or not other_dir:
@@ -174,13 +259,68 @@ def apply_edit(run_dir: str, edit: Edit) -> EditResult:
         if count > room:
             raise ConfigError(f"{count} individuals injected into island {island} do not fit: a generation "
                               f"of {config.ea.population} holds at most {room} besides its migrants")
+    hand: list[dict[str, Any]] = []
+    for ident, value in edit.hand_fitness:
+        if not math.isfinite(value) or value < 0:
+            raise ConfigError(f"hand fitness {value!r} for {ident}: a fitness is a finite number >= 0 "
+                              "(lower is better)")
+        source = _individual(store, ident, "hand fitness")
+        hand.append({"id": source.id, "island": source.island % n, "fitness": float(value),
+                     "computed": float(source.fitness)})
 
     version = len(store.configs()) + 1
-    detail = {"config_version": version, "changes": _jsonable(changes), "injected": injected}
-    event = Event("intervention", effective, None, detail)
-    store.add_config(config.to_toml(), effective, events=[event])
-    return EditResult(version=version, effective_generation=effective, changes=changes, injected=injected,
-                      last_generation=config.ea.generations)
+    detail: dict[str, Any] = {"config_version": version, "changes": _jsonable(changes), "injected": injected}
+    if hand:
+        detail["hand_fitness"] = hand
+    result = EditResult(version=version, effective_generation=effective, changes=changes, injected=injected,
+                        last_generation=config.ea.generations, hand_fitness=hand)
+    return config, detail, result
+
+
+def take_queued(store: Any) -> list[tuple[str, Any]]:
+    """Record the running run's pending interventions in queue order (the coordinator calls this
+    between epochs, as the run's one writer). Returns ``(kind, outcome)`` per request taken: ``edit``
+    with its ``EditResult``, ``pause``/``continue``, or ``refused`` with the one-line reason (also
+    recorded as a ``refused`` event). A request already recorded (its ``id`` in an event) is dropped."""
+    from genr8_dist.errors import Genr8Error
+    from genr8_dist.store import Event
+
+    items = store.queued()
+    if not items:
+        return []
+    import json
+
+    done = set()
+    for detail in store.events().column("detail").to_pylist():
+        queued_id = json.loads(detail or "{}").get("queued")
+        if queued_id:
+            done.add(queued_id)
+    out: list[tuple[str, Any]] = []
+    for item in items:
+        request = item.request
+        if request["id"] in done:
+            store.dequeue(item)
+            continue
+        kind = request.get("kind")
+        generation = max(store.committed_generations().values(), default=-1) + 1
+        source = str(request.get("source") or "queue")
+        try:
+            if kind == "edit":
+                edit = Edit.from_request(request.get("edit") or {})
+                out.append(("edit", record_edit(store, edit, source=source, request_id=request["id"])))
+            elif kind in ("pause", "continue"):
+                store.record_event(kind, generation=generation, detail={"queued": request["id"],
+                                                                        "source": source})
+                out.append((kind, generation))
+            else:
+                raise ConfigError(f"unknown intervention kind {kind!r}")
+        except Genr8Error as exc:
+            reason = str(exc).splitlines()[0]
+            store.commit([], [Event("refused", generation, None, {"queued": request["id"], "reason": reason,
+                                                                  "request": request})])
+            out.append(("refused", reason))
+        store.dequeue(item)
+    return out
 
 
 def _jsonable(value: Any) -> Any:

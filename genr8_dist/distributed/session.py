@@ -17,7 +17,7 @@ import os
 import socket
 import sys
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -27,7 +27,7 @@ from genr8_dist.distributed.interrupts import stop_on_signals
 from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import Genr8Error, RunError, StoreError
 
-__all__ = ["RunOptions", "connect_ray", "drive", "latest_config", "resume_run", "start_run",
+__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
 
 CONNECT_TIMEOUT = 5.0
@@ -134,17 +134,25 @@ def _local_path(run_dir: str) -> Path | None:
 
 
 def _check_new_run_dir(run_dir: str) -> None:
-    """Refuse, before anything starts, a local run directory that holds a run or anything else."""
+    """Refuse, before anything starts, a local run directory that holds a run or anything else (a
+    creation that stopped before its first commit is finished by ``RunStore.create``)."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.runstore import half_created
+
     path = _local_path(run_dir)
     if path is None or not path.exists():
         return
     if not path.is_dir():
         raise StoreError(f"{run_dir}: exists and is not a directory; choose another --run-dir")
-    if (path / "_manifest").is_dir():
+    state = half_created(resolve(run_dir))
+    if state == "run":
         raise StoreError(
             f"{run_dir}: already holds a run; go on with `genr8 resume {run_dir}` or choose another --run-dir"
         )
-    if any(path.iterdir()):
+    if state == "damaged":
+        raise StoreError(f"{run_dir}: holds a damaged run (data but no intact manifest); choose another "
+                         "--run-dir")
+    if state == "foreign":
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
@@ -181,6 +189,22 @@ def _creation_config(store: Any) -> Any:
         store.repair()
         raise
     return parse_config(first.toml, f"{store.path} configuration v{first.version}")
+
+
+@contextmanager
+def hold_run_lock(store: Any) -> Iterator[None]:
+    """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
+    then queue their interventions for the coordinator instead of writing. Refuses a run that another
+    process is running."""
+    lock = store.lock("run")
+    if not lock.acquire():
+        holder = store.running() or {}
+        raise RunError(f"{store.path}: the run is running already (pid {holder.get('pid', '?')} on "
+                       f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+    try:
+        yield
+    finally:
+        lock.release()
 
 
 def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
@@ -262,12 +286,13 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     _check_new_run_dir(run_dir)
     consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
-    with connect_ray(options.address, options.num_cpus):
+    with connect_ray(options.address, options.num_cpus), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
             store = RunStore.create(run_dir, config.to_toml())
+            stack.enter_context(hold_run_lock(store))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
                 "address": options.address or "local"})
@@ -308,7 +333,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
               f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus):
+    with connect_ray(options.address, options.num_cpus), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
@@ -320,8 +345,11 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                 for problem in problems:
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
+                print(f"repaired: {store.last_repair}", file=out, flush=True)
                 consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
                                    command=f"resume {run_dir}")
+            else:
+                store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={

@@ -17,11 +17,13 @@ the per-axis scale ``s``, in this order:
    ``uniform_iterations`` times halfway towards the mean of its edge neighbours, evening out the cells;
 7. boundaries, in the order listed, resolve the move ``p_i -> q_i`` (see environment.boundaries);
    a final pass puts any vertex still on the wrong side of a hard boundary back at ``p_i`` (when
-   ``p_i`` was allowed), so hard boundaries are never crossed.
+   ``p_i`` was allowed), so no vertex this part moves crosses a hard boundary.
 
-Before all this, a vertex that *starts* on the wrong side of a hard boundary (rewriting put it
-there: a new vertex on an edge that is a chord through a sphere) is first moved to the nearest
-allowed point of that boundary (and stopped there if the boundary is cut-off).
+Vertices that rewriting puts on the wrong side of a hard boundary (a new vertex on an edge that is a
+chord through a sphere) are moved to the nearest allowed point of that boundary (and stopped there if
+it is cut-off) by ``repair`` at the end of the derivation step (hemls.growth calls
+``Environment.constrain``); ``increase_size`` repairs its input the same way first, for callers that
+hand it such vertices.
 """
 
 from __future__ import annotations

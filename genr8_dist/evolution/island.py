@@ -18,6 +18,9 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
 
+A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
+choice of elites and parents of generation g; a marked individual not of generation g-1 joins the pool.
+
 Individuals of generation g-1 evaluated under another ``config_version`` (the fitness, the environment
 or the universe changed: an intervention) are re-evaluated before selection, so they compete under the
 configuration now in force. Identical genomes are evaluated once (``Evaluator``'s cache).
@@ -147,12 +150,14 @@ class Island:
         return self.complete(0, self.breed(0))
 
     def step(self, previous: Sequence[Individual], generation: int,
-             migrants: Sequence[Individual] = (), injected: Sequence[Injected] = ()) -> list[Individual]:
+             migrants: Sequence[Individual] = (), injected: Sequence[Injected] = (),
+             hand: Sequence[tuple[Individual, float]] = ()) -> list[Individual]:
         """Generation ``generation`` from generation ``generation - 1`` (``previous``), the
-        ``migrants`` arriving now and the ``injected`` individuals; see the module docstring."""
+        ``migrants`` arriving now, the ``injected`` individuals and the ``hand``-scored parents; see
+        the module docstring."""
         if generation < 1:
             raise ValueError(f"step builds generation >= 1; use initial() for generation 0, got {generation}")
-        return self.complete(generation, self.breed(generation, previous, migrants, injected))
+        return self.complete(generation, self.breed(generation, previous, migrants, injected, hand))
 
     def _injected_genome(self, item: Injected) -> tuple[tuple[int, ...], tuple[str, ...]]:
         if isinstance(item, Individual):
@@ -163,9 +168,12 @@ class Island:
         return tuple(int(c) for c in item), ()
 
     def breed(self, generation: int, previous: Sequence[Individual] = (),
-              migrants: Sequence[Individual] = (), injected: Sequence[Injected] = ()) -> list[Birth]:
+              migrants: Sequence[Individual] = (), injected: Sequence[Injected] = (),
+              hand: Sequence[tuple[Individual, float]] = ()) -> list[Birth]:
         """The genomes of ``generation`` in index order, unevaluated where new: generation 0 random,
-        a later one from ``previous`` (generation ``generation - 1``), ``migrants`` and ``injected``."""
+        a later one from ``previous`` (generation ``generation - 1``), ``migrants`` and ``injected``.
+        ``hand`` pairs an individual with the fitness a designer gave it: it competes for elite places
+        and tournaments with that fitness (added to the pool when it is not of ``previous``)."""
         self._bred_at = self._counters()
         ea = self.config.ea
         g = self.config.genome
@@ -191,6 +199,15 @@ class Island:
                 for p in previous]
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
+        for marked, fitness in hand:
+            if marked.id in parent_ids:
+                fitnesses[parent_ids.index(marked.id)] = float(fitness)
+                continue
+            pool.append(marked if marked.config_version == self.config_version
+                        else self._make(marked.generation, marked.index, marked.genome, marked.origin,
+                                        marked.parents, self.evaluate(marked.genome)))
+            parent_ids.append(marked.id)
+            fitnesses.append(float(fitness))
 
         room = ea.population - len(births)
         for i in select_elites(fitnesses, min(ea.elites, room)):

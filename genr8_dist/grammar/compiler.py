@@ -17,6 +17,7 @@ IR nodes (tuples, first item the kind):
 ``("choice", (node, ...), group_id)``     an inline group ``( a | b )``: reads a codon, same depth
 ``("rep", body, X, plus, rep_id)``        ``x*`` (``plus``: ``x+``), stop test ``codon mod (c+X) <= c``
 ``("opt", body)``                         ``[x]`` / ``x?``: emit when ``codon mod 2 == 1``
+``("num", values, terminal)``            a numeric terminal: emit ``values[codon mod len(values)]``
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import ast
 import math
 import re
 from dataclasses import dataclass
+from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
 from genr8_dist.errors import UniverseError, located
@@ -40,6 +42,7 @@ _HOLE = re.compile(r"(\[0-9\]\+|\\d\+)")
 _META = set(".^$*+?{}[]|()")
 MAX_MAX_DEPTH = 100
 MAX_NODES = 200_000   # grammar nodes (literals, edges, rule uses, groups) a universe may hold
+MAX_NUMBER_VALUES = 10_000
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,12 +177,37 @@ def find_literal(text: str, literal: str) -> tuple[str, int, int] | None:
     return None
 
 
+def number_values(lo: str, hi: str, step: str = "1") -> tuple[str, ...]:
+    """The printed values of a numeric terminal ``//@ number NAME LO HI [STEP]``: ``LO, LO + STEP, ...``
+    up to ``HI``, computed exactly (decimal arithmetic) and printed with as many decimals as ``LO`` and
+    ``STEP`` have (``-1 3`` gives ``-1 0 1 2 3``; ``0.5 2 0.5`` gives ``0.5 1.0 1.5 2.0``).
+
+    ``ValueError`` when the bounds are not numbers, ``STEP <= 0``, ``HI < LO`` or there would be more
+    than ``MAX_NUMBER_VALUES`` values."""
+    try:
+        a, b, d = Decimal(lo), Decimal(hi), Decimal(step)
+    except InvalidOperation:
+        raise ValueError("LO, HI and STEP must be numbers") from None
+    if not (a.is_finite() and b.is_finite() and d.is_finite()):
+        raise ValueError("LO, HI and STEP must be finite numbers")
+    if d <= 0:
+        raise ValueError(f"STEP must be > 0, got {step}")
+    if b < a:
+        raise ValueError(f"HI ({hi}) is below LO ({lo})")
+    n = int((b - a) / d) + 1
+    if n > MAX_NUMBER_VALUES:
+        raise ValueError(f"{n} values; at most {MAX_NUMBER_VALUES} are allowed (a larger STEP?)")
+    places = max(0, -a.as_tuple().exponent, -d.as_tuple().exponent)  # type: ignore[operator]
+    return tuple(f"{a + i * d:.{places}f}" for i in range(n))
+
+
 def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]], str | None, str,
-                                                dict[str, int]]:
+                                                dict[str, int], dict[str, tuple[str, ...]]]:
     bias: dict[str, dict[int | None, int]] = {}
     repair: str | None = None
     description = ""
     where_line: dict[str, int] = {}
+    numbers: dict[str, tuple[str, ...]] = {}
     for lineno, line in enumerate(text.splitlines(), 1):
         m = _DIRECTIVE.match(line)
         if not m:
@@ -204,10 +232,21 @@ def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]],
             where_line["repair"] = lineno
         elif word == "description":
             description = rest
+        elif word == "number":
+            parts = rest.split()
+            usage = (f"bad directive '//@ number {rest}': write '//@ number TERMINAL LO HI' or "
+                     "'//@ number TERMINAL LO HI STEP'")
+            if len(parts) not in (3, 4) or not re.fullmatch(r"[A-Z_][A-Z0-9_]*", parts[0]):
+                raise UniverseError(located(usage, *where))
+            try:
+                numbers[parts[0]] = number_values(*parts[1:])
+            except ValueError as exc:
+                raise UniverseError(located(f"{usage} ({exc})", *where)) from None
+            where_line[f"number {parts[0]}"] = lineno
         else:
             raise UniverseError(located(
-                f"unknown directive '//@ {word}' (known: bias, repair, description)", *where))
-    return bias, repair, description, where_line
+                f"unknown directive '//@ {word}' (known: bias, repair, description, number)", *where))
+    return bias, repair, description, where_line, numbers
 
 
 def _literal(token, ctx: _Ctx, owner: str) -> tuple[str, str]:
@@ -263,7 +302,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     from lark.tree import Tree
 
     ctx = _Ctx(source, text)
-    bias, repair_rule, description, directive_line = _directives(text, ctx)
+    bias, repair_rule, description, directive_line, numbers = _directives(text, ctx)
     try:
         builder = GrammarBuilder()
         builder.load_grammar(text, source)
@@ -293,7 +332,17 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         value = term_value(term_trees[name])
         bound, pred, labelled = _BOUND.match(name), _PRED.match(name), _LABELLED.match(name)
         context = _CTX.match(name)
-        if bound or pred or labelled or context:
+        if name in numbers:
+            if value is None or value[0] != "re":
+                raise ctx.fail(f"numeric terminal {name} must be defined by a regular expression "
+                               "matching its values, such as /-?[0-9]+/", name, define=True)
+            pattern = re.compile(value[1])
+            bad = [v for v in numbers[name] if not pattern.fullmatch(v)]
+            if bad:
+                raise ctx.fail(f"numeric terminal {name}: its pattern /{value[1]}/ does not match the "
+                               f"value {bad[0]} of its '//@ number' range", name, define=True)
+            kind = ("num", numbers[name], name)
+        elif bound or pred or labelled or context:
             if value is None or value[0] != "re":
                 raise ctx.fail(f"edge terminal {name} must be defined by a regular expression "
                                "such as /Edge[0-9]+/", name, define=True)
@@ -306,8 +355,9 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         elif value is not None and value[0] == "lit":
             kind = ("lit", value[1])
         else:
-            raise ctx.fail(f"terminal {name} cannot be generated: only string literals and edge "
-                           "terminals (EDGE*, PRED*, CTX*, EDGE_X/Y/Z) can appear in a universe's rules",
+            raise ctx.fail(f"terminal {name} cannot be generated: only string literals, edge "
+                           "terminals (EDGE*, PRED*, CTX*, EDGE_X/Y/Z) and numeric terminals (a "
+                           "'//@ number' directive) can appear in a universe's rules",
                            name, define=True)
         term_kind[name] = kind
         return kind
@@ -386,6 +436,10 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         if name not in rules:
             raise ctx.at(f"'//@ bias {name}' names no rule of this universe",
                          directive_line[f"bias {name}"])
+    for name in numbers:
+        if name not in term_kind:
+            raise ctx.at(f"'//@ number {name}' names no terminal used in this universe's rules",
+                         directive_line[f"number {name}"])
     if "start" not in rules:
         raise UniverseError(located("a universe needs a rule named 'start'", source, 1, 1))
     _check_literals(rules, term_kind, ctx)
@@ -462,7 +516,7 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
 
     def need(node) -> float:
         kind = node[0]
-        if kind in ("lit", "edge"):
+        if kind in ("lit", "edge", "num"):
             return 0
         if kind == "rule":
             return md[node[1]]

@@ -7,8 +7,9 @@
    so it obeys what Lark cannot check: ``max_depth`` eligibility, ``EdgeX`` binding and codon order.
 3. Codons are emitted for that derivation, each the smallest value making the mapper's choice
    (alternative index among the eligible ones, ``c + 1`` to go on with a repetition and 0 to stop,
-   1/0 for options, the label for edges). Labels are renamed to birth order on the way: a label
-   keeps its number when the mapper could draw it, otherwise takes the first free one.
+   1/0 for options, the label for edges, the value's index for numeric terminals). Labels are
+   renamed to birth order on the way: a label keeps its number when the mapper could draw it,
+   otherwise takes the first free one.
 4. The genome is mapped again and compared with the (renamed) text; a difference (a label with no
    rewrite rule, which the repair hook would fix) is reported as the reason no genome exists.
 """
@@ -149,6 +150,15 @@ class _Search:
         if kind == "lit":
             if pos < self.n and self.toks[pos] == node[1]:
                 yield pos + 1, ev, scope
+            return
+        if kind == "num":
+            if pos < self.n:
+                values = node[1]
+                try:
+                    index = values.index(self.toks[pos])
+                except ValueError:
+                    return
+                yield pos + 1, (("C", index, len(values)), ev), scope
             return
         if kind == "edge":
             _, mode, template, letter = node
@@ -330,6 +340,7 @@ def _diagnose(universe: Universe, tokens: list[_Token], words: list[str], max_de
             raise InversionError(
                 f"the text nests deeper than max_depth={max_depth} allows in universe "
                 f"'{universe.name}': it needs max_depth >= {depth}")
+    _check_numbers(universe, tokens, words)
     loose = _Search(universe, words, MAX_MAX_DEPTH, bind=False).run()
     if loose is not None:
         for event in _events(loose):
@@ -341,6 +352,37 @@ def _diagnose(universe: Universe, tokens: list[_Token], words: list[str], max_de
                     f"'{universe.name}'")
     raise InversionError(f"no derivation of the text in universe '{universe.name}' obeys the mapper's "
                          "rules (a repetition that emits nothing, or an option it cannot take)")
+
+
+def _check_numbers(universe: Universe, tokens: list[_Token], words: list[str]) -> None:
+    """Refuse a number the universe's numeric terminals can parse but never generate."""
+    nums: dict[str, tuple[str, ...]] = {}
+    for alts in universe.grammar.rules.values():
+        stack = list(alts)
+        while stack:
+            node = stack.pop()
+            if node[0] == "num":
+                nums[node[2]] = node[1]
+            elif node[0] in ("seq", "choice"):
+                stack.extend(node[1])
+            elif node[0] in ("rep", "opt"):
+                stack.append(node[1])
+    if not nums:
+        return
+    literals = _literals(universe)
+    parser = universe.parser()
+    patterns = {name: re.compile(parser.get_terminal(name).pattern.to_regexp()) for name in nums}
+    for pos, word in enumerate(words):
+        if word in literals or universe.label_of(word) is not None:
+            continue
+        for name, values in nums.items():
+            if patterns[name].fullmatch(word) and word not in values:
+                shown = ", ".join(values) if len(values) <= 4 else \
+                    f"{values[0]}, {values[1]}, ..., {values[-1]}"
+                raise InversionError(
+                    f"{_where(tokens, pos)}: '{word}' is not a value numeric terminal {name} can take "
+                    f"in universe '{universe.name}' (its values: {shown}, "
+                    "written exactly so)")
 
 
 def _codons(universe: Universe, tokens: list[_Token], words: list[str],

@@ -12,6 +12,8 @@ caches the result. The semantics are Genr8's (``DESIGN.md``, thesis Appendix B, 
 * a repetition reads a codon before each round and stops when ``codon mod (c + X) <= c``
   (``c`` rounds so far, ``X`` the bias, default 2); ``x+`` emits one ``x`` first;
 * an option emits its body when ``codon mod 2 == 1``;
+* a numeric terminal (``//@ number NAME LO HI STEP``) emits ``LO + (codon mod n) * STEP``, ``n`` its
+  number of values;
 * a labelled edge takes ``codon mod (count + 1)`` (a new label is born when it equals ``count``),
   a predecessor edge ``codon mod count``; ``EdgeX/Y/Z`` bind within one rule expansion;
 * a repetition or option whose body opens rules that cannot fit in ``max_depth`` reads its codon
@@ -189,6 +191,11 @@ class _Writer:
             return state
         if kind == "edge":
             return self.edge(node, out, pad, scope, state)
+        if kind == "num":
+            values = node[1]
+            out.append(f"{pad}app({values!r}[nxt() % {len(values)}])" if len(values) > 1
+                       else f"{pad}nxt()\n{pad}app({values[0]!r})")
+            return state
         if kind == "rule":
             self.rule_ref(node[1], out, ind, (dep[0], dep[1] + 1))
             return state

@@ -175,16 +175,21 @@ class Universe:
 
     def parse_system(self, text: str):
         """The phenotype's parser applied to a derived text (the built-in surface phenotype parses
-        HEMLS into a ``RewriteSystem``); it raises for a text the phenotype cannot read."""
-        from genr8_dist.hemls import parse
+        HEMLS into a ``RewriteSystem``); it raises for a text the phenotype cannot read. ``None``
+        when the universe's phenotype has no parser (its texts are then not checked at load)."""
+        from genr8_dist.phenotype import phenotype_of
 
-        return parse(text)
+        parse = getattr(phenotype_of(self), "parse", None)
+        return parse(text) if parse is not None else None
 
     def check_sample(self, max_depth: int = 5) -> None:
         """Parse ``SAMPLE_GENOMES`` derivations of seeded random genomes; the first one the phenotype's
         parser rejects is a :class:`UniverseError` naming the grammar literal it came from."""
+        from genr8_dist.phenotype import phenotype_of
         from genr8_dist.rng import stream
 
+        if getattr(phenotype_of(self), "parse", None) is None:
+            return
         gen = stream(0, "universe-check", self.source.digest[:16])
         genomes = gen.integers(0, 256, size=(SAMPLE_GENOMES, SAMPLE_LENGTH)).tolist()
         for genome in genomes:

@@ -1,13 +1,15 @@
 """Growth: the derivation step (journal 4.3) applied to a map held as half-edge arrays.
 
 A derivation step is (1) increase size (``Environment.increase_size``), (2) apply the rewrite rules
-and (3) join branches. Rules are grouped by predecessor label and the groups are applied in the order
-of their first rule; every edge carrying the label when its group starts (including edges made
-earlier in the same step by other labels' rules or by joined branches) is rewritten by the first rule
-of the group whose context and condition match, one successor drawn by weight. The successor's
-template (genr8_dist.hemls.turtle) is placed on the edge's frame: heading along the edge, up along
-the surface normal (the mean normal of the regions on both sides). Branches join after each group
-(default) or once after all groups (``Sync``); unjoined branches are dropped at the end of the step.
+and (3) join branches; at its end every vertex, new ones included, is on the allowed side of every
+hard boundary (``Environment.constrain``). Rules are grouped by predecessor label and the groups are
+applied in the order of their first rule; every edge carrying the label when its group starts
+(including edges made earlier in the same step by other labels' rules or by joined branches) is
+rewritten by the first rule of the group whose context and condition match, one successor drawn by
+weight. The successor's template (genr8_dist.hemls.turtle) is placed on the edge's frame: heading
+along the edge, up along the surface normal (the mean normal of the regions on both sides). Branches
+join after each group (default) or once after all groups (``Sync``); unjoined branches are dropped
+at the end of the step.
 
 The map is a half-edge structure: edge e has half-edges 2e (start to end) and 2e+1 (end to start);
 ``nxt``/``prv`` link the half-edges around each face, faces lying to the left of their half-edges
@@ -443,6 +445,7 @@ class _Grower:
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
         self.max_edges = int(env.max_edges)
+        self.cone = getattr(env, "branch_join", "orientation") == "cone"
         self._keys: np.ndarray | None = None
 
     # -- step ------------------------------------------------------------------------------------
@@ -465,6 +468,18 @@ class _Grower:
                 self._join(pending, max_dist)
         finally:
             m.compact()
+            self._constrain()
+
+    def _constrain(self) -> None:
+        """Hard boundaries hold at the end of the step: the vertices rewriting placed on the wrong
+        side (a new vertex on an edge that is a chord of a sphere) go to the wall's nearest allowed
+        point, and stop there at a cut-off wall (``Environment.constrain``)."""
+        if not self.env.boundaries:
+            return
+        m = self.m
+        fixed = self.env.constrain(m.pos[:m.nv], stopped=m.stopped[:m.nv])
+        m.pos[:m.nv] = fixed.positions
+        m.stopped[:m.nv] = fixed.stopped
 
     def _check_time(self) -> None:
         if time.perf_counter() > self.deadline:
@@ -696,7 +711,7 @@ class _Grower:
             pj = cand[(gs[:, None] + tj).ravel()]
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
-            keep = self._pair_ok(pi, pj, points, heading, max_dist)
+            keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
             pi_all.append(pi[keep])
             pj_all.append(pj[keep])
         for g in np.flatnonzero(sizes > 48):
@@ -710,7 +725,7 @@ class _Grower:
                 block = members[r0:r0 + rows]
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
                 pi, pj = block[ri], new[cj]
-                keep = self._pair_ok(pi, pj, points, heading, max_dist)
+                keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
                 pi_all.append(pi[keep])
                 pj_all.append(pj[keep])
         pi = np.concatenate(pi_all) if pi_all else np.zeros(0, dtype=np.int64)
@@ -718,7 +733,7 @@ class _Grower:
         if not len(pi):
             pending.checked = n
             return
-        ci, cj, dist = self._aim(pi, pj, points, heading)
+        ci, cj, dist, _ = self._aim(pi, pj, points, heading, normal)
         score = -np.round(ci + cj, 9)
         order = np.lexsort((pj, pi, np.round(dist, 9), score))
         pi, pj = pi[order], pj[order]
@@ -766,12 +781,13 @@ class _Grower:
     def _prefilter(self, rows, cols, points, heading, max_dist):
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.
 
-        Two branches that point at each other within cones of half-angle a have headings at most
-        2a from opposite, so h_i . h_j <= -cos(2a): a five-operation test per pair that removes
-        most pairs of a large region before the exact test."""
+        Joining branches have headings at most a from opposite (``orientation``), or, pointing at each
+        other within cones of half-angle a, at most 2a (``cone``); so h_i . h_j <= -cos(a or 2a): a
+        five-operation test per pair that removes most pairs of a large region before the exact test."""
         hr, hc = heading[rows], heading[cols]
         cone = math.acos(min(max(self.c.cos_cone, -1.0), 1.0))
-        limit = -math.cos(min(2.0 * cone, math.pi)) + 1e-6
+        spread = 2.0 * cone if self.cone else cone
+        limit = -math.cos(min(spread, math.pi)) + 1e-6
         hh = hr[:, 0, None] * hc[None, :, 0]
         hh += hr[:, 1, None] * hc[None, :, 1]
         hh += hr[:, 2, None] * hc[None, :, 2]
@@ -780,20 +796,42 @@ class _Grower:
         return np.nonzero(ok)
 
     @staticmethod
-    def _aim(pi, pj, points, heading):
-        """How well branches pi and pj point at each other's start vertex: the cosines of the angles
-        between each heading and the direction to the other vertex, and the distance between them."""
+    def _aim(pi, pj, points, heading, normal):
+        """How well branches pi and pj point at each other's start vertex, seen in the surface's
+        tangent plane there (normal to the mean of the two branches' surface normals): the cosines of
+        the angles between each heading and the direction to the other vertex, all projected on
+        that plane, the distance between the vertices (in space), and how opposite the two headings
+        are (minus the cosine of the angle between them, in the plane).
+
+        On a bent surface the straight line between two vertices dips below the surface; measured in
+        space it would leave the cone of two branches that point at each other along the surface."""
         d = points[pj] - points[pi]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        safe = np.where(dist > 1e-300, dist, 1.0)
-        return (np.einsum("ij,ij->i", heading[pi], d) / safe,
-                -np.einsum("ij,ij->i", heading[pj], d) / safe, dist)
+        n = normal[pi] + normal[pj]
+        n /= np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), 1e-300)[:, None]
 
-    def _pair_ok(self, pi, pj, points, heading, max_dist) -> np.ndarray:
-        """Branch pairs that point at each other within the cone and the distance limit."""
+        def flat(v):
+            v = v - np.einsum("ij,ij->i", v, n)[:, None] * n
+            return v / np.maximum(np.sqrt(np.einsum("ij,ij->i", v, v)), 1e-300)[:, None]
+
+        u, hi, hj = flat(d), flat(heading[pi]), flat(heading[pj])
+        return (np.einsum("ij,ij->i", hi, u), -np.einsum("ij,ij->i", hj, u), dist,
+                -np.einsum("ij,ij->i", hi, hj))
+
+    def _pair_ok(self, pi, pj, points, heading, normal, max_dist) -> np.ndarray:
+        """Branch pairs whose orientations fit (``Environment.branch_join``) within the distance limit.
+
+        ``orientation`` (the thesis, 2.5.1; journal 4.3): the dot product of the two headings is at
+        most -cos(BranchAngle), i.e. they are opposite within BranchAngle, and they face each other
+        (each heading has a positive component towards the other vertex). ``cone``: each heading
+        points at the other vertex within BranchAngle. Both are judged in the surface's tangent
+        plane (``_aim``)."""
         cos_cone = self.c.cos_cone - 1e-9
-        ci, cj, dist = self._aim(pi, pj, points, heading)
-        return (dist > 1e-12) & (dist <= max_dist) & (ci >= cos_cone) & (cj >= cos_cone)
+        ci, cj, dist, opposite = self._aim(pi, pj, points, heading, normal)
+        ok = (dist > 1e-12) & (dist <= max_dist)
+        if self.cone:
+            return ok & (ci >= cos_cone) & (cj >= cos_cone)
+        return ok & (opposite >= cos_cone) & (ci > 1e-9) & (cj > 1e-9)
 
     def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """For each half-edge leaving u, whether u already has an edge to the matching target."""

@@ -9,6 +9,7 @@ canonical text and ``parse(system.to_text()) == system``. docs/hemls.md is the u
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -227,6 +228,31 @@ class RewriteSystem:
     def __str__(self) -> str:
         return self.to_text()
 
+    def never_firing(self) -> list[tuple[Rule, Rule]]:
+        """Rules that can never fire, each with the earlier rule that takes all its edges first.
+
+        Rules for one label are tried in order and the first whose condition and context hold
+        rewrites the edge; a later rule whose condition and context are each absent from, or equal
+        to, an earlier rule's is never reached (two rules for one label are a fallback, not a draw:
+        write the alternatives as successors of one rule, or with ``p =`` on each)."""
+        out: list[tuple[Rule, Rule]] = []
+        for i, rule in enumerate(self.rules):
+            for earlier in self.rules[:i]:
+                if earlier.predecessor.name != rule.predecessor.name:
+                    continue
+                if all(mine is None or mine == theirs for mine, theirs in (
+                        (earlier.condition, rule.condition), (earlier.left, rule.left),
+                        (earlier.right, rule.right))) and earlier.chain in ((), rule.chain):
+                    out.append((rule, earlier))
+                    break
+        return out
+
+    def warnings(self) -> list[str]:
+        """One line per rule that can never fire (``never_firing``), naming both rules' lines."""
+        return [f"line {rule.line}: the rule for {rule.predecessor.name} can never fire: the rule on "
+                f"line {earlier.line} rewrites every such edge first (for a random choice write the "
+                f"successors in one rule, or 'p =' on each)" for rule, earlier in self.never_firing()]
+
     def segment_names(self) -> tuple[str, ...]:
         """Every label name used, in order of first appearance."""
         seen: dict[str, None] = {}
@@ -423,8 +449,12 @@ class _Build(Transformer):
         return symbols
 
     def weight(self, children):
-        tok = children[0]
+        tok = children[-1]
         value = float(tok)
+        if len(children) == 2:  # thesis Table 2.3: 'p = 0.5', the probability of this production
+            if not 0.0 <= value <= 1.0:
+                raise self._fail(f"a probability p must be between 0 and 1, got {tok}", tok)
+            return _Weight(value, probability=True)
         if not math.isfinite(value) or value < 0:
             raise self._fail(f"Weight must be a number >= 0, got {tok}", tok)
         return _Weight(value)
@@ -432,8 +462,10 @@ class _Build(Transformer):
     @v_args(meta=True)
     def alternative(self, meta, children):
         symbols = children[0]
-        weight = children[1].value if len(children) > 1 else None
-        return Successor(symbols, weight)
+        if len(children) > 1:
+            weight = children[1]
+            return _Alternative(Successor(symbols, weight.value), weight.probability)
+        return _Alternative(Successor(symbols), False)
 
     def condition(self, children):
         op, value = children
@@ -442,13 +474,15 @@ class _Build(Transformer):
     @v_args(meta=True)
     def rule(self, meta, children):
         left, pred, right, chain = children[0]
-        succs = tuple(c for c in children[1:] if isinstance(c, Successor))
+        succs = tuple(c.successor for c in children[1:] if isinstance(c, _Alternative))
+        stochastic = any(c.probability for c in children[1:] if isinstance(c, _Alternative))
         cond = next((c for c in children[1:] if isinstance(c, Condition)), None)
-        return ("rule", Rule(pred, succs, left, right, cond, line=meta.line, chain=chain), meta)
+        rule = Rule(pred, succs, left, right, cond, line=meta.line, chain=chain)
+        return ("stochastic rule" if stochastic else "rule", rule, meta)
 
     @v_args(meta=True)
     def continuation(self, meta, children):
-        succs = tuple(c for c in children if isinstance(c, Successor))
+        succs = tuple(c.successor for c in children if isinstance(c, _Alternative))
         cond = next((c for c in children if isinstance(c, Condition)), None)
         return ("continuation", (succs, cond), meta)
 
@@ -477,6 +511,8 @@ class _Build(Transformer):
         for kind, value, meta in children[1:]:
             if kind == "rule":
                 rules.append(value)
+            elif kind == "stochastic rule":
+                merge_stochastic(rules, value)
             elif kind == "continuation":
                 if not rules or rules[-1].condition is not None:
                     why = ("a continuation line (beginning with '->') must follow a rewrite rule"
@@ -513,12 +549,245 @@ class _Pos:
 @dataclass(frozen=True)
 class _Weight:
     value: float
+    probability: bool = False
+
+
+@dataclass(frozen=True)
+class _Alternative:
+    successor: Successor
+    probability: bool
+
+
+def merge_stochastic(rules: list[Rule], rule: Rule) -> None:
+    """Append a rule written with ``p =`` probabilities (thesis Table 2.3: one production per line,
+    ``D -> + D - - D p = 0.5``) to ``rules``: its successors join those of the first earlier rule with
+    the same predecessor, context and condition, the probabilities becoming weights, so that
+    ``D -> A p = 0.5`` and ``D -> B p = 0.5`` on two lines are one rule ``D -> A Weight 0.5 -> B
+    Weight 0.5``. Without such an earlier rule it is appended as it is."""
+    key = (rule.left, rule.predecessor, rule.right, rule.chain, rule.condition)
+    for i, earlier in enumerate(rules):
+        if (earlier.left, earlier.predecessor, earlier.right, earlier.chain, earlier.condition) == key:
+            rules[i] = dataclasses.replace(earlier, successors=earlier.successors + rule.successors)
+            return
+    rules.append(rule)
+
+
+# -- the direct reader ---------------------------------------------------------------------------------
+#
+# Universes write rewrite systems one statement per line, tokens separated by single spaces: a regular
+# text that a hand-written reader turns into a RewriteSystem without building a parse tree. It reads
+# the language as grammars/hemls.lark does, but only texts it can read without doubt (no comments, no
+# ';', every space-separated word one whole token, nothing the transformer would refuse); for anything
+# else it answers None and ``parse`` hands the text to Lark, whose result and error messages are the
+# reference. tests/hemls/test_language.py compares the two readers on every universe's texts.
+
+_DIRECT_CHARS = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_+-&^/\\~[]<>=!. \n")
+_OPERATOR_WORDS = frozenset(("+", "-", "&", "^", "/", "\\"))
+_COMPARISONS = frozenset(("<=", ">=", "<", ">", "=", "==", "!="))
+_NUMBER_RE = re.compile(r"[0-9]+(\.[0-9]*)?([eE][-+]?[0-9]+)?|\.[0-9]+([eE][-+]?[0-9]+)?")
+_KEYWORDS = frozenset(("weight", "if", "angle", "branchangle", "sync"))
+
+
+class _NotDirect(Exception):
+    """The direct reader cannot vouch for this text: Lark reads it."""
+
+
+@functools.lru_cache(maxsize=4096)
+def _direct_segment(word: str) -> Segment:
+    m = _EDGE_RE.match(word)
+    if m is None:
+        raise _NotDirect
+    age = None
+    if m.group("timed") is not None:
+        age = int(m.group("off")) if m.group("off") else 0
+    name = f"Edge{int(m.group('num'))}" if m.group("num") is not None else m.group("letter")
+    return Segment(name, age)
+
+
+def _is_segment_word(word: str) -> bool:
+    return word[:1].isupper() and word.lower() not in _KEYWORDS
+
+
+def _direct_number(word: str) -> float:
+    if _NUMBER_RE.fullmatch(word) is None:
+        raise _NotDirect
+    return float(word)
+
+
+def _direct_symbols(words: list[str], i: int, inside: bool) -> tuple[tuple[Symbol, ...], int]:
+    """Turtle symbols from ``words[i]`` up to a ']' (inside a bracket) or a word that is no symbol."""
+    out: list[Symbol] = []
+    n = len(words)
+    while i < n:
+        w = words[i]
+        if w in _OPERATOR_WORDS or w == "~":
+            out.append(w)
+        elif w == "[":
+            inner, i = _direct_symbols(words, i + 1, True)
+            if i >= n or words[i] != "]":
+                raise _NotDirect
+            out.append(Branch(inner))
+        elif w == "]":
+            if not inside:
+                raise _NotDirect
+            return tuple(out), i
+        elif _is_segment_word(w):
+            out.append(_direct_segment(w))
+        else:
+            return tuple(out), i
+        i += 1
+    if inside:
+        raise _NotDirect
+    return tuple(out), i
+
+
+def _direct_alternatives(words: list[str], i: int) -> tuple[tuple[Successor, ...], Condition | None]:
+    """``-> successor [Weight w]`` one or more times from ``words[i]``, then an optional condition,
+    to the end of the statement."""
+    successors: list[Successor] = []
+    n = len(words)
+    while i < n and words[i] == "->":
+        symbols, i = _direct_symbols(words, i + 1, False)
+        if not any(isinstance(s, Segment) for s in symbols):
+            raise _NotDirect
+        weight = None
+        if i < n and words[i].lower() == "weight":
+            if i + 1 >= n:
+                raise _NotDirect
+            weight = _direct_number(words[i + 1])
+            if not math.isfinite(weight) or weight < 0:
+                raise _NotDirect
+            i += 2
+        successors.append(Successor(symbols, weight))
+    if not successors:
+        raise _NotDirect
+    condition = None
+    if i < n:
+        if (n - i != 4 or words[i].lower() != "if" or words[i + 1] != "i" or words[i + 2] not in _COMPARISONS
+                or not words[i + 3].isdigit() or not words[i + 3].isascii()):
+            raise _NotDirect
+        condition = Condition(words[i + 2], int(words[i + 3]))
+    return tuple(successors), condition
+
+
+def _direct_predecessor(words: list[str]) -> tuple[tuple, int]:
+    """(left, predecessor, right, chain) and the index of the first '->'."""
+    try:
+        arrow = words.index("->")
+    except ValueError:
+        raise _NotDirect from None
+    head = words[:arrow]
+    if not head:
+        raise _NotDirect
+    if "<" in head or ">" in head:
+        if len(head) == 3 and head[1] == "<":
+            left, pred, right = head[0], head[2], None
+        elif len(head) == 3 and head[1] == ">":
+            left, pred, right = None, head[0], head[2]
+        elif len(head) == 5 and head[1] == "<" and head[3] == ">":
+            left, pred, right = head[0], head[2], head[4]
+        else:
+            raise _NotDirect
+        parts = [None if w is None else _direct_segment(w) for w in (left, pred, right)]
+        chain: tuple[Segment, ...] = ()
+    else:
+        parts = [None, _direct_segment(head[0]), None]
+        chain = tuple(_direct_segment(w) for w in head[1:])
+    for seg in (*parts, *chain):
+        if seg is not None and seg.age not in (None, 0):
+            raise _NotDirect
+    return (parts[0], parts[1], parts[2], chain), arrow
+
+
+def _direct_axiom(words: list[str]) -> tuple[AxiomEdge, ...]:
+    edges: list[AxiomEdge] = []
+    n = len(words)
+    i = 0
+    pending = False   # a '~' before the '+' that leads to the next edge
+    while True:
+        rev = False
+        if i < n and words[i] == "~":
+            rev, i = True, i + 1
+        if i >= n or not _is_segment_word(words[i]):
+            raise _NotDirect
+        seg = _direct_segment(words[i])
+        if seg.age is not None:
+            raise _NotDirect
+        edges.append(AxiomEdge(seg, reversed=rev != pending))
+        i += 1
+        if i == n:
+            break
+        pending = False
+        if words[i] == "~":
+            pending, i = True, i + 1
+        if i >= n or words[i] != "+":
+            raise _NotDirect
+        i += 1
+    if len(edges) < 3:
+        raise _NotDirect
+    return tuple(edges)
+
+
+def _direct(text: str) -> RewriteSystem | None:
+    """The rewrite system of a regular text (see above), or None when Lark must read it."""
+    if not _DIRECT_CHARS.issuperset(text):
+        return None
+    try:
+        axiom: tuple[AxiomEdge, ...] | None = None
+        rules: list[Rule] = []
+        settings: dict[str, object] = {}
+        for number, line in enumerate(text.split("\n"), start=1):
+            words = line.split()
+            if not words:
+                continue
+            if axiom is None:
+                axiom = _direct_axiom(words)
+                continue
+            first = words[0].lower()
+            if first in ("angle", "branchangle"):
+                if len(words) != 2 or first in settings:
+                    raise _NotDirect
+                value = _direct_number(words[1])
+                if not 0.0 <= value <= (360.0 if first == "angle" else 90.0):
+                    raise _NotDirect
+                settings[first] = value
+            elif first == "sync":
+                if len(words) != 1 or first in settings:
+                    raise _NotDirect
+                settings[first] = True
+            elif first == "->":
+                if not rules or rules[-1].condition is not None:
+                    raise _NotDirect
+                successors, condition = _direct_alternatives(words, 0)
+                last = rules[-1]
+                rules[-1] = Rule(last.predecessor, last.successors + successors, last.left, last.right,
+                                 condition, line=last.line, chain=last.chain)
+            else:
+                (left, pred, right, chain), arrow = _direct_predecessor(words)
+                successors, condition = _direct_alternatives(words, arrow)
+                rules.append(Rule(pred, successors, left, right, condition, line=number, chain=chain))
+        if axiom is None or any(sum(r.weights) <= 0 for r in rules):
+            return None
+    except _NotDirect:
+        return None
+    return RewriteSystem(axiom=axiom, rules=tuple(rules), angle=settings.get("angle"),  # type: ignore[arg-type]
+                         branch_angle=settings.get("branchangle"),  # type: ignore[arg-type]
+                         sync="sync" in settings)
 
 
 def parse(text: str, source: str = "<text>", *, name: str = "") -> RewriteSystem:
     """Read a rewrite system; malformed text raises ParseError naming line, column and what was expected."""
     if not isinstance(text, str):
         raise TypeError(f"parse() needs a str, got {type(text).__name__}")
+    direct = _direct(text)
+    if direct is not None:
+        return RewriteSystem(direct.axiom, direct.rules, direct.angle, direct.branch_angle, direct.sync,
+                             name=name or source)
+    return _parse_lark(text, source, name)
+
+
+def _parse_lark(text: str, source: str, name: str) -> RewriteSystem:
+    """Read a rewrite system with Lark (any text the language allows; the reference error messages)."""
     if not _COMMENT_RE.sub("", text).strip():
         raise ParseError("empty rewrite system (the first statement must be the axiom)", source=source)
     try:

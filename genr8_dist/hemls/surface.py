@@ -95,6 +95,47 @@ class Surface:
         """The mean of the vertex positions (the centre growth scales away from)."""
         return self.vertices.mean(axis=0) if self.n_vertices else np.zeros(3)
 
+    def mirror_line(self, tolerance: float = 1e-6) -> np.ndarray | None:
+        """A line of symmetry: the unit xy direction ``u`` of a vertical plane through the centre that
+        maps every vertex onto a vertex (within ``tolerance`` x the surface's extent) and every edge
+        onto an edge, or None.
+
+        A mirror plane of a point set passes through its centre, and maps the vertices farthest from
+        the vertical axis through the centre onto each other; so the candidates are the lines through
+        one such vertex ``v`` and the bisectors of ``v`` and each other one.
+        """
+        n = self.n_vertices
+        if n < 2:
+            return np.array([1.0, 0.0]) if n else None
+        from scipy.spatial import cKDTree
+
+        rel = self.vertices - self.centre
+        extent = float(np.max(np.abs(rel))) or 1.0
+        tol = tolerance * extent
+        radius = np.hypot(rel[:, 0], rel[:, 1])
+        far = int(np.argmax(radius))
+        if radius[far] <= tol:
+            return np.array([1.0, 0.0])  # every vertex on the vertical axis
+        v = rel[far, :2]
+        candidates = [v]
+        for w in rel[np.abs(radius - radius[far]) <= tol, :2]:
+            if np.linalg.norm(w - v) > tol:
+                candidates.append(v + w if np.linalg.norm(v + w) > tol else np.array([-v[1], v[0]]))
+        tree = cKDTree(rel)
+        edges = np.sort(self.edges, axis=1)
+        keys = np.sort(edges[:, 0] * n + edges[:, 1])
+        for u in candidates:
+            u = u / np.linalg.norm(u)
+            mirrored = rel.copy()
+            mirrored[:, :2] = 2.0 * (rel[:, :2] @ u)[:, None] * u - rel[:, :2]
+            distance, image = tree.query(mirrored, distance_upper_bound=2.0 * tol)
+            if not np.all(distance <= tol):
+                continue
+            moved = np.sort(image[self.edges], axis=1)
+            if np.array_equal(np.sort(moved[:, 0] * n + moved[:, 1]), keys):
+                return u
+        return None
+
     # -- adjacency ---------------------------------------------------------------------------------
     @functools.cached_property
     def adjacency(self) -> tuple[np.ndarray, np.ndarray]:

@@ -46,6 +46,9 @@ EVENT_KINDS: tuple[str, ...] = (
     "resume",        # the run went on from its last committed generation
     "recovery",      # an island was rebuilt, or a corrupt file was dropped (store.repair)
     "complete",      # the run reached its last generation
+    "pause",         # the designer paused a running run between epochs (studio); Ray stays up
+    "continue",      # a paused run went on
+    "refused",       # a queued intervention could not be recorded when its epoch came (says why)
 )
 
 # Measurements: excluded from determinism checks (an interrupted run differs only here).

@@ -110,3 +110,14 @@ def test_unreadable_boundary_mesh(tmp_path, capsys):
     env.write_text('[[boundaries]]\nkind = "mesh"\npath = "wall.stl"\n')
     status, _, err = run(["grow", "square", "--env", str(env)], capsys)
     assert status == 2 and "wall.stl" in err and err.count("\n") == 1
+
+
+def test_a_rule_that_can_never_fire_is_a_warning_and_growth_goes_on(tmp_path, capsys):
+    path = tmp_path / "two.hemls"
+    path.write_text("A + A + A + A\nA -> A [ [ + A ] - A ] A\nA -> A A\nAngle 90\n")
+    status, out, err = run(["grow", str(path), "--steps", "2"], capsys)
+    assert status == 0
+    assert err.strip() == ("genr8: warning: two: line 3: the rule for A can never fire: the rule on line 2 "
+                           "rewrites every such edge first (for a random choice write the successors in "
+                           "one rule, or 'p =' on each)")
+    assert "   2         17         20          4" in out

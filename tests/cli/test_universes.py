@@ -39,7 +39,7 @@ def test_map_prints_the_journal_worked_example(tmp_path, capsys):
                        "212, 187, 632, 832, 800, 517, 338, 39", "--json")
     assert json.loads(out) == {"universe": "worked", "genome": [212, 187, 632, 832, 800, 517, 338, 39],
                                "text": "Edge2 + Edge0 + Edge0 + Edge2", "valid": True, "reason": None,
-                               "codons_used": 8, "wraps": 0}
+                               "codons_used": 8, "wraps": 0, "warnings": []}
 
 
 def test_map_random_is_seeded_and_matches_the_api(capsys):
@@ -132,3 +132,13 @@ def test_invert_skips_comment_lines_and_names_the_file_and_original_line(tmp_pat
     err = capsys.readouterr().err
     assert err.startswith(f"genr8: error: {outside}: line 3, column ")
     assert err.count("\n") == 1
+
+
+def test_map_warns_about_a_rule_that_can_never_fire(capsys):
+    code, out, err = run(capsys, "map", "--random", "--seed", "14")
+    assert code == 0 and "Edge0 < Edge0 > Edge1 -> Edge4" in out
+    assert err.strip() == ("genr8: warning: line 4: the rule for Edge0 can never fire: the rule on line 2 "
+                           "rewrites every such edge first (for a random choice write the successors in "
+                           "one rule, or 'p =' on each)")
+    code, out, _ = run(capsys, "map", "--random", "--seed", "14", "--json")
+    assert json.loads(out)["warnings"] == [err.strip()[len("genr8: warning: "):]]

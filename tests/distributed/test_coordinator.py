@@ -149,9 +149,9 @@ def test_truncated_parquet_is_named_and_the_run_resumes_from_the_last_intact_gen
     assert rows(run_dir) == rows(reference[0])
 
 
-def test_a_damaged_configuration_version_is_repaired_not_raised(reference, pool, tmp_path):
-    """A corrupt configs/v0002.toml (an edit's) is reported and dropped on resume; the run then
-    completes as if the edit had never been made."""
+def test_a_damaged_configuration_version_is_restored_not_dropped(reference, pool, tmp_path):
+    """A corrupt configs/v0002-*.toml (an edit's) is reported and rewritten from the manifest's copy on
+    resume: the edit is kept, and the run completes under it."""
     from genr8_dist.distributed.intervene import Edit, apply_edit
     from genr8_dist.store import RunStore
 
@@ -159,13 +159,17 @@ def test_a_damaged_configuration_version_is_repaired_not_raised(reference, pool,
     new_run(run_dir, tiny_toml())
     drive_to_end(run_dir, pool, on_generation=stop_at(2))
     apply_edit(str(run_dir), Edit(assignments=["fitness.size.weight=5"]))
+    edited = RunStore.open(run_dir).configs()[1].toml
     (version2,) = [p for p in (run_dir / "configs").iterdir() if p.name.startswith("v0002")]
     version2.write_text("[ea\npopulation = ")
     summary, log = drive_to_end_after_repair(run_dir, pool)
     assert "damaged:" in log and version2.name in log
+    assert "restored configuration version 2" in log
     assert summary.status == "complete"
-    assert [c.version for c in RunStore.open(run_dir).configs()] == [1]
-    assert rows(run_dir) == rows(reference[0])
+    store = RunStore.open(run_dir)
+    assert [c.version for c in store.configs()] == [1, 2]
+    assert store.configs()[1].toml == edited
+    assert store.verify() == []
 
 
 def drive_to_end_after_repair(run_dir, pool):
@@ -195,3 +199,54 @@ def test_a_run_that_cannot_be_scheduled_is_refused(pool, tmp_path):
         if blocker is not None:
             blocker.shutdown()
     assert not (tmp_path / "run").exists()
+
+
+def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(reference, pool, tmp_path):
+    """A live run takes a queued edit (favour, hand fitness, a weight) at its next epoch without
+    stopping; the rows equal a run stopped there, edited with `genr8 edit`, and resumed. A queued
+    pause holds the run between epochs until a continue, and changes no row."""
+    import threading
+
+    from genr8_dist.distributed.intervene import Edit, apply_edit
+    from genr8_dist.store import RunStore
+
+    edit = Edit(assignments=["fitness.size.weight=5"], favour=["0-2-1"], hand_fitness=[("1-2-3", 0.0)])
+    live = tmp_path / "live"
+    new_run(live, tiny_toml())
+    lock = RunStore.open(live).lock("run")      # what `genr8 run` holds while it runs
+    assert lock.acquire()
+    queued = []
+
+    def steer(coordinator, generation):
+        if generation == 3 and not queued:
+            queued.append(apply_edit(str(live), edit, source="studio"))
+            apply_edit_pause = RunStore.open(live)
+            apply_edit_pause.enqueue({"kind": "pause"})
+            threading.Timer(1.0, lambda: RunStore.open(live).enqueue({"kind": "continue"})).start()
+
+    try:
+        summary, log = drive_to_end(live, pool, on_generation=steer)
+    finally:
+        lock.release()
+    assert summary.status == "complete" and queued[0].queued
+    assert "paused before generation 5" in log and "continuing before generation 5" in log
+    events = RunStore.open(live).events().to_pylist()
+    kinds = [e["kind"] for e in events]
+    assert kinds.index("intervention") < kinds.index("pause") < kinds.index("continue")
+    (intervention,) = [e for e in events if e["kind"] == "intervention"]
+    detail = json.loads(intervention["detail"])
+    assert intervention["generation"] == 5 and detail["source"] == "studio"
+    assert [h["id"] for h in detail["hand_fitness"]] == ["1-2-3"]
+    got = rows(live)
+    assert [r["parents"] for r in got if r["origin"] == "injected"] == [["0-2-1"]]
+    assert ["1-2-3"] in [r["parents"] for r in got if r["origin"] == "elite" and r["island"] == 1
+                         and r["generation"] == 5]
+
+    stopped = tmp_path / "stopped"
+    new_run(stopped, tiny_toml())
+    drive_to_end(stopped, pool, on_generation=stop_at(4))
+    assert apply_edit(str(stopped), edit).effective_generation == 5
+    drive_to_end(stopped, pool)
+    assert rows(stopped) == got
+    ref = rows(reference[0])
+    assert [r for r in got if r["generation"] < 5] == [r for r in ref if r["generation"] < 5]

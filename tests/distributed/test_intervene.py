@@ -17,7 +17,7 @@ from genr8_dist.store import RunStore
 
 def _snapshot(root):
     return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != "_running.lock"}
 
 
 @pytest.fixture
@@ -113,3 +113,57 @@ def test_a_run_with_nothing_committed_cannot_be_edited(tmp_path):
     new_run(tmp_path / "fresh", tiny_toml())
     with pytest.raises(StoreError, match="nothing to edit"):
         apply_edit(str(tmp_path / "fresh"), Edit(assignments=["ea.mutation_rate=0.1"]))
+
+
+def test_an_edit_of_a_running_run_is_queued_then_recorded_as_an_edit_records_it(run_dir, tmp_path):
+    from genr8_dist.distributed.intervene import take_queued
+
+    driver = RunStore.open(run_dir)
+    lock = driver.lock("run")
+    assert lock.acquire()
+    try:
+        before = _snapshot(run_dir)
+        result = apply_edit(str(run_dir), Edit(assignments=["ea.mutation_rate=0.1"], favour=["1-0-2"],
+                                               hand_fitness=[("0-0-4", 0.25)]), source="studio")
+        assert result.queued == "0000000001.json" and result.effective_generation == 1
+        assert RunStore.open(run_dir).configs()[-1].version == 1          # nothing recorded yet
+        assert set(_snapshot(run_dir)) - set(before) == {"queue/0000000001.json"}
+        with pytest.raises(ConfigError, match="hand fitness"):              # still checked at once
+            apply_edit(str(run_dir), Edit(hand_fitness=[("0-0-4", float("nan"))]))
+        taken = take_queued(driver)                                          # the coordinator's part
+    finally:
+        lock.release()
+    ((kind, outcome),) = taken
+    assert kind == "edit" and (outcome.version, outcome.effective_generation) == (2, 1)
+    store = RunStore.open(run_dir)
+    assert store.queued() == [] and store.config_for(1).version == 2
+    (event,) = [e for e in store.events().to_pylist() if e["kind"] == "intervention"]
+    detail = json.loads(event["detail"])
+    assert event["generation"] == 1 and detail["source"] == "studio" and detail["queued"]
+    assert detail["injected"] == [{"island": 1, "genome": list(store.load_generation(1, 0)[2].genome),
+                                   "copy_of": "1-0-2", "source": "favoured 1-0-2", "favoured": True}]
+    computed = store.load_generation(0, 0)[4].fitness
+    assert detail["hand_fitness"] == [{"id": "0-0-4", "island": 0, "fitness": 0.25, "computed": computed}]
+    # a request already recorded (a crash before its file was deleted) is dropped, not recorded twice
+    store.enqueue({"kind": "edit", "edit": {}, "id": detail["queued"]})
+    assert take_queued(store) == [] and store.queued() == []
+    # one that no longer fits when its epoch comes is refused with a recorded reason
+    store.enqueue({"kind": "edit", "edit": {"assignments": ["ea.generations=0"]}})
+    ((kind, reason),) = take_queued(store)
+    assert kind == "refused" and "ea.generations" in reason
+    assert store.events().column("kind").to_pylist()[-1] == "refused"
+
+
+def test_hand_fitness_makes_a_marked_individual_an_elite_of_the_next_generation():
+    config = parse_config(tiny_toml(islands=1), "tiny")
+    island = Island(config, 0)
+    first = island.initial()
+    worst = max(first, key=lambda ind: ind.fitness)
+    second = island.step(first, 1, hand=[(worst, 0.0)])
+    (elite,) = [ind for ind in second if ind.origin == "elite"]
+    assert elite.parents == (worst.id,) and elite.genome == worst.genome
+    assert elite.fitness == worst.fitness                       # the row keeps the computed fitness
+    # an individual of an older generation joins the pool of the generation it is marked for
+    third = island.step(second, 2, hand=[(worst, 0.0)])
+    assert [ind.parents for ind in third if ind.origin == "elite"] == [(worst.id,)]
+    assert island.step(first, 1) != second

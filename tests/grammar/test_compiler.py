@@ -29,6 +29,14 @@ from genr8_dist.grammar.compiler import compile_grammar
     ('foo: "x"\n', ":1:1:", "needs a rule named 'start'"),
     ('start: "x"~3\n', ":1:1:", "repetition range"),
     ('_t{x}: x\nstart: _t{"a"}\n', ":1:1:", "template"),
+    ('//@ number N 1\nstart: N\nN: /[0-9]+/\n', ":1:1:", "write '//@ number TERMINAL LO HI'"),
+    ('//@ number N 5 1\nstart: N\nN: /[0-9]+/\n', ":1:1:", "HI (1) is below LO (5)"),
+    ('//@ number N 0 1 0\nstart: N\nN: /[0-9]+/\n', ":1:1:", "STEP must be > 0"),
+    ('//@ number N 0 x\nstart: N\nN: /[0-9]+/\n', ":1:1:", "must be numbers"),
+    ('//@ number N 0 1e9\nstart: N\nN: /[0-9]+/\n', ":1:1:", "at most 10000"),
+    ('//@ number N -1 1\nstart: N\nN: /[0-9]+/\n', ":3:1:", "does not match the value -1"),
+    ('//@ number N 0 1\nstart: N\nN: "1"\n', ":3:1:", "numeric terminal N must be defined by a regular"),
+    ('//@ number M 0 1\nstart: "x"\n', ":1:1:", "names no terminal used"),
 ])
 def test_malformed_universe_errors_name_file_line_column(text, where, words):
     with pytest.raises(UniverseError) as info:
@@ -50,6 +58,19 @@ def test_bias_directive_applies_per_rule_and_per_repetition():
     cg = compile_grammar('//@ bias start 5\n//@ bias start#2 3\nstart: "a"* "b"* "c"*\n', "x.lark")
     reps = [node for node in cg.rules["start"][0][1] if node[0] == "rep"]
     assert [rep[2] for rep in reps] == [5, 3, 5]
+
+
+@pytest.mark.parametrize("lo, hi, step, values", [
+    ("-1", "3", "1", ("-1", "0", "1", "2", "3")),
+    ("0.5", "2", "0.5", ("0.5", "1.0", "1.5", "2.0")),
+    ("0", "1", "0.3", ("0.0", "0.3", "0.6", "0.9")),      # HI need not be reached
+    ("-2.5", "-2.5", "1", ("-2.5",)),
+    ("1", "1.2", "0.1", ("1.0", "1.1", "1.2")),           # exact: no 1.2000000000000002
+])
+def test_number_directive_values_are_exact_and_printed_with_the_steps_decimals(lo, hi, step, values):
+    cg = compile_grammar(f"//@ number N {lo} {hi} {step}\nstart: N\nN: /-?[0-9.]+/\n", "x")
+    assert cg.rules["start"] == (("num", values, "N"),)
+    assert cg.min_depth == {"start": 1}
 
 
 def test_minimum_depths_and_edge_templates():

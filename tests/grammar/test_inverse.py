@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -131,3 +133,49 @@ def test_max_depth_of_the_inverse_is_the_mappers():
     genome = u.invert(text, max_depth=10)
     assert u.map(genome, max_depth=10).text == text
     assert u.map(genome, max_depth=5).text != text
+
+
+NUMBERS = """//@ number COUNT 0 4
+//@ number SIZE -1.5 1.5 0.5
+start: (item _NL)+
+item: "f" "(" COUNT ")" | "g" "(" SIZE "," COUNT ")"
+COUNT: /[0-9]+/
+SIZE: /-?[0-9]+\\.[0-9]/
+_NL: "\\n"
+%ignore " "
+"""
+
+
+def _numbers_universe():
+    from pathlib import Path
+
+    from genr8_dist.grammar.universe import Universe
+
+    return Universe("numbers", "path", Path("numbers.lark"), NUMBERS)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 10_000), min_size=1, max_size=60))
+def test_numeric_terminals_round_trip_through_invert(genome):
+    universe = _numbers_universe()
+    result = universe.map(genome, max_depth=5)
+    if result.valid:
+        again = universe.invert(result.text)
+        assert universe.map(again, max_depth=5).text == result.text
+
+
+def test_numeric_terminal_reads_one_codon_mod_its_value_count():
+    universe = _numbers_universe()
+    # start, item alternative 1 (g), SIZE 9 mod 7 = 2 -> -0.5, COUNT 13 mod 5 = 3, repetition stops
+    assert universe.map([0, 1, 9, 13, 0], max_depth=5).text == "g ( -0.5 , 3 )\n"
+    assert universe.invert("g ( -0.5 , 3 )\n") == (0, 1, 2, 3, 0)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("f ( 7 )\n", "line 1, column 5: '7' is not a value numeric terminal COUNT can take"),
+    ("g ( 0.7 , 1 )\n", "'0.7' is not a value numeric terminal SIZE can take"),
+    ("g ( 1.50 , 1 )\n", "'1.50' is not allowed here"),
+])
+def test_numbers_outside_the_range_are_refused_with_where_and_why(text, words):
+    with pytest.raises(InversionError, match=re.escape(words)):
+        _numbers_universe().invert(text)

@@ -172,3 +172,123 @@ def test_keywords_are_case_insensitive_and_windows_line_ends_are_fine():
     assert s.angle == 22.5 and s.sync and s.branch_angle == 45
     assert s.rules[0].weights == (2.0, 1.0) and s.rules[0].condition == Condition("<", 2)
     assert parse(s.to_text()) == s
+
+
+TABLE_2_3 = """D + D + D + D
+D -> + D - - D p = 0.5
+D -> - D + + D p=0.5
+Angle 45
+"""
+
+
+def test_table_2_3_probabilities_on_separate_rules_become_one_weighted_rule():
+    system = parse(TABLE_2_3)
+    assert len(system.rules) == 1
+    rule = system.rules[0]
+    assert rule.weights == (0.5, 0.5)
+    assert [str(s) for s in rule.successors] == ["+ D - - D Weight 0.5", "- D + + D Weight 0.5"]
+    assert system.warnings() == []
+    assert parse(system.to_text()) == system
+
+
+def test_probabilities_merge_only_rules_of_the_same_context_and_condition():
+    system = parse("A + A + A\nA -> A A p = 0.3 If i < 2\nB < A -> A p = 1\nA -> A A A p = 0.7 If i < 2\n"
+                   "A -> A\n")
+    assert [len(r.successors) for r in system.rules] == [2, 1, 1]
+    assert system.rules[0].weights == (0.3, 0.7)
+
+
+def test_a_probability_above_one_is_refused_with_its_position():
+    with pytest.raises(ParseError, match=r"2:14: a probability p must be between 0 and 1, got 1.5"):
+        parse("A + A + A\nA -> A A p = 1.5\n")
+
+
+def test_rules_that_can_never_fire_are_named_with_the_rule_that_shadows_them():
+    system = parse("A + B + A + B\nA -> A B\nA -> B A\nB < A -> A\nB -> B If i < 2\nB -> B B If i < 2\n"
+                   "B -> A\nB > A -> B\n")
+    shadowed = [(r.line, e.line) for r, e in system.never_firing()]
+    assert shadowed == [(3, 2), (4, 2), (6, 5), (8, 7)]
+    assert system.warnings()[0].startswith("line 3: the rule for A can never fire: the rule on line 2")
+    # a fallback after a condition or a context does fire
+    assert parse(AA_TIMED).warnings() == []
+
+
+# -- the direct reader agrees with Lark ------------------------------------------------------------------
+
+def _universe_texts(per_universe: int) -> list[str]:
+    from genr8_dist.evolution.operators import random_genome
+    from genr8_dist.grammar import list_universes, load_universe
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+    from genr8_dist.rng import stream
+
+    texts = []
+    for info in list_universes():
+        universe = load_universe(info.name)
+        if phenotype_of(universe) is not SURFACES:
+            continue  # its texts are not HEMLS
+        rng = stream(0, "test", "direct reader", info.name)
+        for _ in range(per_universe):
+            mapped = universe.map(random_genome(rng, 100, 255))
+            if mapped.valid:
+                texts.append(mapped.text)
+    return texts
+
+
+def _lark_outcome(text: str):
+    from genr8_dist.hemls.language import _parse_lark
+
+    try:
+        system = _parse_lark(text, "<t>", "")
+    except ParseError as exc:
+        return "error", str(exc)
+    return "system", (system, system.to_text(), tuple(r.line for r in system.rules))
+
+
+def _outcome(text: str):
+    try:
+        system = parse(text, "<t>")
+    except ParseError as exc:
+        return "error", str(exc)
+    return "system", (system, system.to_text(), tuple(r.line for r in system.rules))
+
+
+def test_direct_reader_reads_every_universe_text_as_lark_does():
+    from genr8_dist.hemls.language import _direct
+
+    texts = _universe_texts(40)
+    assert len(texts) > 100
+    for text in texts:
+        direct = _direct(text)
+        assert direct is not None, text   # the universes' texts never need Lark
+        assert _outcome(text) == _lark_outcome(text)
+
+
+EDITS = ["", " ", "\n", "~", "+", "-", "->", "[", "]", "<", ">", "Weight", "Weight 2", "Weight -1",
+         "If i < 2", "If i", "Angle 30", "Angle 400", "Sync", "BranchAngle 95", "Edge1", "Edge1_i",
+         "Edge1_i+2", "A", "2", "0.5", "i", "==", "!=", ";", "// c", "#", "\t", "Edge", "1e999", "Weight 0",
+         "_i", "p = 0.5", "p=1", "p = 2"]
+
+
+def test_direct_reader_and_lark_agree_on_edited_texts():
+    """Words inserted, deleted and swapped in universe texts: the same system or the same error."""
+    from genr8_dist.rng import stream
+
+    rng = stream(0, "test", "edited texts")
+    texts = _universe_texts(8)
+    checked = 0
+    for text in texts:
+        for _ in range(12):
+            words = text.split(" ")
+            k = int(rng.integers(0, len(words)))
+            action = int(rng.integers(0, 3))
+            if action == 0:
+                words.insert(k, EDITS[int(rng.integers(0, len(EDITS)))])
+            elif action == 1:
+                del words[k]
+            else:
+                j = int(rng.integers(0, len(words)))
+                words[k], words[j] = words[j], words[k]
+            edited = " ".join(words)
+            assert _outcome(edited) == _lark_outcome(edited), edited
+            checked += 1
+    assert checked > 300

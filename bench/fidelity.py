@@ -1,0 +1,99 @@
+"""Fidelity figures (issue 14): what the thesis's figures show, measured on the code as it is.
+
+    python bench/fidelity.py              # all three figures
+    python bench/fidelity.py --only drape # penetrations and regions kept
+    python bench/fidelity.py --genomes 100
+
+1. penetrations: four_sided_tiles draped over the sphere of examples/environments/drape_sphere.toml
+   (gravity, slide): vertices on the wrong side of the sphere after each derivation step (deeper
+   than 1e-9, the hair boundaries leave on the allowed side) and the deepest one;
+2. regions kept: the same drape at 5 steps for BranchAngle 15, 30 (the default) and 45; a square
+   split into four every step has 4**5 = 1,024 regions when every join is made;
+3. symmetric share: random genomes (seed 0, 50-150 codons) of the symmetric universes grown 4 steps
+   in the empty environment; the share of grown (uncapped) surfaces with a mirror line
+   (``Surface.mirror_line``: a vertical plane through the centre mapping every vertex onto one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from pathlib import Path
+
+import numpy as np
+
+from genr8_dist.environment import Environment, load_environment
+from genr8_dist.grammar import list_universes, load_universe
+from genr8_dist.hemls import grow, load_system, parse
+from genr8_dist.rng import stream
+
+ROOT = Path(__file__).resolve().parent.parent
+DRAPE = ROOT / "examples" / "environments" / "drape_sphere.toml"
+
+
+def penetrations() -> None:
+    env = load_environment(DRAPE)
+    system = load_system("four_sided_tiles")
+    result = grow(system, env, keep_steps=True)
+    print(f"penetrations: four_sided_tiles in {DRAPE.relative_to(ROOT)} ({env.steps} steps)")
+    print(f"{'step':>4} {'V':>7} {'inside':>7} {'deepest':>9}")
+    for step, surface in enumerate(result.history):
+        depth = np.zeros(surface.n_vertices)
+        for b in env.boundaries:
+            if b.behaviour != "soft":
+                depth = np.maximum(depth, b.violation(surface.vertices))
+        bad = depth > 1e-9
+        print(f"{step:>4} {surface.n_vertices:>7} {int(bad.sum()):>7} {float(depth.max(initial=0)):>9.4f}")
+
+
+def regions_kept() -> None:
+    env = dataclasses.replace(load_environment(DRAPE), steps=5)
+    text = load_system("four_sided_tiles").to_text()
+    print("\nregions kept: four_sided_tiles in the drape at 5 steps (1,024 when every join is made)")
+    for angle in (15, 30, 45):
+        system = parse(text + f"BranchAngle {angle}\n")
+        surface = grow(system, env).surface
+        print(f"  BranchAngle {angle:>2}: {surface.n_regions:>5} regions")
+
+
+def symmetric_share(n_genomes: int) -> None:
+    env = Environment(max_edges=20_000, max_seconds=10.0)
+    names = [u.name for u in list_universes() if u.name.startswith("symmetric")]
+    print(f"\nsymmetric share: {n_genomes} random genomes per universe, grown 4 steps, empty environment")
+    print(f"{'universe':>20} {'mapped':>6} {'grown':>6} {'capped':>6} {'mirror':>6} {'share':>7} {'s':>6}")
+    for name in names:
+        universe = load_universe(name)
+        rng = stream(0, "bench", "fidelity", name)
+        mapped = grown = capped = mirror = 0
+        t0 = time.perf_counter()
+        for _ in range(n_genomes):
+            result = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
+            if not result.valid:
+                continue
+            mapped += 1
+            growth = grow(parse(result.text), env)
+            if growth.capped:
+                capped += 1
+                continue
+            grown += 1
+            mirror += growth.surface.mirror_line() is not None
+        share = mirror / grown if grown else float("nan")
+        print(f"{name:>20} {mapped:>6} {grown:>6} {capped:>6} {mirror:>6} {share:>7.1%} "
+              f"{time.perf_counter() - t0:>6.1f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--only", choices=("drape", "symmetric"), help="one part only")
+    parser.add_argument("--genomes", type=int, default=500, help="random genomes per symmetric universe")
+    args = parser.parse_args()
+    if args.only in (None, "drape"):
+        penetrations()
+        regions_kept()
+    if args.only in (None, "symmetric"):
+        symmetric_share(args.genomes)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,154 @@
+"""Phenotypes: what a universe's texts develop into, how that is measured, scored, exported and shown.
+
+A universe's texts are genotypes written out; its *phenotype* says what they become. The built-in
+one is the HEMLS surface (:data:`SURFACES`: parse the rewrite system, grow it in the run's
+environment, score the six surface criteria against targets and weights). A plugin brings its own by
+defining ``PHENOTYPE`` in its ``hooks.py`` (see docs/phenotypes.md, with ``plugins/tables`` as the
+worked example); the evaluator, the islands, the run store, the history commands, ``genr8 show`` and
+the report only ever talk to a phenotype through this interface:
+
+``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
+``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
+``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
+                                           minimises; a phenotype whose paper maximises a score
+                                           returns its negation and says so in ``direction``)
+``export(developed, path, config)``        a file a CAD tool or a 3D printer reads (suffix decides)
+``preview(developed, path, title, config)`` a PNG picture
+``draw(ax, developed)``                    the same picture on a matplotlib 3D axes (gallery tiles)
+``parse(text)`` (optional)                 read a text; when given, a universe is checked at load by
+                                           parsing a sample of its derivations
+
+Development is a pure function of (text, configuration); ``Developed.digest`` identifies the result,
+so regrowing an individual checks it is bit-identical to what the run scored.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["SURFACES", "Developed", "Phenotype", "SurfacePhenotype", "phenotype_of"]
+
+
+@dataclass(frozen=True)
+class Developed:
+    """One text developed: the phenotype ``value`` and the facts the run store keeps about it.
+
+    ``digest``: equal digests, equal phenotypes; ``steps``: derivation steps done; ``capped``: what
+    cut development short (``None`` when nothing did); ``counts``: the sizes stored with the row
+    (``n_vertices``, ``n_edges``, ``n_regions`` for surfaces; a phenotype without such parts leaves
+    them out and they are stored as 0)."""
+
+    value: Any
+    digest: str
+    steps: int = 0
+    capped: str | None = None
+    counts: Mapping[str, int] = field(default_factory=dict)
+
+
+class Phenotype:
+    """The interface a universe's phenotype implements (subclass it, or write the same attributes).
+
+    ``name``: shown by ``genr8 universes``; ``criteria``: the names of the raw values ``measure``
+    returns, in display order (they are the run's ``crit_<name>`` columns); ``headings``: short column
+    headings for ``genr8 top``; ``direction``: ``"minimise"`` when ``fitness`` is the paper's own
+    measure, ``"maximise"`` when it is the negated score of a paper that maximises; ``capped_is_invalid``:
+    whether a development that hit a cap fails the individual; ``export_formats``: suffixes ``export``
+    writes; ``stage``: the name of the failing stage when ``develop`` raises.
+    """
+
+    name: str = "phenotype"
+    criteria: tuple[str, ...] = ()
+    headings: Mapping[str, str] = {}
+    descriptions: Mapping[str, str] = {}
+    direction: str = "minimise"
+    capped_is_invalid: bool = True
+    export_formats: tuple[str, ...] = ()
+    stage: str = "grow"
+
+    def develop(self, text: str, config: Any) -> Developed:
+        raise NotImplementedError
+
+    def measure(self, developed: Developed, config: Any) -> dict[str, float]:
+        raise NotImplementedError
+
+    def fitness(self, raw: Mapping[str, float], config: Any) -> float:
+        raise NotImplementedError
+
+    def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
+        raise NotImplementedError(f"phenotype {self.name} exports nothing")
+
+    def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+        raise NotImplementedError(f"phenotype {self.name} draws no preview")
+
+    def draw(self, ax: Any, developed: Developed) -> None:
+        raise NotImplementedError(f"phenotype {self.name} draws no preview")
+
+
+class SurfacePhenotype(Phenotype):
+    """The built-in phenotype: HEMLS rewrite systems grown into surfaces (thesis ch. 2, 4.3)."""
+
+    name = "surface"
+    direction = "minimise"
+    capped_is_invalid = True
+    stage = "grow"
+
+    @property
+    def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
+        from genr8_dist.fitness import CRITERIA
+
+        return tuple(CRITERIA)
+
+    def parse(self, text: str) -> Any:
+        """Read a derived text (a rewrite system); raises for a text no individual could grow from.
+        Optional for a phenotype: when present, a universe is checked at load by parsing a sample of
+        its derivations (genr8_dist.grammar.universe.Universe.check_sample)."""
+        from genr8_dist.hemls import parse
+
+        return parse(text)
+
+    def develop(self, text: str, config: Any) -> Developed:
+        from genr8_dist.hemls import grow, parse
+
+        try:
+            system = parse(text)
+        except Exception as exc:
+            exc.genr8_stage = "parse"  # type: ignore[attr-defined]
+            raise
+        result = grow(system, config.environment)
+        surface = result.surface
+        steps = result.steps
+        capped = result.capped
+        n_regions = getattr(surface, "n_regions", None)
+        counts = {"n_vertices": len(surface.vertices), "n_edges": len(surface.edges),
+                  "n_regions": int(n_regions) if n_regions is not None else len(surface.regions)}
+        return Developed(surface, surface.digest(),
+                         len(steps) if isinstance(steps, (list, tuple)) else int(steps),
+                         (capped if isinstance(capped, str) else "cap") if capped else None, counts)
+
+    def measure(self, developed: Developed, config: Any) -> dict[str, float]:
+        from genr8_dist.fitness import score_surface
+
+        if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
+            raise ValueError("degenerate surface: no vertices or no edges")
+        raw = score_surface(developed.value, config.environment)
+        bad = [name for name, value in raw.items() if not math.isfinite(value)]
+        if bad:
+            raise ValueError(f"degenerate surface: {', '.join(bad)} not finite")
+        return raw
+
+    def fitness(self, raw: Mapping[str, float], config: Any) -> float:
+        return config.fitness.evaluate(raw)
+
+
+SURFACES = SurfacePhenotype()
+
+
+def phenotype_of(universe: Any) -> Phenotype:
+    """The phenotype of ``universe``: its hooks' ``PHENOTYPE``, else the built-in surfaces."""
+    hooks = getattr(universe, "hooks", None)
+    found = getattr(hooks, "PHENOTYPE", None) if hooks is not None else None
+    return found if found is not None else SURFACES

@@ -1,0 +1,82 @@
+"""Hooks of the ``tables`` universe: its phenotype, Hornby & Pollack's voxel tables.
+
+``PHENOTYPE`` is what genr8_dist's evaluator, run store, history and report use (the interface:
+``genr8_dist.phenotype``; a walk-through: docs/phenotypes.md). The domain logic, free of genr8_dist,
+is in ``voxels.py`` beside this file: the P0L-system, the turtle, the criteria, the mesh.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from genr8_dist.phenotype import Developed, Phenotype
+
+# A plugin's modules are one package (genr8_dist.grammar.source): its siblings are relative imports,
+# and they travel with the run that stores the universe, so this works after the plugin folder is gone.
+from . import voxels
+
+
+class TablesPhenotype(Phenotype):
+    """Voxel tables (GECCO 2001): develop = rewrite the P0L-system, run the turtle on a 40^3 grid;
+    criteria = height, surface, stability, excess (and the voxel count, for the record); fitness =
+    height * surface * stability / excess, maximised, so the engine's (lower-is-better) fitness is its
+    negation."""
+
+    name = "voxels"
+    criteria = voxels.CRITERIA
+    headings = MappingProxyType({"height": "height", "surface": "surf", "stability": "stab",
+                                 "excess": "excess", "voxels": "voxels"})
+    descriptions = MappingProxyType({
+        "height": "Y_max, the highest filled layer (the ground is layer 0)",
+        "surface": "the voxels in layer Y_max (the table top)",
+        "stability": "the sum, over the layers below Y_max, of the area of each layer's convex hull",
+        "excess": "the voxels not in layer Y_max",
+        "voxels": "all filled voxels (not part of the fitness)",
+    })
+    direction = "maximise"
+    capped_is_invalid = False
+    export_formats = ("obj", "ply", "stl", "glb")
+    stage = "develop"
+
+    def develop(self, text: str, config: Any) -> Developed:
+        table = voxels.develop(text)
+        return Developed(table, table.digest(), table.steps, table.capped)
+
+    def measure(self, developed: Developed, config: Any) -> dict[str, float]:
+        return voxels.criteria(developed.value.voxels)
+
+    def fitness(self, raw: Mapping[str, float], config: Any) -> float:
+        return -voxels.fitness(dict(raw))
+
+    def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
+        import trimesh
+
+        from genr8_dist.export import write_mesh
+
+        vertices, faces = voxels.mesh_arrays(developed.value.voxels)
+        return write_mesh(trimesh.Trimesh(vertices, faces, process=False), path)
+
+    def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+        import matplotlib
+
+        from genr8_dist.export import save_png
+
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+
+        fig = plt.figure(figsize=(5.2, 5.2))
+        ax = fig.add_subplot(projection="3d")
+        self.draw(ax, developed)
+        raw = voxels.criteria(developed.value.voxels)
+        fig.suptitle(title, fontsize=10)
+        fig.text(0.5, 0.03, voxels.voxel_count_text(developed.value, raw), ha="center", fontsize=7.5)
+        return save_png(fig, path)
+
+    def draw(self, ax: Any, developed: Developed) -> None:
+        voxels.draw(ax, developed.value.voxels)
+
+
+PHENOTYPE = TablesPhenotype()

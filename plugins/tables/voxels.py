@@ -1,0 +1,663 @@
+"""Hornby & Pollack's evolved tables (GECCO 2001): P0L-systems that build voxel structures.
+
+A *text* of the ``tables`` universe is a parametric 0L-system (section 2.2), one production per line::
+
+    P0 ( 4 , 10 ) iterations 12                      the axiom and the number of derivation steps
+    P0 ( n0 , n1 ) : n1 > 3 -> P1 ( n0 - 4 , n0 / 2 ) v ( 1 ) { P2 ( n1 , 2 ) } ( 4 ) | n0 > 2 -> [ b ( 5 ) ]
+    P1 ( n0 , n1 ) : n0 > 0 -> ...
+
+A production has a predecessor (a name and its formal parameters), then condition-successor pairs
+separated by ``|``; a condition compares one parameter with a constant (``n1 > 3``). In a derivation
+step every call module ``Pk(a, b)`` is replaced, in parallel, by the successor of the first pair of
+``Pk`` whose condition holds; when none holds (or ``Pk`` has no production) it is replaced by nothing,
+as in the paper's example (``P0(1)`` vanishes) and its table 4.d (``P16``). A successor holds the
+build commands of table 1, calls, push/pop brackets ``[ ]`` and block replication ``{ ... } ( n )``.
+Parameters to commands are a constant or a parameter; parameters to calls are equations
+``x op y`` (``op`` one of ``+ - * /``, ``x`` and ``y`` a parameter or a constant). Division by zero
+gives 0 and every computed value is clamped to [-1e6, 1e6], so a derivation never fails on arithmetic.
+
+A text of the ``tables_direct`` universe (the paper's non-generative baseline) is one line of build
+commands and brackets, without block replication and without productions.
+
+Development, then: the axiom is rewritten ``iterations`` times (stopping early, flagged ``capped``,
+when the word would pass ``MAX_MODULES`` modules), leftover calls are dropped, and the command string
+drives a LOGO-style turtle on a 40 x 40 x 40 voxel grid (section 2.1):
+
+=====  ===================  =====================================================================
+``f``  forward(n)           move ``n`` cells along the heading (the turtle's X axis), filling each
+``b``  backward(n)          move ``n`` cells against the heading, filling each
+``^``  up(n)                rotate ``n`` x 90 degrees about the turtle's Z axis (``v``: -90)
+``<``  left(n)              rotate ``n`` x 90 degrees about the turtle's Y axis (``>``: -90)
+``/``  clockwise(n)         rotate ``n`` x 90 degrees about the turtle's X axis (``\\``: -90)
+``[``  ``]``                push / pop the turtle's position and orientation
+``{ }(n)``                  repeat the enclosed block ``n`` times
+=====  ===================  =====================================================================
+
+Grid cells are ``(x, y, z)`` with ``y`` up. The turtle starts in the filled cell (20, 0, 20) on the
+ground, heading +x with its Y axis up; ``n`` is truncated to an integer (``forward(4.5)`` moves 4;
+a negative move goes the other way; rotations are ``n mod 4`` quarter turns); a move that would leave
+the grid stops at its edge. The turtle only ever enters a cell next to the one it stands in and fills
+every cell it enters, so the voxels always form one face-connected structure. At most
+``MAX_COMMANDS`` commands run (the paper's direct encoding allows 20,000); later ones are skipped and
+the table is flagged ``capped``.
+
+Criteria (section 3), with ``Y_max`` the highest filled layer: ``height = Y_max``, ``surface`` = the
+voxels in layer ``Y_max``, ``stability`` = the sum over the layers below ``Y_max`` of the area of the
+convex hull of the layer's voxels (unit squares), ``excess`` = the voxels not in layer ``Y_max``;
+``fitness = height * surface * stability / excess`` (0 when ``excess`` is 0), to be maximised.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+GRID = 40
+START = (20, 0, 20)
+MAX_MODULES = 50_000
+MAX_COMMANDS = 20_000
+MAX_ITERATIONS = 30
+LIMIT = 1e6
+
+COMMANDS = {"f": "forward", "b": "backward", "^": "up", "v": "down", "<": "left", ">": "right",
+            "/": "clockwise", "\\": "counter-clockwise"}
+CRITERIA = ("height", "surface", "stability", "excess", "voxels")
+
+
+class TablesError(ValueError):
+    """A text that is not a P0L-system or command string of the tables universes."""
+
+
+# --------------------------------------------------------------------------------------------------
+# Parsing. Expressions are ("k", value) constants, ("p", i) parameters and ("op", op, a, b) equations.
+# Successor items: ("c", symbol, expr), ("call", name, (expr, ...)), ("[", items), ("{", expr, items).
+# A word (after substitution) has the same shape with plain floats in place of expressions.
+
+_TOKEN = re.compile(r"\s*(->|\d+(?:\.\d*)?|\.\d+|[A-Za-z_]\w*|[()\[\]{},:|+\-*/\\^<>])")
+
+
+def _tokens(line: str, lineno: int) -> list[tuple[str, int]]:
+    out, pos = [], 0
+    line = line.rstrip()
+    while pos < len(line):
+        m = _TOKEN.match(line, pos)
+        if not m:
+            col = pos + len(line[pos:]) - len(line[pos:].lstrip()) + 1
+            raise TablesError(f"line {lineno}, column {col}: unexpected character {line[col - 1]!r}")
+        out.append((m.group(1), m.start(1) + 1))
+        pos = m.end()
+    return out
+
+
+class _Line:
+    """A recursive-descent reader over one line's tokens."""
+
+    def __init__(self, line: str, lineno: int, params: tuple[str, ...] = ()) -> None:
+        self.toks = _tokens(line, lineno)
+        self.i = 0
+        self.lineno = lineno
+        self.params = params
+
+    def peek(self) -> str | None:
+        return self.toks[self.i][0] if self.i < len(self.toks) else None
+
+    def fail(self, what: str) -> TablesError:
+        if self.i < len(self.toks):
+            tok, col = self.toks[self.i]
+            return TablesError(f"line {self.lineno}, column {col}: expected {what}, got {tok!r}")
+        return TablesError(f"line {self.lineno}: expected {what} at the end of the line")
+
+    def take(self, want: str | None = None) -> str:
+        tok = self.peek()
+        if tok is None or (want is not None and tok != want):
+            raise self.fail(repr(want) if want else "more")
+        self.i += 1
+        return tok
+
+    def done(self) -> bool:
+        return self.i >= len(self.toks)
+
+    def number(self) -> float:
+        sign = -1.0 if self.peek() == "-" else 1.0
+        if sign < 0:
+            self.i += 1
+        tok = self.peek()
+        if tok is None or not re.fullmatch(r"\d+(?:\.\d*)?|\.\d+", tok):
+            raise self.fail("a number")
+        self.i += 1
+        return sign * float(tok)
+
+    def term(self) -> tuple:
+        tok = self.peek()
+        if tok in self.params:
+            self.i += 1
+            return ("p", self.params.index(tok))
+        return ("k", self.number())
+
+    def expr(self) -> tuple:
+        left = self.term()
+        op = self.peek()
+        follows = self.toks[self.i + 1][0] if self.i + 1 < len(self.toks) else None
+        if op in ("+", "-", "*", "/") and follows not in (None, ",", ")"):
+            self.i += 1
+            return ("op", op, left, self.term())
+        return left
+
+    def args(self) -> tuple:
+        self.take("(")
+        out = [self.expr()]
+        while self.peek() == ",":
+            self.i += 1
+            out.append(self.expr())
+        self.take(")")
+        return tuple(out)
+
+    def items(self, close: str | None, direct: bool) -> list:
+        out: list = []
+        while True:
+            tok = self.peek()
+            if tok == close or (close is None and (tok is None or tok == "|")):
+                return out
+            if tok is None:
+                raise self.fail(repr(close))
+            if tok in COMMANDS:
+                self.i += 1
+                (arg,) = self._one(tok)
+                out.append(("c", tok, arg))
+            elif tok == "[":
+                self.i += 1
+                body = self.items("]", direct)
+                self.take("]")
+                out.append(("[", body))
+            elif tok == "{" and not direct:
+                self.i += 1
+                body = self.items("}", direct)
+                self.take("}")
+                (count,) = self._one("}")
+                out.append(("{", count, body))
+            elif re.fullmatch(r"P\d+", tok) and not direct:
+                self.i += 1
+                out.append(("call", tok, self.args()))
+            else:
+                raise self.fail("a build command (f b ^ v < > / \\)" + (", '[' or ']'" if direct else
+                                                                         ", a call Pk, '[', '{'"))
+
+    def _one(self, owner: str) -> tuple:
+        args = self.args()
+        if len(args) != 1:
+            raise TablesError(f"line {self.lineno}: {owner} takes one argument, got {len(args)}")
+        return args
+
+
+@dataclass(frozen=True)
+class Production:
+    """``name(params) : param > limit -> successor | ...``: pairs of (parameter index, limit, items)."""
+
+    name: str
+    params: tuple[str, ...]
+    pairs: tuple[tuple[int, float, tuple], ...]
+
+
+@dataclass(frozen=True)
+class System:
+    """A P0L-system (``productions`` empty for a direct command string): axiom, iterations, rules."""
+
+    axiom: tuple
+    iterations: int
+    productions: dict[str, Production]
+
+
+def parse(text: str) -> System:
+    """Read a tables text: a P0L-system (its first line holds ``iterations``) or a command string."""
+    lines = [(n, line) for n, line in enumerate(text.splitlines(), 1)
+             if line.strip() and not line.lstrip().startswith("#")]
+    if not lines:
+        raise TablesError("the text is empty: no axiom and no commands")
+    first_no, first = lines[0]
+    if "iterations" not in first.split():
+        if len(lines) > 1:
+            raise TablesError(f"line {lines[1][0]}: a command string (no 'iterations' on its first "
+                              "line) is one line")
+        reader = _Line(first, first_no)
+        items = reader.items(None, direct=True)
+        if not reader.done():
+            raise reader.fail("a build command")
+        return System(_substitute(items, ()), 0, {})
+    head = _Line(first, first_no)
+    name = head.take()
+    if not re.fullmatch(r"P\d+", name):
+        raise TablesError(f"line {first_no}: the axiom is a call such as 'P0 ( 4 , 10 )', got {name!r}")
+    args = tuple(_value(e, ()) for e in head.args())
+    head.take("iterations")
+    iterations = head.number()
+    if not head.done():
+        raise head.fail("the end of the axiom line")
+    if iterations != int(iterations) or not 0 <= iterations <= MAX_ITERATIONS:
+        raise TablesError(f"line {first_no}: iterations must be an integer from 0 to {MAX_ITERATIONS}, "
+                          f"got {iterations:g}")
+    productions: dict[str, Production] = {}
+    for lineno, line in lines[1:]:
+        reader = _Line(line, lineno)
+        pname = reader.take()
+        if not re.fullmatch(r"P\d+", pname):
+            raise TablesError(f"line {lineno}: a production starts with its name Pk, got {pname!r}")
+        if pname in productions:
+            raise TablesError(f"line {lineno}: production {pname} is defined twice")
+        reader.take("(")
+        params = [reader.take()]
+        while reader.peek() == ",":
+            reader.i += 1
+            params.append(reader.take())
+        reader.take(")")
+        if any(not re.fullmatch(r"n\d+", p) for p in params) or len(set(params)) != len(params):
+            raise TablesError(f"line {lineno}: formal parameters are distinct names n0, n1, ..., got "
+                              f"{', '.join(params)}")
+        reader.params = tuple(params)
+        reader.take(":")
+        pairs = []
+        while True:
+            param = reader.take()
+            if param not in reader.params:
+                reader.i -= 1
+                raise reader.fail(f"a condition on one of {', '.join(params)}")
+            reader.take(">")
+            limit = reader.number()
+            reader.take("->")
+            pairs.append((reader.params.index(param), limit, tuple(reader.items(None, direct=False))))
+            if reader.done():
+                break
+            reader.take("|")
+        productions[pname] = Production(pname, reader.params, tuple(pairs))
+    return System((("call", name, args),), int(iterations), productions)
+
+
+# --------------------------------------------------------------------------------------------------
+# Derivation.
+
+
+def _clamp(v: float) -> float:
+    if v != v:  # NaN
+        return 0.0
+    return LIMIT if v > LIMIT else -LIMIT if v < -LIMIT else v
+
+
+def _value(expr: tuple, actual: tuple) -> float:
+    kind = expr[0]
+    if kind == "k":
+        return expr[1]
+    if kind == "p":
+        return actual[expr[1]] if expr[1] < len(actual) else 0.0
+    _, op, a, b = expr
+    x, y = _value(a, actual), _value(b, actual)
+    if op == "+":
+        return _clamp(x + y)
+    if op == "-":
+        return _clamp(x - y)
+    if op == "*":
+        return _clamp(x * y)
+    return _clamp(x / y) if y != 0 else 0.0
+
+
+def _substitute(items: tuple | list, actual: tuple) -> tuple:
+    """The successor ``items`` with the actual parameters put in (a piece of a word)."""
+    out = []
+    for item in items:
+        kind = item[0]
+        if kind == "c":
+            out.append(("c", item[1], _value(item[2], actual)))
+        elif kind == "call":
+            out.append(("call", item[1], tuple(_value(e, actual) for e in item[2])))
+        elif kind == "[":
+            out.append(("[", _substitute(item[1], actual)))
+        else:
+            out.append(("{", _value(item[1], actual), _substitute(item[2], actual)))
+    return tuple(out)
+
+
+def _size(word: tuple) -> int:
+    n = 0
+    for item in word:
+        n += 1
+        if item[0] == "[":
+            n += _size(item[1])
+        elif item[0] == "{":
+            n += _size(item[2])
+    return n
+
+
+def _step(word: tuple, system: System, budget: list[int]) -> tuple:
+    """One derivation step: every call replaced in parallel by its successor (or by nothing)."""
+    out = []
+    for item in word:
+        kind = item[0]
+        if kind == "call":
+            production = system.productions.get(item[1])
+            if production is None:
+                continue
+            args = item[2]
+            if len(args) != len(production.params):
+                continue  # a module matches only a predecessor with as many parameters
+            for index, limit, successor in production.pairs:
+                if args[index] > limit:
+                    piece = _substitute(successor, args)
+                    budget[0] -= _size(piece)
+                    if budget[0] < 0:
+                        raise OverflowError
+                    out.extend(piece)
+                    break
+        elif kind == "[":
+            out.append(("[", _step(item[1], system, budget)))
+        elif kind == "{":
+            out.append(("{", item[1], _step(item[2], system, budget)))
+        else:
+            budget[0] -= 1
+            out.append(item)
+    return tuple(out)
+
+
+def derive(system: System, max_modules: int = MAX_MODULES) -> tuple[tuple, int, bool]:
+    """``(word, steps done, capped)``: the axiom rewritten ``system.iterations`` times, stopping at the
+    last word of at most ``max_modules`` modules."""
+    word = system.axiom
+    for step in range(system.iterations):
+        try:
+            word = _step(word, system, [max_modules])
+        except OverflowError:
+            return word, step, True
+    return word, system.iterations, False
+
+
+def _fmt(v: float) -> str:
+    return f"{v:g}"
+
+
+def command_string(word: tuple, *, calls: bool = True) -> str:
+    """The word in the paper's notation: ``[{ [forward(6)] left(1) }(4)] up(1) ...`` (calls as
+    ``P1(6)``; ``calls=False`` drops them, as development does after the last step)."""
+    parts: list[str] = []
+    for item in word:
+        kind = item[0]
+        if kind == "c":
+            parts.append(f"{COMMANDS[item[1]]}({_fmt(item[2])})")
+        elif kind == "call":
+            if calls:
+                parts.append(f"{item[1]}({', '.join(map(_fmt, item[2]))})")
+        elif kind == "[":
+            parts.append(f"[{command_string(item[1], calls=calls)}]")
+        else:
+            parts.append(f"{{ {command_string(item[2], calls=calls)} }}({_fmt(item[1])})")
+    return " ".join(p for p in parts if p)
+
+
+# --------------------------------------------------------------------------------------------------
+# The voxel turtle.
+
+_AXES = {"^": (0, 1), "v": (0, 1), "<": (0, 2), ">": (0, 2), "/": (1, 2), "\\": (1, 2)}
+
+
+@dataclass(frozen=True)
+class Table:
+    """A developed structure: ``voxels`` (GRID^3 bool, indexed ``[x, y, z]``, ``y`` up) and how it
+    was built (derivation steps, commands run, modules in the final word, what capped it)."""
+
+    voxels: np.ndarray
+    steps: int
+    commands: int
+    modules: int
+    capped: str | None
+
+    @property
+    def n_voxels(self) -> int:
+        return int(self.voxels.sum())
+
+    def digest(self) -> str:
+        """A hash of the filled cells: equal digests, equal tables."""
+        return hashlib.sha256(np.packbits(self.voxels).tobytes()).hexdigest()[:16]
+
+
+class _Turtle:
+    def __init__(self, max_commands: int) -> None:
+        self.grid = np.zeros((GRID, GRID, GRID), dtype=bool)
+        self.pos = list(START)
+        self.grid[START] = True
+        # The turtle's frame: X (heading), Y (up at the start), Z, as integer world vectors.
+        self.frame = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
+        self.stack: list[tuple] = []
+        self.left = max_commands
+        self.run = 0
+
+    def move(self, n: float, sign: int) -> None:
+        steps = int(n)  # truncation towards zero
+        if steps < 0:
+            steps, sign = -steps, -sign
+        hx, hy, hz = (sign * c for c in self.frame[0])
+        x, y, z = self.pos
+        grid = self.grid
+        for _ in range(min(steps, GRID)):
+            nx, ny, nz = x + hx, y + hy, z + hz
+            if not (0 <= nx < GRID and 0 <= ny < GRID and 0 <= nz < GRID):
+                break
+            x, y, z = nx, ny, nz
+            grid[x, y, z] = True
+        self.pos = [x, y, z]
+
+    def rotate(self, symbol: str, n: float) -> None:
+        quarter = int(n) % 4
+        if symbol in ("v", ">", "\\"):
+            quarter = (-quarter) % 4
+        a, b = _AXES[symbol]  # rotating about the third axis turns a into b
+        frame = self.frame
+        for _ in range(quarter):
+            frame[a], frame[b] = frame[b], [-c for c in frame[a]]
+
+    def run_items(self, items: tuple) -> None:
+        for item in items:
+            if self.left <= 0:
+                return
+            kind = item[0]
+            if kind == "c":
+                self.left -= 1
+                self.run += 1
+                if item[1] == "f":
+                    self.move(item[2], 1)
+                elif item[1] == "b":
+                    self.move(item[2], -1)
+                else:
+                    self.rotate(item[1], item[2])
+            elif kind == "[":
+                self.stack.append((list(self.pos), [list(v) for v in self.frame]))
+                self.run_items(item[1])
+                self.pos, self.frame = self.stack.pop()
+            elif kind == "{":
+                for _ in range(max(0, int(item[1]))):
+                    if self.left <= 0:
+                        return
+                    self.run_items(item[2])
+
+
+def build(word: tuple, max_commands: int = MAX_COMMANDS) -> tuple[np.ndarray, int, bool]:
+    """Run the turtle over ``word`` (calls are skipped): ``(voxels, commands run, capped)``."""
+    turtle = _Turtle(max_commands)
+    turtle.run_items(word)
+    return turtle.grid, turtle.run, turtle.left <= 0 and _has_more(word, turtle.run)
+
+
+def _has_more(word: tuple, done: int) -> bool:
+    """Whether ``word`` holds more than ``done`` commands once blocks are replicated."""
+    def count(items: tuple) -> int:
+        n = 0
+        for item in items:
+            if item[0] == "c":
+                n += 1
+            elif item[0] == "[":
+                n += count(item[1])
+            elif item[0] == "{":
+                n += max(0, int(item[1])) * count(item[2])
+            if n > done:
+                return n
+        return n
+    return count(word) > done
+
+
+def develop(text: str, *, max_modules: int = MAX_MODULES, max_commands: int = MAX_COMMANDS) -> Table:
+    """Parse ``text``, rewrite it, and build its voxels (a pure function of its arguments)."""
+    system = parse(text)
+    word, steps, capped_modules = derive(system, max_modules)
+    voxels, commands, capped_commands = build(word, max_commands)
+    capped = "modules" if capped_modules else "commands" if capped_commands else None
+    return Table(voxels, steps, commands, _size(word), capped)
+
+
+# --------------------------------------------------------------------------------------------------
+# Criteria and fitness (section 3).
+
+
+def hull_area(cells: np.ndarray) -> float:
+    """The area of the convex hull of unit squares at integer ``cells`` (N, 2); 0 when empty."""
+    if not len(cells):
+        return 0.0
+    cells = np.asarray(cells, dtype=np.int64)
+    points = []
+    for row in np.unique(cells[:, 1]):
+        xs = cells[cells[:, 1] == row, 0]
+        lo, hi = int(xs.min()), int(xs.max()) + 1
+        points += [(lo, int(row)), (hi, int(row)), (lo, int(row) + 1), (hi, int(row) + 1)]
+    pts = sorted(set(points))
+
+    def cross(o, a, b) -> int:
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+
+    lower: list = []
+    for p in pts:
+        while len(lower) >= 2 and cross(lower[-2], lower[-1], p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and cross(upper[-2], upper[-1], p) <= 0:
+            upper.pop()
+        upper.append(p)
+    hull = lower[:-1] + upper[:-1]
+    twice = sum(hull[i][0] * hull[i - 1][1] - hull[i - 1][0] * hull[i][1] for i in range(len(hull)))
+    return abs(twice) / 2.0
+
+
+def criteria(voxels: np.ndarray) -> dict[str, float]:
+    """``height``, ``surface``, ``stability``, ``excess`` and the ``voxels`` count of a structure."""
+    layers = voxels.sum(axis=(0, 2))
+    filled = np.flatnonzero(layers)
+    total = int(layers.sum())
+    if not total:
+        return dict.fromkeys(CRITERIA, 0.0)
+    top = int(filled[-1])
+    surface = int(layers[top])
+    stability = 0.0
+    for y in filled[filled < top]:
+        xs, zs = np.nonzero(voxels[:, y, :])
+        stability += hull_area(np.column_stack([xs, zs]))
+    return {"height": float(top), "surface": float(surface), "stability": stability,
+            "excess": float(total - surface), "voxels": float(total)}
+
+
+def fitness(values: dict[str, float]) -> float:
+    """``height * surface * stability / excess``, 0 when nothing lies below the top layer (maximised)."""
+    excess = values["excess"]
+    if excess <= 0:
+        return 0.0
+    return values["height"] * values["surface"] * values["stability"] / excess
+
+
+# --------------------------------------------------------------------------------------------------
+# Export: the voxels' outer faces as one triangle mesh (what a 3D printer takes), and a picture.
+
+_FACES = {  # direction -> the four corners (offsets) of the cell face on that side, counter-clockwise
+    (1, 0, 0): ((1, 0, 0), (1, 1, 0), (1, 1, 1), (1, 0, 1)),
+    (-1, 0, 0): ((0, 0, 0), (0, 0, 1), (0, 1, 1), (0, 1, 0)),
+    (0, 1, 0): ((0, 1, 0), (0, 1, 1), (1, 1, 1), (1, 1, 0)),
+    (0, -1, 0): ((0, 0, 0), (1, 0, 0), (1, 0, 1), (0, 0, 1)),
+    (0, 0, 1): ((0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)),
+    (0, 0, -1): ((0, 0, 0), (0, 1, 0), (1, 1, 0), (1, 0, 0)),
+}
+
+
+def mesh_arrays(voxels: np.ndarray, cell: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` of the structure's outer faces, z up (grid ``(x, y, z)`` -> ``(x, -z, y)``,
+    a rotation), faces pointing outwards; shared corners are one vertex, in a fixed order."""
+    padded = np.pad(voxels, 1)
+    quads = []
+    for (dx, dy, dz), corners in _FACES.items():
+        neighbour = padded[1 + dx:padded.shape[0] - 1 + dx, 1 + dy:padded.shape[1] - 1 + dy,
+                           1 + dz:padded.shape[2] - 1 + dz]
+        cells = np.argwhere(voxels & ~neighbour)
+        if len(cells):
+            quads.append(cells[:, None, :] + np.asarray(corners)[None, :, :])
+    if not quads:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    corners = np.concatenate(quads)                    # (Q, 4, 3) grid corners
+    unique, inverse = np.unique(corners.reshape(-1, 3), axis=0, return_inverse=True)
+    idx = inverse.reshape(-1, 4)
+    faces = np.concatenate([idx[:, [0, 1, 2]], idx[:, [0, 2, 3]]])
+    x, y, z = unique[:, 0], unique[:, 1], unique[:, 2]
+    vertices = np.column_stack([x, -z, y]).astype(np.float64) * cell
+    return vertices, faces.astype(np.int64)
+
+
+def draw(ax: Any, voxels: np.ndarray, *, elev: float = 24.0, azim: float = -60.0) -> None:
+    """Draw the structure on a matplotlib 3D axes: its outer faces, shaded by height."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    vertices, faces = mesh_arrays(voxels)
+    ax.set_axis_off()
+    ax.view_init(elev=elev, azim=azim)
+    if not len(faces):
+        return
+    tris = vertices[faces]
+    normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    light = np.asarray([0.35, -0.55, 0.75])
+    shade = 0.45 + 0.55 * np.clip(normals @ light / (np.linalg.norm(normals, axis=1) + 1e-12), 0, 1)
+    height = tris[:, :, 2].mean(axis=1) / max(1.0, float(vertices[:, 2].max()))
+    base = np.column_stack([0.55 + 0.3 * height, 0.42 + 0.2 * height, 0.28 + 0.1 * height])
+    colours = np.clip(base * shade[:, None], 0, 1)
+    ax.add_collection3d(Poly3DCollection(tris, facecolors=colours, edgecolors="none"))
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1.0)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_zlim(centre[2] - half, centre[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+
+
+def voxel_count_text(table: Table, values: dict[str, float]) -> str:
+    """A one-line caption: voxels, height, surface, stability, excess and the paper's fitness."""
+    return (f"{table.n_voxels} voxels, height {values['height']:g}, surface {values['surface']:g}, "
+            f"stability {values['stability']:g}, excess {values['excess']:g}, "
+            f"fitness {fitness(values):.4g}" + (f" (capped: {table.capped})" if table.capped else ""))
+
+
+def is_connected(voxels: np.ndarray) -> bool:
+    """Whether the filled cells form one face-connected structure (a flood fill)."""
+    cells = np.argwhere(voxels)
+    if not len(cells):
+        return True
+    seen = np.zeros_like(voxels)
+    stack = [tuple(cells[0])]
+    seen[stack[0]] = True
+    count = 0
+    while stack:
+        x, y, z = stack.pop()
+        count += 1
+        for dx, dy, dz in _FACES:
+            n = (x + dx, y + dy, z + dz)
+            if all(0 <= c < GRID for c in n) and voxels[n] and not seen[n]:
+                seen[n] = True
+                stack.append(n)
+    return count == len(cells)
+
+
+__all__ = ["COMMANDS", "CRITERIA", "GRID", "MAX_COMMANDS", "MAX_MODULES", "Production", "System",
+           "Table", "TablesError", "build", "command_string", "criteria", "derive", "develop", "draw",
+           "fitness", "hull_area", "is_connected", "mesh_arrays", "parse"]

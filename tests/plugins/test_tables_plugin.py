@@ -1,0 +1,179 @@
+"""The tables plugin (Hornby & Pollack, GECCO 2001): P0L-systems, the voxel turtle, the criteria."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from genr8_dist.grammar import load_universe
+
+TABLES = load_universe("tables")
+DIRECT = load_universe("tables_direct")
+V = TABLES.hooks.voxels
+
+# Section 2.2: two productions, one condition-successor pair each, started with P0(4).
+PAPER_22 = """P0 ( 4 ) iterations 4
+P0 ( n0 ) : n0 > 1.0 -> [ P1 ( n0 * 1.5 ) ] ^ ( 1 ) f ( 3 ) v ( 1 ) P0 ( n0 - 1 )
+P1 ( n0 ) : n0 > 1.0 -> { [ f ( n0 ) ] < ( 1 ) } ( 4 )
+"""
+# The sequence of strings the paper prints (its words for our symbols).
+PAPER_22_STRINGS = [
+    "P0(4)",
+    "[P1(6)] up(1) forward(3) down(1) P0(3)",
+    "[{ [forward(6)] left(1) } (4)] up(1) forward(3) down(1) [P1(4.5)] up(1) forward(3) down(1) P0(2)",
+    "[{ [forward(6)] left(1) } (4)] up(1) forward(3) down(1) [{ [forward(4.5)] left(1) } (4)] up(1) "
+    "forward(3) down(1) [P1(3)] up(1) forward(3) down(1) P0(1)",
+    "[{ [forward(6)] left(1) } (4)] up(1) forward(3) down(1) [{ [forward(4.5)] left(1) } (4)] up(1) "
+    "forward(3) down(1) [{ [forward(3)] left(1) } (4)] up(1) forward(3) down(1)",
+]
+
+
+def _squash(text: str) -> str:
+    return re.sub(r"\s+", "", text)
+
+
+def test_the_papers_two_production_example_derives_the_papers_strings():
+    system = V.parse(PAPER_22)
+    for steps, want in enumerate(PAPER_22_STRINGS):
+        word = V.derive(V.System(system.axiom, steps, system.productions))[0]
+        assert _squash(V.command_string(word)) == _squash(want)
+
+
+def test_the_papers_tree_has_the_voxels_and_criteria_counted_by_hand():
+    table = V.develop(PAPER_22)
+    # ground cross 1 + 4 x 6, trunk 9 (y 1..9), crosses of 4 x 4 (y 3) and 4 x 3 (y 6) around it
+    assert table.n_voxels == 25 + 9 + 16 + 12 == 62
+    assert (table.steps, table.capped) == (4, None)
+    raw = V.criteria(table.voxels)
+    # hull areas: 13 x 13 square less four 6 x 6 / 2 corners = 97; 9 x 9 less 4 x 8 = 49;
+    # 7 x 7 less 4 x 4.5 = 31; six trunk-only layers of 1
+    assert raw == {"height": 9.0, "surface": 1.0, "stability": 97 + 49 + 31 + 6, "excess": 61.0,
+                   "voxels": 62.0}
+    assert V.fitness(raw) == pytest.approx(9 * 1 * 183 / 61)
+
+
+# A hand-built table: four legs 3 high at the corners of a 5 x 5 square, and a full 5 x 5 top.
+LEG = "^ ( 1 ) f ( 3 ) v ( 1 )"
+HAND_TABLE = (f"f ( 4 ) [ {LEG} ] < ( 1 ) f ( 4 ) [ {LEG} ] < ( 1 ) f ( 4 ) [ {LEG} ] < ( 1 ) f ( 4 ) "
+              f"{LEG} < ( 1 ) f ( 4 ) < ( 1 ) f ( 4 ) < ( 1 ) f ( 4 ) < ( 1 ) "
+              "f ( 1 ) < ( 1 ) f ( 3 ) > ( 1 ) f ( 1 ) > ( 1 ) f ( 3 ) < ( 1 ) f ( 1 ) < ( 1 ) f ( 3 )")
+
+
+def test_a_hand_built_table_scores_as_counted():
+    table = V.develop(HAND_TABLE + "\n")
+    voxels = table.voxels
+    ys = np.argwhere(voxels)[:, 1]
+    assert V.is_connected(voxels)
+    # layer 0: the 5 x 5 square's rim (16 cells); legs y 1..2 at 4 corners; top y 3: 5 x 5 = 25
+    assert [int((ys == y).sum()) for y in range(4)] == [16, 4, 4, 25]
+    raw = V.criteria(voxels)
+    assert raw == {"height": 3.0, "surface": 25.0, "stability": 25.0 + 25.0 + 25.0, "excess": 24.0,
+                   "voxels": 49.0}
+    assert V.fitness(raw) == pytest.approx(3 * 25 * 75 / 24)
+
+
+@pytest.mark.parametrize("cells, area", [
+    ([], 0.0),
+    ([(3, 3)], 1.0),
+    ([(0, 0), (1, 0), (2, 0)], 3.0),
+    ([(0, 0), (1, 0), (0, 1)], 3.5),          # an L: the 2 x 2 square less half a cell
+    ([(0, 0), (4, 4)], 25 - 2 * 8),             # opposite corners of a 5 x 5 square
+])
+def test_convex_hull_area_of_unit_cells(cells, area):
+    assert V.hull_area(np.asarray(cells, dtype=np.int64).reshape(-1, 2)) == pytest.approx(area)
+
+
+def test_flat_structures_and_a_single_voxel_score_zero():
+    assert V.fitness(V.criteria(V.develop("f ( 5 ) < ( 1 ) f ( 5 )\n").voxels)) == 0.0
+    single = V.develop("< ( 2 )\n")
+    assert single.n_voxels == 1
+    assert V.criteria(single.voxels)["excess"] == 0.0
+
+
+def test_moves_stop_at_the_grid_and_commands_are_capped():
+    wall = V.develop("f ( 5 ) f ( 5 ) f ( 5 ) f ( 5 ) f ( 5 )\n")   # from x = 20 the grid ends at 39
+    assert wall.n_voxels == 20
+    system = "P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> { f ( 1 ) < ( 1 ) } ( 100000 )\n"
+    capped = V.develop(system)
+    assert (capped.commands, capped.capped) == (V.MAX_COMMANDS, "commands")
+    growing = "P0 ( 1 , 1 ) iterations 30\nP0 ( n0 , n1 ) : n0 > 0 -> P0 ( n0 , n1 ) P0 ( n0 , n1 ) f ( 1 )\n"
+    table = V.develop(growing)
+    assert table.capped == "modules" and table.steps < 30 and table.modules <= V.MAX_MODULES
+
+
+def test_arithmetic_never_fails_a_derivation():
+    text = ("P0 ( 1 , 0 ) iterations 12\n"
+            "P0 ( n0 , n1 ) : n0 > -10 -> f ( 1 ) P0 ( n0 * 9 , n0 / n1 ) { f ( n1 ) } ( n0 / 0 )\n")
+    table = V.develop(text)
+    assert table.steps == 12 and V.is_connected(table.voxels)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("", "the text is empty"),
+    ("f ( 1 ) { f ( 1 ) } ( 2 )\n", "line 1, column 9: expected a build command"),
+    ("P0 ( 1 ) iterations 3\nP0 ( n0 ) : n2 > 1 -> f ( 1 )\n", "line 2, column 13: expected a condition"),
+    ("P0 ( 1 ) iterations 3\nP0 ( n0 ) : n0 > 1 -> f ( 1\n", "line 2: expected ')' at the end"),
+    ("P0 ( 1 ) iterations 3\nP0 ( n0 ) : n0 > 1 -> f ( 1 )\nP0 ( n0 ) : n0 > 2 -> f ( 1 )\n",
+     "line 3: production P0 is defined twice"),
+    ("P0 ( 1 ) iterations 99\n", "iterations must be an integer from 0 to 30"),
+    ("f ( 1 ) ? f ( 1 )\n", "line 1, column 9: unexpected character '?'"),
+])
+def test_bad_texts_are_one_line_errors_with_where(text, words):
+    with pytest.raises(V.TablesError) as info:
+        V.parse(text)
+    assert words in str(info.value) and "\n" not in str(info.value)
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.lists(st.integers(0, 255), min_size=20, max_size=300), st.sampled_from(["tables", "tables_direct"]))
+def test_evolved_texts_round_trip_and_the_turtle_never_places_a_disconnected_voxel(genome, name):
+    universe = TABLES if name == "tables" else DIRECT
+    mapped = universe.map(genome, max_depth=10)
+    if not mapped.valid:
+        return
+    assert universe.map(universe.invert(mapped.text, max_depth=10), max_depth=10).text == mapped.text
+    table = V.develop(mapped.text)
+    assert V.is_connected(table.voxels)
+    assert table.voxels[V.START]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]"]), st.integers(-7, 45)),
+                min_size=1, max_size=60))
+def test_any_command_string_builds_one_connected_structure(commands):
+    depth, parts = 0, ["f ( 1 )"]
+    for symbol, n in commands:
+        if symbol == "[":
+            depth += 1
+            parts.append("[")
+        elif symbol == "]":
+            if depth:
+                depth -= 1
+                parts.append("]")
+        else:
+            parts.append(f"{symbol} ( {n} )")
+    table = V.develop(" ".join(parts + ["]"] * depth) + "\n")
+    assert V.is_connected(table.voxels)
+
+
+def test_the_mesh_is_watertight_with_the_voxels_volume_and_the_same_bytes_each_time(tmp_path):
+    import trimesh
+
+    phenotype = TABLES.hooks.PHENOTYPE
+    developed = phenotype.develop(PAPER_22, None)
+    first = phenotype.export(developed, tmp_path / "a.stl", None)
+    second = phenotype.export(phenotype.develop(PAPER_22, None), tmp_path / "b.stl", None)
+    assert first.read_bytes() == second.read_bytes()
+    mesh = trimesh.load(first)
+    assert mesh.is_watertight and mesh.volume == pytest.approx(62)
+    assert mesh.bounds[0][2] == 0 and mesh.bounds[1][2] == 10     # z up: ground to the top of layer 9
+
+
+def test_tables_direct_shares_the_tables_phenotype():
+    assert DIRECT.hooks.PHENOTYPE is TABLES.hooks.PHENOTYPE
+    raw = TABLES.hooks.PHENOTYPE.measure(TABLES.hooks.PHENOTYPE.develop(PAPER_22, None), None)
+    assert TABLES.hooks.PHENOTYPE.fitness(raw, None) == pytest.approx(-27.0)
