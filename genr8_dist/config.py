@@ -6,7 +6,8 @@
     seed = 1                      # the run seed every random draw derives from
 
     [genome]                      # length, codon_max, max_depth, max_wraps
-    [ea]                          # population, generations, tournament, elites, crossover_rate, mutation_rate
+    [ea]                          # population, generations, tournament, elites, crossover_rate,
+                                  # mutation_rate, init, founder_retries, unique_retries, within_used
     [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
     [environment]                 # inline (genr8_dist.environment's format), or
     # environment = "env.toml"    # a path, resolved relative to this file
@@ -21,7 +22,7 @@ field with its default and meaning.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,7 @@ from genr8_dist.fitness import FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
 __all__ = [
+    "INITS",
     "TOPOLOGIES",
     "EASettings",
     "GenomeSettings",
@@ -40,6 +42,7 @@ __all__ = [
 ]
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
+INITS: tuple[str, ...] = ("random", "ramped")
 
 
 def _fail(path: str, message: str) -> ConfigError:
@@ -70,6 +73,18 @@ def _rate(value: Any, path: str) -> float:
     value = float(value)
     if not (math.isfinite(value) and 0.0 <= value <= 1.0):
         raise _fail(path, f"must be a number in [0, 1], got {value!r}")
+    return value
+
+
+def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in allowed:
+        raise _fail(path, f"must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
+    return value
+
+
+def _bool(value: Any, path: str) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(path, f"must be true or false, got {value!r}")
     return value
 
 
@@ -104,6 +119,10 @@ class EASettings:
     elites: int = 1             # best individuals copied unchanged into the next generation
     crossover_rate: float = 0.9  # probability a pair of parents is crossed over
     mutation_rate: float = 0.02  # probability each codon of a child is redrawn (int-flip)
+    init: str = "random"         # founders: "random" genomes or "ramped" half-and-half derivations
+    founder_retries: int = 20    # redraws of a founder that is trivial or repeats another's surface
+    unique_retries: int = 10     # re-variations of an offspring that repeats a parent or a sibling
+    within_used: bool = False    # crossover and mutation only within the codons the mapper read
 
     def __post_init__(self) -> None:
         _set(self, "population", _int(self.population, "ea.population", 2, 1_000_000))
@@ -112,6 +131,10 @@ class EASettings:
         _set(self, "elites", _int(self.elites, "ea.elites", 0, self.population - 1))
         _set(self, "crossover_rate", _rate(self.crossover_rate, "ea.crossover_rate"))
         _set(self, "mutation_rate", _rate(self.mutation_rate, "ea.mutation_rate"))
+        _set(self, "init", _choice(self.init, "ea.init", INITS))
+        _set(self, "founder_retries", _int(self.founder_retries, "ea.founder_retries", 0, 1000))
+        _set(self, "unique_retries", _int(self.unique_retries, "ea.unique_retries", 0, 1000))
+        _set(self, "within_used", _bool(self.within_used, "ea.within_used"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -244,12 +267,14 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "<config>",
-                  base_dir: str | Path | None = None) -> RunConfig:
+                  base_dir: str | Path | None = None, criteria: Sequence[str] | None = None) -> RunConfig:
         """Build and validate from a parsed TOML table. ``environment`` may be a table or a path
-        (resolved against ``base_dir``, default the current directory). Errors name ``source`` and the
+        (resolved against ``base_dir``, default the current directory); the fitness covers
+        ``criteria`` (a run's; default every registered criterion). Errors name ``source`` and the
         field."""
         try:
-            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd())
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd(),
+                                  criteria)
         except ConfigError as exc:
             message = str(exc)
             if message.startswith(source):
@@ -257,7 +282,21 @@ class RunConfig:
             raise ConfigError(f"{source}: {message}") from None
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path) -> RunConfig:
+    def from_toml(cls, text: str, *, source: str = "<config>",
+                  criteria: Sequence[str] | None = None) -> RunConfig:
+        """Build and validate from TOML text (a run's stored configuration: the environment inline);
+        malformed TOML is a ``ConfigError`` naming ``source``."""
+        import tomllib
+
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_dict(data, source=source, criteria=criteria)
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path,
+                   criteria: Sequence[str] | None = None) -> RunConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"the configuration must be a table, got {data!r}")
         for key in data:
@@ -278,8 +317,8 @@ class RunConfig:
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
-        if "fitness" in data:
-            kwargs["fitness"] = FitnessSpec.from_dict(data["fitness"])
+        if "fitness" in data or criteria is not None:
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)

@@ -98,9 +98,9 @@ class SurfacePhenotype(Phenotype):
 
     @property
     def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
-        from genr8_dist.fitness import CRITERIA
+        from genr8_dist.fitness import SURFACE, criterion_names
 
-        return tuple(CRITERIA)
+        return criterion_names(SURFACE)
 
     def parse(self, text: str) -> Any:
         """Read a derived text (a rewrite system); raises for a text no individual could grow from.
@@ -134,7 +134,7 @@ class SurfacePhenotype(Phenotype):
 
         if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
             raise ValueError("degenerate surface: no vertices or no edges")
-        raw = score_surface(developed.value, config.environment)
+        raw = score_surface(developed.value, config.environment, config.fitness.names)
         bad = [name for name, value in raw.items() if not math.isfinite(value)]
         if bad:
             raise ValueError(f"degenerate surface: {', '.join(bad)} not finite")

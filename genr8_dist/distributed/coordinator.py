@@ -91,12 +91,10 @@ def stored_events(table: Any) -> list[StoredEvent]:
 
 
 def parse_config(toml_text: str, source: str) -> Any:
-    """A stored configuration version (TOML text) as a ``RunConfig``."""
-    import tomllib
-
+    """A configuration's TOML text as a ``RunConfig`` (a run's own versions: ``RunStore.config``)."""
     from genr8_dist.config import RunConfig
 
-    return RunConfig.from_dict(tomllib.loads(toml_text), source=source)
+    return RunConfig.from_toml(toml_text, source=source)
 
 
 class StopRequest:
@@ -190,7 +188,7 @@ class Coordinator:
     def _load_versions(self) -> list[tuple[int, int, Any]]:
         """(version, effective generation, config), by effective generation then version."""
         out = [(int(v.version), int(v.effective_generation),
-                parse_config(v.toml, f"{self.store.path} configuration v{v.version}"))
+                self.store.config(v))
                for v in self._timed_store(self.store.configs)]
         if not out:
             raise RunError(f"{self.store.path}: the run has no configuration")

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest, parse_config
+from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 from genr8_dist.distributed.interrupts import stop_on_signals
 from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import Genr8Error, RunError, StoreError
@@ -166,7 +166,7 @@ def stored_universes(store: Any) -> list[Any]:
         versions = [store.config_for(0)]
     for version in versions:
         try:
-            config = parse_config(version.toml, f"{store.path} configuration v{version.version}")
+            config = store.config(version)
         except Genr8Error:  # a damaged version: verify() reports it, repair() drops it
             continue
         if config.universe_source not in sources:
@@ -177,7 +177,7 @@ def stored_universes(store: Any) -> list[Any]:
 def latest_config(store: Any) -> Any:
     """The run's newest configuration version, as a ``RunConfig``."""
     newest = store.configs()[-1]
-    return parse_config(newest.toml, f"{store.path} configuration v{newest.version}")
+    return store.config(newest)
 
 
 def _creation_config(store: Any) -> Any:
@@ -188,7 +188,7 @@ def _creation_config(store: Any) -> Any:
     except StoreError:
         store.repair()
         raise
-    return parse_config(first.toml, f"{store.path} configuration v{first.version}")
+    return store.config(first)
 
 
 @contextmanager

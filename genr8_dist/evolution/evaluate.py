@@ -20,7 +20,7 @@ from functools import lru_cache
 from typing import Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.fitness import CRITERIA, score_surface
+from genr8_dist.fitness import score_surface
 
 __all__ = [
     "Evaluation",
@@ -147,7 +147,7 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
     t1 = time.perf_counter()
     try:
         grown["surface_digest"] = surface.digest()
-        criteria = score_surface(surface, config.environment)
+        criteria = score_surface(surface, config.environment, config.fitness.names)
     except Exception as exc:  # failure is data
         return Evaluation(stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1,
                           **grown)
@@ -158,7 +158,7 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
         return Evaluation(stage="grow", error=error, **grown)
     if not grown["n_vertices"] or not grown["n_edges"]:
         return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
-    bad = [name for name in CRITERIA if not math.isfinite(criteria[name])]
+    bad = [name for name in criteria if not math.isfinite(criteria[name])]
     if bad:
         return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
     fitness = config.fitness.evaluate(criteria)

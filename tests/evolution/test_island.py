@@ -143,6 +143,7 @@ def test_genomes_evaluated_elsewhere_complete_the_generation_step_builds(history
     from genr8_dist.evolution import Evaluator
 
     config, hist = history
+    config = config.replace(ea={"unique_retries": 0})   # every evaluation is then one of ``pending``
     donor = hist[2][3]
     kwargs = {"migrants": hist[2][:2], "injected": [list(donor.genome)] * 3}
     alone = Island(config, 1).step(hist[2], 3, **kwargs)
@@ -198,3 +199,72 @@ def test_selection_improves_a_fitness_that_rewards_subdivisions():
     # Measured (seeds 0-4): the median improves for all five, the best for four (seed 0's generation 0
     # already held a good one); allow one more miss of the best, which elitism keeps from getting worse.
     assert best_better >= 3 and median_better >= 4, (best_better, median_better)
+
+
+def test_founders_are_redrawn_until_they_are_not_trivial_nor_repeated():
+    from genr8_dist.evolution.island import is_trivial
+
+    config = small_config(ea={"population": 30}, environment={"steps": 3})
+    alive = Island(config, 0)
+    founders = alive.initial()
+    bare = Island(config.replace(ea={"founder_retries": 0}), 0).initial()
+    assert sum(is_trivial(i) for i in founders) < sum(is_trivial(i) for i in bare)
+    assert sum(is_trivial(i) for i in founders) <= alive.stats.unresolved
+    digests = [i.surface_digest for i in founders if i.valid]
+    assert len(set(digests)) == len(digests)
+    assert alive.stats.founders_redrawn > 0
+    assert [untimed(i) for i in founders] == [untimed(i) for i in Island(config, 0).initial()]
+
+
+def test_ramped_founders_are_seeded_and_alive():
+    config = small_config(ea={"population": 16, "init": "ramped"})
+    a, b = Island(config, 0).initial(), Island(config, 0).initial()
+    assert [untimed(i) for i in a] == [untimed(i) for i in b]
+    assert {i.origin for i in a} == {"random"}
+
+
+def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_bound():
+    config = small_config(ea={"population": 16, "mutation_rate": 0.0, "crossover_rate": 0.5})
+    copies = config.replace(ea={"unique_retries": 0})
+    hist = Island(config, 0).run(2)
+
+    def repeats(gen, previous):
+        parents = {p.id: p for p in previous}
+        seen, count = set(), 0
+        for ind in gen:
+            if ind.origin in ("crossover", "mutation", "crossover+mutation") and ind.valid and (
+                    ind.surface_digest in seen
+                    or any(parents[p].surface_digest == ind.surface_digest for p in ind.parents)):
+                count += 1
+            if ind.valid:
+                seen.add(ind.surface_digest)
+        return count
+
+    unique = Island(config, 0)
+    gen = unique.step(hist[2], 3)
+    wasteful = Island(copies, 0)
+    gen_copies = wasteful.step(hist[2], 3)
+    assert repeats(gen, hist[2]) <= unique.stats.unresolved
+    assert repeats(gen_copies, hist[2]) > repeats(gen, hist[2])
+    assert unique.stats.revaried_surface + unique.stats.revaried_text > 0
+    assert wasteful.stats.revaried_surface == wasteful.stats.revaried_text == 0
+    # bounded: never more re-variations than retries per offspring
+    offspring = sum(i.origin != "elite" for i in gen)
+    assert unique.stats.revaried_surface <= offspring * config.ea.unique_retries
+    assert unique.stats.revaried_text <= offspring * config.ea.unique_retries
+    one = config.replace(ea={"unique_retries": 1})
+    bounded = Island(one, 0)
+    bounded.step(hist[2], 3)
+    assert bounded.stats.revaried_surface <= offspring and bounded.stats.revaried_text <= offspring
+
+
+def test_no_individual_is_mated_with_itself_when_others_differ():
+    config = small_config(ea={"population": 16, "crossover_rate": 1.0, "tournament": 1})
+    hist = Island(config, 0).run(1)
+    gen = Island(config, 0).step(hist[1], 2)
+    texts = {i.id: i.text for i in hist[1]}
+    crossed = [i for i in gen if i.origin.startswith("crossover")]
+    assert crossed
+    for child in crossed:
+        a, b = child.parents
+        assert a != b and (texts[a] != texts[b] or texts[a] is None)
