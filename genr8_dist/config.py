@@ -273,7 +273,9 @@ class RunConfig:
         ``criteria`` (a run's; default every registered criterion). Errors name ``source`` and the
         field."""
         try:
-            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd(),
+            # no base_dir: relative paths stay relative (the working directory is never asked for:
+            # a Ray job's may be gone by the time its stored configurations are read)
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else None,
                                   criteria)
         except ConfigError as exc:
             message = str(exc)
@@ -295,7 +297,7 @@ class RunConfig:
         return cls.from_dict(data, source=source, criteria=criteria)
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path,
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path | None,
                    criteria: Sequence[str] | None = None) -> RunConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"the configuration must be a table, got {data!r}")
@@ -389,13 +391,13 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _read_environment(value: Any, source: str, base_dir: Path) -> Any:
+def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
     from genr8_dist.environment import Environment, load_environment
 
     if isinstance(value, str):
         path = Path(value)
         if not path.is_absolute():
-            path = base_dir / path
+            path = base_dir / path if base_dir is not None else path
         if not path.is_file():
             raise _fail("environment", f"environment file not found: {path}")
         return load_environment(path)
