@@ -13,19 +13,21 @@ as it is and left running.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
-from genr8_dist.distributed.interrupts import stop_on_signals
-from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import Genr8Error, RunError, StoreError
+
+if TYPE_CHECKING:
+    from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
@@ -93,9 +95,38 @@ def _token_auth_like_ray_start() -> None:
         os.environ["RAY_AUTH_MODE"] = "token"
 
 
+def _preload() -> None:
+    """Import what a run needs once Ray is up: the coordinator, the hosts, the store and pyarrow."""
+    import pyarrow.compute
+    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s)
+
+    import genr8_dist.distributed.coordinator
+    import genr8_dist.distributed.hosts
+    import genr8_dist.evolution
+    import genr8_dist.store  # noqa: F401
+
+
+def _meanwhile(work: Callable[[], None] | None) -> threading.Thread | None:
+    """``work`` in a thread of its own (its errors are left for the main thread to meet again)."""
+    if work is None:
+        return None
+
+    def run() -> None:
+        with contextlib.suppress(Exception):   # what failed here fails again where it is needed
+            work()
+
+    thread = threading.Thread(target=run, name="genr8-meanwhile", daemon=True)
+    thread.start()
+    return thread
+
+
 @contextmanager
-def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
-    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
+def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
+                meanwhile: Callable[[], None] | None = None) -> Iterator[Any]:
+    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected.
+
+    ``meanwhile`` runs in a thread while Ray starts or connects (``ray.init`` mostly waits for Ray's
+    processes): a run's own start-up work (imports) then costs no time of its own."""
     import logging
 
     if "ray" not in sys.modules and (address is not None or os.environ.get("RAY_ADDRESS")):
@@ -114,6 +145,7 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
         if address is not None and address != "auto" and "://" not in address:
             _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
+    helper = _meanwhile(meanwhile)
     try:
         if address is None:
             # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file)
@@ -123,6 +155,9 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
     except (ConnectionError, TimeoutError, RuntimeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+    finally:
+        if helper is not None:
+            helper.join()
     try:
         yield ray
     finally:
@@ -212,10 +247,11 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
           stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
     """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
-    import pyarrow.compute
-    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s, done here)
-
+    _preload()
+    from genr8_dist.distributed.coordinator import Coordinator, StopRequest
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.distributed.interrupts import stop_on_signals
+    from genr8_dist.distributed.progress import ProgressDisplay
 
     out = out if out is not None else sys.stdout
     own_hosts = hosts is None
@@ -237,6 +273,8 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
 
 
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
+    from genr8_dist.distributed.progress import format_duration
+
     committed = summary.committed
     low = min(committed.values()) if committed else -1
     rate = summary.individuals / summary.wall_seconds if summary.wall_seconds > 0 else 0.0
@@ -286,7 +324,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     _check_new_run_dir(run_dir)
     consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
-    with connect_ray(options.address, options.num_cpus), ExitStack() as stack:
+    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
@@ -331,9 +369,11 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     if not problems and committed and min(committed.get(i, -1) for i in range(n)) >= last:
         print(f"{run_dir}: the run is complete (generation {last}); nothing to resume. "
               f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
+        from genr8_dist.distributed.coordinator import RunSummary
+
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus), hold_run_lock(store):
+    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

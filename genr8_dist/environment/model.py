@@ -302,7 +302,7 @@ class Environment:
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         wrong = np.zeros(len(points), dtype=bool)
         for b in self.boundaries:
-            if b.behaviour == "soft":
+            if not b.hard:
                 wrong |= b.violation(points) > 0.0
         return int(wrong.sum())
 

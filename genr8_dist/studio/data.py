@@ -227,7 +227,7 @@ class RunView:
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
                    "config_version"]
-        table = store.individuals(columns=columns, filter=pc.field("generation") == g)
+        table = store.dataset().to_table(columns=columns, filter=pc.field("generation") == g)
         rows = table.to_pylist()
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
                                  r["island"], r["index"]))
@@ -350,8 +350,8 @@ def _add_generations(curves: dict[str, Any], store: Any) -> None:
         return
     crits = [f"crit_{c}" for c in store.criteria]
     span = (pc.field("generation") > since) & (pc.field("generation") <= done)
-    table = store.individuals(columns=["generation", "island", "index", "fitness", *crits],
-                              filter=span if since >= 0 or done < max(committed.values()) else None)
+    table = store.dataset().to_table(columns=["generation", "island", "index", "fitness", *crits],
+                                     filter=span if since >= 0 or done < max(committed.values()) else None)
     if table.num_rows == 0:
         return
     fitness = pc.if_else(pc.is_finite(table["fitness"]), table["fitness"], pa.scalar(None, pa.float64()))
