@@ -376,11 +376,13 @@ async function loadGeneration(g) {
   const rows = data.individuals.filter((r) => island === "" || String(r.island) === island);
   $("gen-list").innerHTML = rows.slice(0, 80).map((r) =>
     `<div data-id="${r.id}" class="${r.valid ? "" : "invalid"}${r.id === ui.selected ? " selected" : ""}">` +
-    `<b><i style="color:${islandColour(r.island)}">■</i> ${r.id}</b><span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
+    `<b><i style="color:${islandColour(r.island)}">■</i> ${r.id}${r.pareto ? ' <em title="on the Pareto front">◆</em>' : ""}</b>` +
+    `<span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
   const version = rows.length ? rows[0].config_version : null;
   if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
-  const count = Number($("count").value);
-  showDesigns(rows.filter((r) => r.valid).slice(0, count).map((r) => r.id), rows);
+  const choice = $("count").value;
+  const shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) : rows.filter((r) => r.valid).slice(0, Number(choice));
+  showDesigns(shown.map((r) => r.id), rows);
   drawCurves();
 }
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
