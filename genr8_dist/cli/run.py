@@ -14,6 +14,16 @@ import sys
 __all__ = ["register"]
 
 
+def _int32(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
+
+
 def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", metavar="ADDRESS", default=None,
                         help="a Ray cluster to run on: 'auto' (the one on this machine), HOST:PORT or "
@@ -131,8 +141,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="inject the rewrite system written in FILE, through the universe's inverse mapping")
     p.add_argument("--inject-from", action="append", metavar="RUN:ID",
                    help="inject individual ID of another run directory RUN")
-    p.add_argument("--island", type=int, default=None, metavar="N",
+    p.add_argument("--island", type=_int32, default=None, metavar="N",
                    help="the island injected individuals go to (default: a copy's own island, else 0)")
-    p.add_argument("--generations", type=int, default=None, metavar="N",
+    p.add_argument("--generations", type=_int32, default=None, metavar="N",
                    help="go on for N more generations after the last committed one")
     p.set_defaults(handler=_edit)
