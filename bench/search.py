@@ -55,8 +55,10 @@ def run_islands(config: Any, generations: int) -> list[list[list[Any]]]:
         previous = history[-1]
         migrants: dict[int, list[Any]] = {i: [] for i in range(n)}
         if n > 1 and is_migration_generation(g - 1, config.islands.migration_interval):
+            choice = getattr(config.islands, "emigrants", None)
             migrants = plan_migration(dict(enumerate(previous)), config.islands.topology,
-                                      config.islands.migrants, config.seed, g - 1)
+                                      config.islands.migrants, config.seed, g - 1,
+                                      *((choice,) if choice else ()))
         history.append([isl.step(previous[i], g, migrants[i]) for i, isl in enumerate(islands)])
     return history
 

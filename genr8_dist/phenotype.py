@@ -96,9 +96,9 @@ class SurfacePhenotype(Phenotype):
 
     @property
     def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
-        from genr8_dist.fitness import CRITERIA
+        from genr8_dist.fitness import SURFACE, criterion_names
 
-        return tuple(CRITERIA)
+        return criterion_names(SURFACE)
 
     def develop(self, text: str, config: Any) -> Developed:
         from genr8_dist.hemls import grow, parse
@@ -124,7 +124,7 @@ class SurfacePhenotype(Phenotype):
 
         if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
             raise ValueError("degenerate surface: no vertices or no edges")
-        raw = score_surface(developed.value, config.environment)
+        raw = score_surface(developed.value, config.environment, config.fitness.names)
         bad = [name for name, value in raw.items() if not math.isfinite(value)]
         if bad:
             raise ValueError(f"degenerate surface: {', '.join(bad)} not finite")

@@ -154,6 +154,7 @@ def _print(text: str) -> None:
 def _history(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
+    from genr8_dist.store.schema import criterion_column
 
     store = history.open_run(args.run)
     table = history.per_generation(store, island=args.island)
@@ -161,11 +162,11 @@ def _history(args: argparse.Namespace) -> int:
         history.write_table(table, args.csv)
         _print(f"wrote {table.num_rows} rows to {args.csv}")
     else:
-        crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
+        crits = [c[len("closest_"):] for c in table.column_names if c.startswith("closest_")]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
-        headings.update({f"best_{c}": _text.short_criterion(c) for c in crits})
+        headings.update({f"closest_{c}": "closest_" + _text.heading(criterion_column(c)) for c in crits})
         columns = ["generation", "island", "n", "n_valid", "best", "median", "worst", "best_id"]
-        _print(_text.format_table(table, columns + [f"best_{c}" for c in crits], headings=headings))
+        _print(_text.format_table(table, columns + [f"closest_{c}" for c in crits], headings=headings))
     if args.png:
         from genr8_dist.history import pictures
 
@@ -180,13 +181,10 @@ def _top(args: argparse.Namespace) -> int:
 
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
                         criterion=args.criterion, systems=args.systems)
-    crits = [c[5:] for c in table.column_names if c.startswith("crit_")]
-    columns = ["rank", "id", "generation", "island", "fitness"]
+    columns = ["rank", *_text.shown_columns(table.column_names)]
     if args.criterion:
-        columns.append("deviation")
-    columns += [f"crit_{c}" for c in crits] + ["origin"]
-    headings = {"generation": "gen", "island": "isl"}
-    headings.update({f"crit_{c}": _text.short_criterion(c) for c in crits})
+        columns.insert(columns.index("fitness") + 1, "deviation")
+    headings = {name: _text.heading(name) for name in columns}
     if not args.systems:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
@@ -220,6 +218,7 @@ def _show(args: argparse.Namespace) -> int:
 
     from genr8_dist.history import HistoryError, _text
     from genr8_dist.history import _regrow as regrow
+    from genr8_dist.store.schema import criterion_of
 
     for path in args.output:  # refuse a bad name before anything is grown or written
         suffix = Path(path).suffix.lower().lstrip(".")
@@ -230,7 +229,7 @@ def _show(args: argparse.Namespace) -> int:
         raise HistoryError(f"{args.png}: --png writes a .png file")
     result = regrow.regrow(args.run, args.id)
     row = result.row
-    crits = {k[5:]: v for k, v in row.items() if k.startswith("crit_")}
+    crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
     _print(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
            f"{row['origin']}, configuration version {row['config_version']}")
     if row["valid"]:

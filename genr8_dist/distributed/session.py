@@ -13,19 +13,21 @@ as it is and left running.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest, parse_config
-from genr8_dist.distributed.interrupts import stop_on_signals
-from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import RunError, StoreError
+
+if TYPE_CHECKING:
+    from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run"]
 
@@ -107,9 +109,38 @@ def _restore_signal_handlers(handlers: dict[int, Any]) -> None:
         signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
+def _preload() -> None:
+    """Import what a run needs once Ray is up: the coordinator, the hosts, the store and pyarrow."""
+    import pyarrow.compute
+    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s)
+
+    import genr8_dist.distributed.coordinator
+    import genr8_dist.distributed.hosts
+    import genr8_dist.evolution
+    import genr8_dist.store  # noqa: F401
+
+
+def _meanwhile(work: Callable[[], None] | None) -> threading.Thread | None:
+    """``work`` in a thread of its own (its errors are left for the main thread to meet again)."""
+    if work is None:
+        return None
+
+    def run() -> None:
+        with contextlib.suppress(Exception):   # what failed here fails again where it is needed
+            work()
+
+    thread = threading.Thread(target=run, name="genr8-meanwhile", daemon=True)
+    thread.start()
+    return thread
+
+
 @contextmanager
-def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
-    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
+def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
+                meanwhile: Callable[[], None] | None = None) -> Iterator[Any]:
+    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected.
+
+    ``meanwhile`` runs in a thread while Ray starts or connects (``ray.init`` mostly waits for Ray's
+    processes): a run's own start-up work (imports) then costs no time of its own."""
     import logging
 
     if "ray" not in sys.modules and (address is not None or os.environ.get("RAY_ADDRESS")):
@@ -129,6 +160,7 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
             _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
     handlers = _signal_handlers()
+    helper = _meanwhile(meanwhile)
     try:
         if address is None:
             # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file);
@@ -147,6 +179,8 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
         raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
     finally:
         _restore_signal_handlers(handlers)  # ray.init installs a SIGTERM handler that exits at once
+        if helper is not None:
+            helper.join()
     try:
         yield ray
     finally:
@@ -183,7 +217,7 @@ def _check_new_run_dir(run_dir: str) -> None:
 def latest_config(store: Any) -> Any:
     """The run's newest configuration version, as a ``RunConfig``."""
     newest = store.configs()[-1]
-    return parse_config(newest.toml, f"{store.path} configuration v{newest.version}")
+    return store.config(newest)
 
 
 def _creation_config(store: Any) -> Any:
@@ -194,7 +228,7 @@ def _creation_config(store: Any) -> Any:
     except StoreError:
         store.repair()
         raise
-    return parse_config(first.toml, f"{store.path} configuration v{first.version}")
+    return store.config(first)
 
 
 @contextmanager
@@ -218,10 +252,11 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
           stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
     """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
-    import pyarrow.compute
-    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s, done here)
-
+    _preload()
+    from genr8_dist.distributed.coordinator import Coordinator, StopRequest
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.distributed.interrupts import stop_on_signals
+    from genr8_dist.distributed.progress import ProgressDisplay
 
     out = out if out is not None else sys.stdout
     own_hosts = hosts is None
@@ -242,11 +277,22 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
             hosts.shutdown()
 
 
-def _announcer(out: TextIO) -> Callable[[str], None]:
-    return lambda text: print(text, file=out, flush=True)
+def _stop_request(given: Any) -> Any:
+    from genr8_dist.distributed.coordinator import StopRequest
+
+    return given if given is not None else StopRequest()
+
+
+def _signals_stop(stop: Any, out: TextIO) -> Any:
+    """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``)."""
+    from genr8_dist.distributed.interrupts import stop_on_signals
+
+    return stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True))
 
 
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
+    from genr8_dist.distributed.progress import format_duration
+
     committed = summary.committed
     low = min(committed.values()) if committed else -1
     rate = summary.individuals / summary.wall_seconds if summary.wall_seconds > 0 else 0.0
@@ -295,11 +341,11 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     out = out if out is not None else sys.stdout
     config = load_config(config_path)
     _check_new_run_dir(run_dir)
-    hooks["stop"] = stop = hooks["stop"] if hooks.get("stop") is not None else StopRequest()
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
     # run before its first epoch, one after the last commit changes nothing (the run is complete)
-    with stop_on_signals(stop, announce=_announcer(out)), \
-            connect_ray(options.address, options.num_cpus), ExitStack() as stack:
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
@@ -341,11 +387,13 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     if not problems and committed and min(committed.get(i, -1) for i in range(n)) >= last:
         print(f"{run_dir}: the run is complete (generation {last}); nothing to resume. "
               f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
+        from genr8_dist.distributed.coordinator import RunSummary
+
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    hooks["stop"] = stop = hooks["stop"] if hooks.get("stop") is not None else StopRequest()
-    with stop_on_signals(stop, announce=_announcer(out)), \
-            connect_ray(options.address, options.num_cpus), hold_run_lock(store):
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

@@ -107,6 +107,7 @@ class Environment:
     position_noise: float = 0.0
     vertex_mass: float = 1.0
     max_edges: int = 200_000
+    max_work: int = 20_000
     max_seconds: float = 60.0
     fixed_perimeter: bool = False
     fixed_centre: bool = False
@@ -156,6 +157,7 @@ class Environment:
         put(self, "vertex_mass", read_float(self.vertex_mass, src, "vertex_mass", minimum=0.0,
                                             strict_minimum=True))
         put(self, "max_edges", read_int(self.max_edges, src, "max_edges", minimum=3))
+        put(self, "max_work", read_int(self.max_work, src, "max_work", minimum=0))
         put(self, "max_seconds", read_float(self.max_seconds, src, "max_seconds", minimum=0.0,
                                             strict_minimum=True))
         for name in ("fixed_perimeter", "fixed_centre", "uniform_cells"):
@@ -300,7 +302,7 @@ class Environment:
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         wrong = np.zeros(len(points), dtype=bool)
         for b in self.boundaries:
-            if b.behaviour == "soft":
+            if not b.hard:
                 wrong |= b.violation(points) > 0.0
         return int(wrong.sum())
 

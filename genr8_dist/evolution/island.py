@@ -35,7 +35,10 @@ choice of elites and parents of generation g; a marked individual not of generat
 
 Individuals of generation g-1 evaluated under another ``config_version`` (the fitness, the environment
 or the universe changed: an intervention) are re-evaluated before selection, so they compete under the
-configuration now in force. Identical genomes are evaluated once (``Evaluator``'s cache).
+configuration now in force. When only the fitness changed (the island's ``config_of`` gives their
+version, with the same universe, genome settings and ``development_key``), they are judged again
+from their stored raw criteria (``evaluate.rescore``) instead of being grown again: the same result.
+Identical genomes are evaluated once (``Evaluator``'s cache).
 
 A generation is built in two parts: ``breed`` draws every genome with its origin and parents (cheap,
 sequential, seeded), then ``complete`` evaluates the genomes not yet evaluated and makes the
@@ -46,12 +49,13 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.evolution.evaluate import Evaluation, Evaluator
+from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
@@ -61,9 +65,10 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
+from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
-__all__ = ["Birth", "Injected", "Island", "IslandStats"]
+__all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
 # What a user may inject: a genome, a rewrite system's text, or an existing individual (a copy).
 Injected = Sequence[int] | str | Individual
@@ -102,6 +107,14 @@ _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
 
 
+def pareto_objectives(config: Any) -> tuple[str, ...]:
+    """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
+    with a weight above 0."""
+    if config.search.objectives:
+        return tuple(config.search.objectives)
+    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
+
+
 def is_trivial(evaluation: Evaluation) -> bool:
     """Whether an evaluation is not worth a founder's place: invalid, or a surface of at most one
     region (the axiom polygon as it was, or grown without a subdivision)."""
@@ -121,7 +134,8 @@ class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
     def __init__(self, config: Any, island_index: int, config_version: int = 1, *,
-                 evaluator: Evaluator | None = None) -> None:
+                 evaluator: Evaluator | None = None,
+                 config_of: Callable[[int], Any] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:
             raise ConfigError(f"island index must be a non-negative integer, got {island_index!r}")
         if island_index >= config.islands.count:
@@ -133,6 +147,7 @@ class Island:
         self.config_version = int(config_version)
         self.evaluator = evaluator if evaluator is not None and evaluator.config is config \
             else Evaluator(config)
+        self.config_of = config_of   # configuration version -> its configuration (None: unknown)
         self.stats = IslandStats()
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
@@ -179,11 +194,32 @@ class Island:
                           config_version=self.config_version, **evaluation.as_fields())
 
     def _kept(self, individual: Individual) -> Evaluation:
-        """The evaluation of an individual carried over: kept when made under this configuration."""
+        """The evaluation of an individual carried over: kept when made under this configuration,
+        judged again from its raw criteria when only the fitness changed since, else evaluated."""
+        fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
         if individual.config_version == self.config_version:
-            fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
             return Evaluation(**fields).untimed()
+        if self._only_fitness_changed(individual.config_version) and individual.stage != "map":
+            judged = rescore(Evaluation(**fields), self.config)
+            if judged is not None:
+                return judged.untimed()
         return self.evaluate(individual.genome)
+
+    def _only_fitness_changed(self, version: int) -> bool:
+        """Whether configuration ``version`` maps genomes to the texts this island's does and grows
+        and measures them as it does (it may differ in fitness, EA or islands)."""
+        earlier = self.config_of(version) if self.config_of is not None else None
+        if earlier is None:
+            return False
+        return (earlier.universe == self.config.universe and earlier.genome == self.config.genome
+                and development_key(earlier) == self.evaluator.development_key)
+
+    def _now(self, individual: Individual) -> Individual:
+        """``individual`` as it competes under this island's configuration."""
+        if individual.config_version == self.config_version:
+            return individual
+        return self._make(individual.generation, individual.index, individual.genome, individual.origin,
+                          individual.parents, self._kept(individual))
 
     def _finish(self, generation: int, population: list[Individual], before: tuple[int, int, int]
                 ) -> list[Individual]:
@@ -261,24 +297,26 @@ class Island:
             births.append(Birth(genome, "injected", parents))
 
         # Generation g-1 as it competes now: re-evaluated where its configuration was another one.
-        pool = [p if p.config_version == self.config_version
-                else self._make(p.generation, p.index, p.genome, p.origin, p.parents, self.evaluate(p.genome))
-                for p in previous]
+        pool = [self._now(p) for p in previous]
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
         for marked, fitness in hand:
             if marked.id in parent_ids:
                 fitnesses[parent_ids.index(marked.id)] = float(fitness)
                 continue
-            pool.append(marked if marked.config_version == self.config_version
-                        else self._make(marked.generation, marked.index, marked.genome, marked.origin,
-                                        marked.parents, self.evaluate(marked.genome)))
+            pool.append(self._now(marked))
             parent_ids.append(marked.id)
             fitnesses.append(float(fitness))
 
         room = ea.population - len(births)
-        for i in select_elites(fitnesses, min(ea.elites, room)):
+        scores, elites, mates = self._selection(pool, fitnesses, room)
+        for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
+
+        def pick(rng) -> int:
+            if mates:
+                return mates[int(rng.integers(0, len(mates)))]
+            return tournament_select(rng, scores, ea.tournament)
 
         select_rng = self.rng(generation, "selection")
         cross_rng = self.rng(generation, "crossover")
@@ -287,12 +325,12 @@ class Island:
         unique = ea.unique_retries > 0
         texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
         while len(births) < ea.population:
-            a = tournament_select(select_rng, fitnesses, ea.tournament)
-            b = tournament_select(select_rng, fitnesses, ea.tournament)
+            a = pick(select_rng)
+            b = pick(select_rng)
             tries = 0
             while unique and tries < _MATE_RETRIES and (
                     b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
-                b = tournament_select(select_rng, fitnesses, ea.tournament)
+                b = pick(select_rng)
                 tries += 1
             self.stats.mates_redrawn += tries
             used_a, used_b = pool[a].codons_used, pool[b].codons_used
@@ -330,6 +368,39 @@ class Island:
                 births.append(Birth(tuple(int(c) for c in genome), origin,
                                     tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
         return births
+
+    def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
+                   ) -> tuple[list[float], list[int], list[int]]:
+        """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
+        of the elites to keep, and the positions parents are drawn from uniformly (empty: by
+        tournament).
+
+        ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
+        crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
+        first front, least crowded first, at least ``ea.elites`` and up to half the room. ``map-elites``:
+        the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
+        the population, and parents drawn uniformly from it."""
+        ea, search = self.config.ea, self.config.search
+        if search.mode == "pareto":
+            from genr8_dist.evolution.pareto import objectives_of, pareto_order
+
+            names = pareto_objectives(self.config)
+            ranks, position = pareto_order(objectives_of([p.criteria for p in pool], [p.valid for p in pool],
+                                                         self.config.fitness, names))
+            scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
+            front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
+                           key=lambda i: scores[i])
+            keep = min(room, max(min(ea.elites, room), min(len(front), room // 2)))
+            return scores, front[:keep], []
+        if search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(search)
+            cap = max(0, room - math.ceil(search.offspring * ea.population))
+            where = {id(p): i for i, p in enumerate(pool)}
+            elites = [where[id(ind)] for ind in grid.elites(pool, cap)]
+            return list(fitnesses), elites, list(elites)
+        return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
         """The distinct genomes of ``births`` that need an evaluation this island has not cached."""

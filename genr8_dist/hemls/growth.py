@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from genr8_dist.errors import GrowthError
-from genr8_dist.hemls.language import RewriteSystem
+from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Successor
 from genr8_dist.hemls.surface import Surface
 from genr8_dist.hemls.turtle import AT_END, LEFT, RIGHT, Template, draw, sector_side
 from genr8_dist.rng import stream
@@ -56,11 +56,20 @@ class GrowthResult:
     steps: list[StepStats]
     capped: str | None = None
     history: list[Surface] = field(default_factory=list)
+    work: int = 0   # edge-steps spent (what ``max_work`` caps); see ``WORK_PAIRS``
 
     @property
     def seconds(self) -> float:
         """Total seconds spent in derivation steps."""
         return sum(s.seconds for s in self.steps)
+
+
+#: Branch pairs tested for joining that count as one edge-step of work (the ``max_work`` cap):
+#: testing a pair costs about a fortieth of carrying an edge through a derivation step.
+WORK_PAIRS = 40
+#: Edge-steps one successor's placement on a batch of edges counts for besides its edges (the fixed
+#: cost of a pass over the arrays, which dominates on small maps).
+WORK_BATCH = 64
 
 
 class _Capped(Exception):
@@ -98,12 +107,36 @@ class _Compiled:
     sync: bool
 
 
+@functools.lru_cache(maxsize=4096)
+def _names(symbols: tuple) -> tuple[str, ...]:
+    """The segment names in ``symbols`` (brackets included), in order."""
+    out: list[str] = []
+    for sym in symbols:
+        if isinstance(sym, Segment):
+            out.append(sym.name)
+        elif isinstance(sym, Branch):
+            out.extend(_names(sym.symbols))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=8192)
+def _drawn(successor: Successor, angle: float, labels: tuple[int, ...]) -> Template:
+    names = _names(successor.symbols)
+    return draw(successor, angle, dict(zip(names, labels, strict=True)))
+
+
+def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Template:
+    """``draw(successor, angle, ids)``, drawn once per process for each successor, angle and labels
+    (universes write the same successors into many rewrite systems)."""
+    return _drawn(successor, angle, tuple(ids[n] for n in _names(successor.symbols)))
+
+
 @functools.lru_cache(maxsize=256)
 def _compile(system: RewriteSystem) -> _Compiled:
     ids = system.label_ids()
     groups: dict[int, list[_CompiledRule]] = {}
     for rule in system.rules:
-        templates = tuple(draw(s, system.turn_angle, ids) for s in rule.successors)
+        templates = tuple(_template(s, system.turn_angle, ids) for s in rule.successors)
         w = np.array(rule.weights, dtype=np.float64)
         cum = np.cumsum(w / w.sum())
         cum[-1] = 1.0
@@ -445,12 +478,17 @@ class _Grower:
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
         self.max_edges = int(env.max_edges)
+        self.max_work = int(getattr(env, "max_work", 0) or 0)   # 0: no work cap
+        self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
+        self.pairs = 0      # branch pairs tested and re-tested for joining
         self.cone = getattr(env, "branch_join", "orientation") == "cone"
+        self._stop_later: list[np.ndarray] = []  # vertices drawn between two stopped ones
         self._keys: np.ndarray | None = None
 
     # -- step ------------------------------------------------------------------------------------
     def step(self, step: int) -> None:
         m = self.m
+        self._spend(m.n_alive())
         inc = self.env.increase_size(m.pos[:m.nv].copy(), step=step, masses=m.mass[:m.nv].copy(),
                                      stopped=m.stopped[:m.nv].copy(), perimeter=m.perimeter_mask(),
                                      edges=m.edge_array(), rng=self.rng)
@@ -473,13 +511,31 @@ class _Grower:
     def _constrain(self) -> None:
         """Hard boundaries hold at the end of the step: the vertices rewriting placed on the wrong
         side (a new vertex on an edge that is a chord of a sphere) go to the wall's nearest allowed
-        point, and stop there at a cut-off wall (``Environment.constrain``)."""
+        point, and stop there at a cut-off wall (``Environment.constrain``); then the vertices drawn
+        between two stopped vertices stop."""
         if not self.env.boundaries:
             return
         m = self.m
         fixed = self.env.constrain(m.pos[:m.nv], stopped=m.stopped[:m.nv])
         m.pos[:m.nv] = fixed.positions
         m.stopped[:m.nv] = fixed.stopped
+        for frozen in self._stop_later:
+            m.stopped[frozen] = True
+        self._stop_later = []
+
+    @property
+    def spent(self) -> int:
+        """The work done so far in edge-steps: every edge alive when a derivation step starts, and
+        every edge rewriting makes, counts one; each successor placed on a batch of edges counts
+        ``WORK_BATCH`` more; ``WORK_PAIRS`` branch pairs tested for joining count one."""
+        return self.work + self.pairs // WORK_PAIRS
+
+    def _spend(self, edges: int = 0, pairs: int = 0) -> None:
+        """Count work; past ``max_work`` growth stops (a count, so the same on every machine)."""
+        self.work += edges
+        self.pairs += pairs
+        if self.max_work and self.spent > self.max_work:
+            raise _Capped("work")
 
     def _check_time(self) -> None:
         if time.perf_counter() > self.deadline:
@@ -562,6 +618,7 @@ class _Grower:
             return
         if m.n_alive() + grow_edges > self.max_edges:
             raise _Capped("edges")
+        self._spend(grow_edges + WORK_BATCH * len(batches))
         areas = m.face_areas()
         for part, tpl in batches:
             self._rewrite(part, tpl, areas, pending)
@@ -589,6 +646,11 @@ class _Grower:
         m.pos[nv0:nv0 + n * (k - 1)] = world[:, 1:k, :].reshape(-1, 3)
         m.mass[nv0:nv0 + n * (k - 1)] = self.env.vertex_mass
         m.stopped[nv0:nv0 + n * (k - 1)] = False
+        # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
+        # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
+        frozen = np.flatnonzero(np.repeat(m.stopped[s] & m.stopped[t], k - 1))
+        if len(frozen):
+            self._stop_later.append(nv0 + frozen)
         m.nv = nv0 + n * (k - 1)
         chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
         new_e = ne0 + np.arange(n * k, dtype=np.int64).reshape(n, k)
@@ -711,6 +773,7 @@ class _Grower:
             pj = cand[(gs[:, None] + tj).ravel()]
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
+            self._spend(pairs=len(pi))
             keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
             pi_all.append(pi[keep])
             pj_all.append(pj[keep])
@@ -723,6 +786,7 @@ class _Grower:
             for r0 in range(0, len(members), rows):
                 self._check_time()
                 block = members[r0:r0 + rows]
+                self._spend(pairs=len(block) * len(new))
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
                 pi, pj = block[ri], new[cj]
                 keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
@@ -741,12 +805,16 @@ class _Grower:
         live = np.ones(len(pi), dtype=bool)
         while True:
             self._check_time()
+            self._spend(pairs=len(pi))
             fi = m.face[corner[pi]]
             fj = m.face[corner[pj]]
             live &= ~used[pi] & ~used[pj] & (fi == fj) & (fi != 0)
             at = np.flatnonzero(live)
             if not len(at):
                 break
+            if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
+                pi, pj, live, fi = pi[at], pj[at], live[at], fi[at]
+                at = np.arange(len(pi))
             # one join per face per round (a join splits its face), best pair first
             _, firsts = np.unique(fi[at], return_index=True)
             chosen = at[np.sort(firsts)]
@@ -983,4 +1051,4 @@ def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int
         if capped:
             break
     surface = history[-1] if keep_steps else grower.m.surface()
-    return GrowthResult(surface, stats, capped, history)
+    return GrowthResult(surface, stats, capped, history, grower.spent)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +13,8 @@ import pyarrow.compute as pc
 import pyarrow.dataset as pads
 
 from genr8_dist.errors import HistoryError, StoreError
+from genr8_dist.evolution.individual import parse_id
+from genr8_dist.store.schema import criterion_of
 
 __all__ = [
     "HistoryError",
@@ -67,29 +68,17 @@ def run_label(store: Any) -> str:
 
 def criteria_of(schema: pa.Schema) -> list[str]:
     """The criterion names a run records, in column order (``crit_size`` -> ``size``)."""
-    return [name[5:] for name in schema.names if name.startswith("crit_")]
-
-
-def parse_id(text: str) -> tuple[int, int, int] | None:
-    """``"I-G-N"`` -> ``(island, generation, index)``; ``None`` when ``text`` is not of that form."""
-    parts = str(text).split("-")
-    if len(parts) != 3 or not all(p.isdigit() for p in parts):
-        return None
-    return int(parts[0]), int(parts[1]), int(parts[2])
+    return [c for name in schema.names if (c := criterion_of(name)) is not None]
 
 
 def targets_by_version(store: Any, criteria: list[str]) -> dict[int, dict[str, tuple[float, float]]]:
     """For every configuration version: ``{criterion: (target, unit)}``, the deviation a criterion's
     raw value is judged by (``|raw - target| / unit``, the fitness's own normalisation, unweighted)."""
-    from genr8_dist.fitness import CRITERIA, FitnessSpec
-
-    known = [name for name in criteria if name in CRITERIA]
     out: dict[int, dict[str, tuple[float, float]]] = {}
     for version in store.configs():
-        data = tomllib.loads(version.toml)
-        spec = FitnessSpec.from_dict(data.get("fitness"), source=f"configuration version {version.version}")
+        spec = store.fitness(version)
         out[int(version.version)] = {
-            name: (spec[name].target, spec[name].unit) for name in known}
+            name: (spec[name].target, spec[name].unit) for name in criteria if name in spec.names}
     return out
 
 

@@ -66,6 +66,8 @@ from genr8_dist.store.schema import (
     individuals_from_table,
     individuals_schema,
     individuals_table,
+    reading_schema,
+    run_columns,
 )
 
 if TYPE_CHECKING:
@@ -73,6 +75,9 @@ if TYPE_CHECKING:
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
     import pyarrow.fs as pafs
+
+    from genr8_dist.config import RunConfig
+    from genr8_dist.fitness import FitnessSpec
 
 __all__ = [
     "COMPACT_EVERY",
@@ -235,6 +240,7 @@ class RunStore:
         self._m = manifest
         self.compact_every = compact_every
         self._config_cache: dict[int, str] = {}
+        self._parsed: dict[tuple[int, str], RunConfig] = {}
         # files this store checked against their sha256: (path, sha256) -> (size, mtime) seen then
         self._verified: dict[tuple[str, str], tuple[int | None, float | None]] = {}
         self._pending: list[str] = []                  # files written by the commit being made
@@ -249,6 +255,7 @@ class RunStore:
         config_toml: str,
         *,
         run_id: str | None = None,
+        criteria: Sequence[str] | None = None,
         filesystem: pafs.FileSystem | None = None,
         compact_every: int | None = COMPACT_EVERY,
     ) -> RunStore:
@@ -257,7 +264,9 @@ class RunStore:
         The directory becomes a run in one step, when manifest 1 is linked into place; a creation that
         stopped before that (a crash, a full disk) left only a half-created directory, which this
         finishes. Refuses a directory that is already a run, or that holds anything else, and leaves it
-        as it was. ``run_id`` defaults to the directory's name.
+        as it was. ``run_id`` defaults to the directory's name; ``criteria`` (default: every
+        registered surface criterion) and the columns declared now are the run's for good (its
+        manifest keeps them).
         """
         rfs = resolve(path_or_uri, filesystem)
         kind = rfs.kind()
@@ -298,6 +307,8 @@ class RunStore:
             )
         from genr8_dist.store.schema import criteria_names
 
+        names = list(criteria_names() if criteria is None else criteria)
+        columns = [list(c) for c in run_columns(names)]
         for folder in sorted(_LAYOUT):
             rfs.makedirs(folder)
         created = _now().isoformat()
@@ -305,7 +316,8 @@ class RunStore:
             "format": FORMAT,
             "schema_version": SCHEMA_VERSION,
             "run_id": run_id,
-            "criteria": list(criteria_names()),
+            "criteria": names,
+            "columns": columns,
             "created": created,
             "version": 0,
             "configs": [],
@@ -376,9 +388,23 @@ class RunStore:
         return tuple(self._m["criteria"])
 
     @property
+    def schema_version(self) -> int:
+        """The store schema version this run was created with (it keeps it for good)."""
+        return int(self._m["schema_version"])
+
+    @property
     def schema(self) -> pa.Schema:
-        """The individuals table's schema for this run."""
-        return individuals_schema(self.criteria)
+        """The individuals table's schema for this run: the columns its manifest records, or (a run of
+        schema version 1) the columns of that version."""
+        columns = self._m.get("columns")
+        if columns is None:
+            columns = run_columns(self.criteria, version=self.schema_version)
+        return individuals_schema(columns=columns, version=self.schema_version)
+
+    @property
+    def reading_schema(self) -> pa.Schema:
+        """What readers see: this run's schema, and every column declared since as nulls."""
+        return reading_schema(self.schema)
 
     @property
     def version(self) -> int:
@@ -397,7 +423,7 @@ class RunStore:
         Returns the commit number (the manifest version)."""
         if not individuals and not events and add is None:
             return self.version
-        table = individuals_table(individuals, self.run_id, self.criteria)
+        table = individuals_table(individuals, self.run_id, self.criteria, self.schema)
         return self.commit_table(table, events, add=add)
 
     def commit_table(self, table: pa.Table, events: Sequence[Event] = (),
@@ -561,10 +587,11 @@ class RunStore:
     def individuals(
         self, columns: Sequence[str] | None = None, filter: pc.Expression | None = None
     ) -> pa.Table:
-        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``.
+        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``;
+        columns declared since the run was written read as nulls.
         Each file is checked against the manifest's sha256 before it is read (once per store)."""
         self._require_current()
-        schema = self.schema
+        schema = self.reading_schema
         if columns is not None:
             for name in columns:
                 if name not in schema.names:
@@ -597,7 +624,7 @@ class RunStore:
                 return self.dataset()
             raise
         try:
-            return ds.dataset(self.individual_files(), schema=self.schema, format="parquet",
+            return ds.dataset(self.individual_files(), schema=self.reading_schema, format="parquet",
                               filesystem=self._fs.fs)
         except OSError as exc:
             if self._refreshed():
@@ -611,6 +638,37 @@ class RunStore:
     def configs(self) -> list[ConfigVersion]:
         """Every configuration version, oldest first."""
         return [self._config(e) for e in self._m["configs"]]
+
+    def config(self, version: int | ConfigVersion) -> RunConfig:
+        """Configuration ``version`` (a number, or one of ``configs()``) as a ``RunConfig``, its fitness
+        over the criteria this run stores: the one place a stored configuration is parsed. A
+        configuration that no longer validates is a ``ConfigError`` naming the run and the version."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        key = (cv.version, cv.toml)
+        parsed = self._parsed.get(key)
+        if parsed is None:
+            from genr8_dist.config import RunConfig
+
+            source = f"{self.path} configuration v{cv.version}"
+            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria)
+            self._parsed[key] = parsed
+        return parsed
+
+    def fitness(self, version: int | ConfigVersion) -> FitnessSpec:
+        """The fitness specification of configuration ``version`` alone (what history queries need;
+        cheaper than ``config``: no environment or universe is built)."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        from genr8_dist.fitness import FitnessSpec
+
+        data = tomllib.loads(cv.toml)
+        return FitnessSpec.from_dict(data.get("fitness"), names=self.criteria,
+                                     source=f"{self.path} configuration v{cv.version}")
+
+    def _config_version(self, version: int) -> ConfigVersion:
+        for e in self._m["configs"]:
+            if int(e["version"]) == int(version):
+                return self._config(e)
+        raise StoreError(f"{self._fs.show()}: no configuration version {version}")
 
     def config_for(self, generation: int) -> ConfigVersion:
         """The configuration version in force at ``generation``."""
@@ -806,7 +864,11 @@ class RunStore:
                         continue
                     if version is None:
                         version = self._next_version()
-                    table = pa.concat_tables([self._read_whole(e) for e in group])
+                    tables = [self._read_whole(e) for e in group]
+                    if key == "individuals":  # files written before a resume may order columns otherwise
+                        schema = self.schema
+                        tables = [t.select(schema.names).cast(schema) for t in tables]
+                    table = pa.concat_tables(tables)
                     first, last = _first_commit(group[0]), group[-1]["commits"][1]
                     entry = self._write_parquet(f"{prefix}-{first:010d}-{last:010d}", table)
                     entry["commits"] = [first, last]
@@ -1042,7 +1104,7 @@ class RunStore:
 
         self._verify_files(entries)
         try:
-            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.schema,
+            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
                                  format="parquet", filesystem=self._fs.fs)
             return dataset.to_table(columns=list(columns) if columns is not None else None, filter=filter)
         except (pa.ArrowException, OSError) as exc:

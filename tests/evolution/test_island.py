@@ -4,6 +4,7 @@ selection that improves fitness."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import statistics
 
@@ -268,3 +269,59 @@ def test_no_individual_is_mated_with_itself_when_others_differ():
     for child in crossed:
         a, b = child.parents
         assert a != b and (texts[a] != texts[b] or texts[a] is None)
+
+
+def test_map_elites_carries_the_best_of_every_cell_into_the_next_generation():
+    from genr8_dist.evolution.archive import Grid
+
+    config = small_config(ea={"population": 16}, search={"mode": "map-elites", "descriptors": ["n_regions"],
+                                                         "ranges": [[1, 17]], "bins": [8], "offspring": 0.5})
+    hist = Island(config, 0).run(3)
+    grid = Grid.from_settings(config.search)
+    for previous, gen in itertools.pairwise(hist):
+        archive = grid.archive(previous)
+        kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
+        best = sorted(archive.values(), key=lambda ind: (ind.fitness, ind.index))[:8]
+        assert kept == {ind.id for ind in best}
+        # a cell's elite is never worse than before: the archive only improves
+        after = grid.archive(gen)
+        kept_cells = {grid.cell(i) for i in best}
+        assert all(after[c].fitness <= archive[c].fitness for c in kept_cells)
+        assert sum(ind.origin != "elite" for ind in gen) >= 8
+
+
+def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
+    from genr8_dist.evolution.island import pareto_objectives
+    from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+
+    config = small_config(ea={"population": 16}, search={"mode": "pareto"},
+                          fitness={"size": {"target": 6.0}, "subdivisions": {"target": 0.5}})
+    hist = Island(config, 0).run(2)
+    names = pareto_objectives(config)
+    assert set(names) == {"size", "smoothness", "undulation", "subdivisions", "symmetry", "soft_boundary"}
+    previous, gen = hist[1], hist[2]
+    ranks = non_dominated_ranks(objectives_of([p.criteria for p in previous], [p.valid for p in previous],
+                                              config.fitness, names))
+    front = {p.id for p, r in zip(previous, ranks, strict=True) if r == 0 and p.valid}
+    kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
+    assert kept <= front and len(kept) == min(len(front), 8)
+
+
+def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(history):
+    """Generation g-1 made under version 1 competes in generation g under version 2 (other targets
+    and weights): judged again from its rows, not grown again, with the rows evaluation would give."""
+    from genr8_dist.evolution import evaluate as ev
+
+    config, hist = history
+    changed = config.replace(fitness={"size": {"weight": 7.0, "target": 3.0}})
+    ev._DEVELOPED.clear()
+    plain = Island(changed, 0, config_version=2)
+    regrown = plain.step(hist[2], 3)
+    ev._DEVELOPED.clear()
+    island = Island(changed, 0, config_version=2, config_of={1: config, 2: changed}.get)
+    rescored = island.step(hist[2], 3)
+    assert [i.untimed() for i in rescored] == [i.untimed() for i in regrown]
+    pool_texts = {p.text for p in hist[2] if p.text and p.stage != "map"}
+    assert island.evaluator.growths < plain.evaluator.growths
+    assert plain.evaluator.growths - island.evaluator.growths >= len(pool_texts) - len(
+        pool_texts & {i.text for i in rescored if i.origin != "elite"})

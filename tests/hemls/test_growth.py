@@ -238,6 +238,32 @@ def test_edge_cap_stops_growth_and_says_so():
     assert len(result.steps) < 6
 
 
+def test_work_cap_stops_growth_at_a_count_and_says_so():
+    system = load_system("four_sided_tiles")
+    free = grow(system, Environment(max_work=0), steps=6)
+    assert free.capped is None and free.work > 5000
+    env = Environment(max_work=5000)
+    result = grow(system, env, steps=6)
+    assert result.capped == "work"
+    assert result.work > 5000 and result.work < free.work
+    assert result.surface.validate() == []
+    assert result.surface.n_edges < free.surface.n_edges
+    again = grow(system, env, steps=6)   # a count, not a clock: the same cut every time
+    assert (again.work, again.surface.digest()) == (result.work, result.surface.digest())
+    below = grow(system, Environment(max_work=free.work), steps=6)
+    assert below.capped is None and below.surface.digest() == free.surface.digest()
+
+
+def test_joins_count_as_work():
+    """A system whose branches meet in big regions spends work on the pairs it tests."""
+    system = parse("Edge0 + Edge0 + Edge0 + Edge0\n"
+                   "Edge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0 [ [ + Edge1 ] - Edge1 ] Edge0\n"
+                   "Angle 90\nSync\n")
+    result = grow(system, Environment(max_work=0), steps=3)
+    edge_steps = sum(s.n_edges for s in result.steps)
+    assert result.work > edge_steps
+
+
 def test_time_cap_stops_growth_and_says_so():
     env = Environment(max_seconds=1e-6)
     result = grow(load_system("four_sided_tiles"), env, steps=8)
@@ -283,7 +309,7 @@ def test_four_sided_tiles_seven_steps_is_fast():
     system = load_system("four_sided_tiles")
     grow(system, steps=2)
     t0 = time.perf_counter()
-    result = grow(system, steps=7)
+    result = grow(system, Environment(max_work=0), steps=7)
     assert time.perf_counter() - t0 < 2.0
     assert result.steps[-1].n_regions == 16384
 
