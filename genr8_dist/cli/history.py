@@ -240,7 +240,7 @@ def _show(args: argparse.Namespace) -> int:
     _print("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
         _print(f"    {statement}")
-    if row["text"] and not result.text_matches:
+    if row["text"] and result.text_matches is False:
         _print("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
     if result.surface is not None:

@@ -24,12 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from genr8_dist.errors import RunError, StoreError
+from genr8_dist.errors import Genr8Error, RunError, StoreError
 
 if TYPE_CHECKING:
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 
-__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run"]
+__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
+           "stored_universes"]
 
 CONNECT_TIMEOUT = 5.0
 
@@ -43,6 +44,7 @@ class RunOptions:
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
+    trust_hooks: bool = False             # run the Python code a run directory carries (resume)
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -214,6 +216,24 @@ def _check_new_run_dir(run_dir: str) -> None:
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
+def stored_universes(store: Any) -> list[Any]:
+    """The universe of every configuration version of the run that can be read (a damaged version is
+    left to ``repair``), without running any of their code."""
+    sources: list[Any] = []
+    try:
+        versions = store.configs()
+    except StoreError:  # a damaged version: the one the run was created with, until repair
+        versions = [store.config_for(0)]
+    for version in versions:
+        try:
+            config = store.config(version)
+        except Genr8Error:  # a damaged version: verify() reports it, repair() drops it
+            continue
+        if config.universe_source not in sources:
+            sources.append(config.universe_source)
+    return sources
+
+
 def latest_config(store: Any) -> Any:
     """The run's newest configuration version, as a ``RunConfig``."""
     newest = store.configs()[-1]
@@ -336,11 +356,15 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     """``genr8 run``: a new run of the configuration in ``config_path`` in the new ``run_dir``."""
     from genr8_dist.config import load_config
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.trust import consent_for_new_run
+    from genr8_dist.grammar.universe import build_universe
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
     config = load_config(config_path)
     _check_new_run_dir(run_dir)
+    consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
     # run before its first epoch, one after the last commit changes nothing (the run is complete)
@@ -371,11 +395,14 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation (on
     ``hosts``, a ``HostPool`` of an earlier run, rebound to this one, when given)."""
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.trust import consent_for_stored
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
     store = RunStore.open(run_dir)
     problems = store.verify()
+    consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                       command=f"resume {run_dir}")
     # A damaged run is repaired once Ray and the hosts are up (nothing is written before); until then
     # its newest configuration may be the damaged file, so read the one the run was created with
     # (islands.count cannot change during a run). Damage to that one leaves nothing to fall back to,
@@ -406,6 +433,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
                 print(f"repaired: {store.last_repair}", file=out, flush=True)
+                consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                                   command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()
