@@ -179,3 +179,16 @@ def test_numeric_terminal_reads_one_codon_mod_its_value_count():
 def test_numbers_outside_the_range_are_refused_with_where_and_why(text, words):
     with pytest.raises(InversionError, match=re.escape(words)):
         _numbers_universe().invert(text)
+
+
+@pytest.mark.parametrize("name", ["four_sided_tiles", "three_sided_tiles"])
+def test_the_manual_tiles_are_derivable_in_the_tiles_universe_only(name):
+    from genr8_dist.errors import Genr8Error
+    from genr8_dist.resources import systems_dir
+
+    lines = (systems_dir() / f"{name}.hemls").read_text().splitlines()
+    text = "\n".join(line for line in lines if not line.startswith("//")) + "\n"
+    tiles = load_universe("tiles")
+    assert tiles.map(tiles.invert(text)).text == text
+    with pytest.raises(Genr8Error):
+        load_universe("default").invert(text)   # default stays the thesis's Appendix A.1
