@@ -15,7 +15,14 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    atomic_write,
+    open_run,
+    run_directory_holding,
+    run_label,
+)
 
 __all__ = ["EXPORT_FORMATS", "Regrown", "config_of", "export", "picture", "regrow", "save_text"]
 
@@ -104,6 +111,10 @@ def export(result: Regrown, path: str | os.PathLike) -> Path:
     if suffix not in EXPORT_FORMATS:
         raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
                            + ", ".join(f".{s}" for s in EXPORT_FORMATS))
+    inside = run_directory_holding(path)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
     surface = _need_surface(result, "export")
     if suffix == "3dm":
         _export_3dm(surface, path, name=result.row["id"])

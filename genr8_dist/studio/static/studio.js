@@ -127,11 +127,12 @@ function lineChart(svg, xs, series, opts = {}) {
     el("line", { x1: x, x2: x, y1: T - 2, y2: H - B, stroke: "#f2a541", "stroke-dasharray": "3 3", "stroke-opacity": 0.7 }, svg);
     if (!opts.labels) continue;
     const width = m.label.length * 5.2 + 6;
-    let row = rows.findIndex((right) => x - width / 2 > right + 3);
+    const at = Math.min(Math.max(x, L + width / 2), W - R - width / 2);   // kept inside the chart
+    let row = rows.findIndex((right) => at - width / 2 > right + 3);
     if (row < 0 && rows.length < 3) { row = rows.length; rows.push(-Infinity); }
     if (row < 0) continue;
-    rows[row] = x + width / 2;
-    el("text", { x, y: 9 + row * 10, "text-anchor": "middle", class: "marker-label" }, svg).textContent = m.label;
+    rows[row] = at + width / 2;
+    el("text", { x: at, y: 9 + row * 10, "text-anchor": "middle", class: "marker-label" }, svg).textContent = m.label;
   }
   for (const t of opts.targets || []) {
     el("line", { x1: L, x2: W - R, y1: sy(t), y2: sy(t), stroke: "#8a94a3", "stroke-dasharray": "4 3", "stroke-width": 1 }, svg);
@@ -496,9 +497,11 @@ async function poll() {
     showState(s);
     if (s.version !== ui.version) {
       ui.version = s.version;
-      curves = await getJSON("/api/curves");
-      drawCurves();
-      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) await loadGeneration(s.generation);
+      // the generation's designs first (a few files), the curves apart (the whole run, once)
+      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) loadGeneration(s.generation);
+      const asked = s.version;
+      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last) { curves = c; drawCurves(); } })
+        .catch(() => { if (ui.version === asked) ui.version = -1; });   // asked again at the next poll
     }
   } catch (e) {
     $("status").textContent = e.message.includes("not a run") || e.message.includes("no such run") ? "starting" : "waiting";
