@@ -74,9 +74,20 @@ class Evaluation:
         return replace(self, eval_seconds=0.0, map_seconds=0.0, grow_seconds=0.0, score_seconds=0.0)
 
 
+def universe_for(config: Any) -> Any:
+    """The universe of ``config`` (a ``RunConfig``), built from the files it carries (once per process),
+    never looked up again by name: a Ray host on any machine builds the driver's universe. A plain
+    name is looked up (the Python API's shorthand)."""
+    source = getattr(config, "universe_source", None)
+    if source is None:
+        return _named_universe(str(config))
+    from genr8_dist.grammar.universe import build_universe
+
+    return build_universe(source, check=False)
+
+
 @lru_cache(maxsize=16)
-def universe_for(name: str) -> Any:
-    """The loaded universe ``name`` (loaded once per process)."""
+def _named_universe(name: str) -> Any:
     from genr8_dist.grammar import load_universe
 
     return load_universe(name)
@@ -216,7 +227,7 @@ class Evaluator:
 
     def __init__(self, config: Any, *, cache_size: int = 4096) -> None:
         self.config = config
-        self.universe = universe_for(config.universe)
+        self.universe = universe_for(config)
         self.cache_size = cache_size
         self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
