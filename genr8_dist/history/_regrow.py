@@ -68,11 +68,11 @@ def regrow(run: RunLike, id: str) -> Regrown:
     store = open_run(run)
     row = individual(store, id).to_pylist()[0]
     config = config_of(store, row["config_version"])
-    from genr8_dist.grammar.trust import may_run
+    from genr8_dist.grammar.trust import consent_if_installed
 
     text = row["text"]
     text_matches: bool | None = None
-    if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
+    if consent_if_installed(config.universe_source):  # a run's own stored code is never run here
         universe = universe_for(config)
         mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
                               max_wraps=config.genome.max_wraps)
