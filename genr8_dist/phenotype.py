@@ -9,6 +9,7 @@ the report only ever talk to a phenotype through this interface:
 
 ``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
+``problem(developed, raw) -> str | None``  why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
                                            returns its negation and says so in ``direction``)
@@ -76,6 +77,12 @@ class Phenotype:
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         raise NotImplementedError
 
+    def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
+        """Why a measured phenotype cannot be scored (``None``: it can); by default, criteria that
+        are not finite."""
+        bad = [name for name in self.criteria if not math.isfinite(raw[name])]
+        return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
+
     def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
         raise NotImplementedError(f"phenotype {self.name} exports nothing")
 
@@ -122,13 +129,12 @@ class SurfacePhenotype(Phenotype):
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
         from genr8_dist.fitness import score_surface
 
+        return score_surface(developed.value, config.environment)
+
+    def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
         if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
-            raise ValueError("degenerate surface: no vertices or no edges")
-        raw = score_surface(developed.value, config.environment)
-        bad = [name for name, value in raw.items() if not math.isfinite(value)]
-        if bad:
-            raise ValueError(f"degenerate surface: {', '.join(bad)} not finite")
-        return raw
+            return "degenerate surface: no vertices or no edges"
+        return super().problem(developed, raw)
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)
