@@ -27,7 +27,7 @@ def tiles(name: str, steps: int, repeats: int) -> None:
     best = None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        result = grow(system, Environment(max_edges=2_000_000, max_seconds=600), steps=steps)
+        result = grow(system, Environment(max_edges=2_000_000, max_work=0, max_seconds=600), steps=steps)
         total = time.perf_counter() - t0
         if best is None or total < best[0]:
             best = (total, result)
@@ -45,7 +45,7 @@ def tiles(name: str, steps: int, repeats: int) -> None:
 
 
 def universes(per_universe: int) -> None:
-    env = Environment(max_edges=200_000, max_seconds=60)
+    env = Environment(max_edges=200_000, max_work=0, max_seconds=60)
     print(f"\nrandom individuals ({per_universe} valid per universe; genome 50-150 codons, seed 0)")
     print(f"{'universe':>14} {'steps':>5} {'mean s':>8} {'max s':>8} {'mean E':>9} {'max E':>9} "
           f"{'edges/s':>11} {'capped':>6}")

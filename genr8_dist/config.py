@@ -6,11 +6,14 @@
     seed = 1                      # the run seed every random draw derives from
 
     [genome]                      # length, codon_max, max_depth, max_wraps
-    [ea]                          # population, generations, tournament, elites, crossover_rate, mutation_rate
+    [ea]                          # population, generations, tournament, elites, crossover_rate,
+                                  # mutation_rate, init, founder_retries, unique_retries, within_used
     [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
     [environment]                 # inline (genr8_dist.environment's format), or
     # environment = "env.toml"    # a path, resolved relative to this file
-    [islands]                     # count, migration_interval, migrants, topology
+    [islands]                     # count, migration_interval, migrants, topology, emigrants
+    [search]                      # mode (weighted, pareto, map-elites), objectives, descriptors, ranges,
+                                  # bins, offspring
 
 Every section is a frozen dataclass validated when it is built; a section or key left out takes its
 default; an unknown key, a wrong type, an out-of-range value, an unknown universe or a missing
@@ -21,7 +24,7 @@ field with its default and meaning.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -31,15 +34,22 @@ from genr8_dist.fitness import FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
 __all__ = [
+    "EMIGRANTS",
+    "INITS",
+    "SEARCH_MODES",
     "TOPOLOGIES",
     "EASettings",
     "GenomeSettings",
     "IslandSettings",
     "RunConfig",
+    "SearchSettings",
     "load_config",
 ]
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
+INITS: tuple[str, ...] = ("random", "ramped")
+SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
+EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
 
 def _fail(path: str, message: str) -> ConfigError:
@@ -73,6 +83,24 @@ def _rate(value: Any, path: str) -> float:
     return value
 
 
+def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or value not in allowed:
+        raise _fail(path, f"must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
+    return value
+
+
+def _bool(value: Any, path: str) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(path, f"must be true or false, got {value!r}")
+    return value
+
+
+def _number(value: Any, path: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise _fail(path, f"must be a finite number, got {value!r}")
+    return float(value)
+
+
 def _set(obj: Any, name: str, value: Any) -> None:
     object.__setattr__(obj, name, value)
 
@@ -104,6 +132,10 @@ class EASettings:
     elites: int = 1             # best individuals copied unchanged into the next generation
     crossover_rate: float = 0.9  # probability a pair of parents is crossed over
     mutation_rate: float = 0.02  # probability each codon of a child is redrawn (int-flip)
+    init: str = "random"         # founders: "random" genomes or "ramped" half-and-half derivations
+    founder_retries: int = 20    # redraws of a founder that is trivial or repeats another's surface
+    unique_retries: int = 10     # re-variations of an offspring that repeats a parent or a sibling
+    within_used: bool = False    # crossover and mutation only within the codons the mapper read
 
     def __post_init__(self) -> None:
         _set(self, "population", _int(self.population, "ea.population", 2, 1_000_000))
@@ -112,6 +144,10 @@ class EASettings:
         _set(self, "elites", _int(self.elites, "ea.elites", 0, self.population - 1))
         _set(self, "crossover_rate", _rate(self.crossover_rate, "ea.crossover_rate"))
         _set(self, "mutation_rate", _rate(self.mutation_rate, "ea.mutation_rate"))
+        _set(self, "init", _choice(self.init, "ea.init", INITS))
+        _set(self, "founder_retries", _int(self.founder_retries, "ea.founder_retries", 0, 1000))
+        _set(self, "unique_retries", _int(self.unique_retries, "ea.unique_retries", 0, 1000))
+        _set(self, "within_used", _bool(self.within_used, "ea.within_used"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,6 +158,7 @@ class IslandSettings:
     migration_interval: int = 5  # generations between migrations (an epoch)
     migrants: int = 2            # individuals each island sends at a migration (its best)
     topology: str = "ring"       # ring: to the next island; full: to every other; random: to one drawn
+    emigrants: str = "novel"     # best: the fittest leave; novel: the fittest of those unlike the destination
 
     def __post_init__(self) -> None:
         _set(self, "count", _int(self.count, "islands.count", 1, 10_000))
@@ -130,10 +167,70 @@ class IslandSettings:
         if not isinstance(self.topology, str) or self.topology not in TOPOLOGIES:
             allowed = ", ".join(repr(t) for t in TOPOLOGIES)
             raise _fail("islands.topology", f"must be one of {allowed}, got {self.topology!r}")
+        _set(self, "emigrants", _choice(self.emigrants, "islands.emigrants", EMIGRANTS))
 
 
-_SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings}
-_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands")
+def _names(value: Any, path: str, allowed: tuple[str, ...], low: int, high: int) -> tuple[str, ...]:
+    if isinstance(value, str) or not isinstance(value, (list, tuple)):
+        raise _fail(path, f"must be a list of names, got {value!r}")
+    if not low <= len(value) <= high:
+        raise _fail(path, f"must name {low} to {high} values, got {len(value)}")
+    for name in value:
+        if not isinstance(name, str) or name not in allowed:
+            raise _fail(path, f"{name!r} is not one of {', '.join(allowed)}")
+    if len(set(value)) != len(value):
+        raise _fail(path, f"names a value twice: {list(value)!r}")
+    return tuple(value)
+
+
+@dataclass(frozen=True, slots=True)
+class SearchSettings:
+    """How an island selects: by the weighted fitness, by Pareto fronts (NSGA-II), or into a
+    MAP-Elites archive; see ``genr8_dist.evolution.pareto`` and ``genr8_dist.evolution.archive``."""
+
+    mode: str = "weighted"                 # "weighted", "pareto" or "map-elites"
+    objectives: tuple[str, ...] = ()       # pareto: criteria as separate objectives (empty: weight > 0)
+    descriptors: tuple[str, ...] = ("undulation", "n_regions")   # map-elites: the grid's axes
+    ranges: tuple[tuple[float, float], ...] = ((0.0, 2.0), (1.0, 65.0))
+    bins: tuple[int, ...] = (4, 8)
+    offspring: float = 0.5                 # map-elites: the least share of a generation bred anew
+
+    def __post_init__(self) -> None:
+        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
+        from genr8_dist.fitness import CRITERIA
+
+        _set(self, "mode", _choice(self.mode, "search.mode", SEARCH_MODES))
+        _set(self, "objectives", _names(self.objectives, "search.objectives", CRITERIA, 0, len(CRITERIA)))
+        if self.mode == "pareto" and len(self.objectives) == 1:
+            raise _fail("search.objectives", "a Pareto search needs at least 2 objectives")
+        _set(self, "descriptors", _names(self.descriptors, "search.descriptors",
+                                         CRITERIA + DESCRIPTOR_COUNTS, 1, 3))
+        n = len(self.descriptors)
+        if isinstance(self.ranges, str) or not isinstance(self.ranges, (list, tuple)) \
+                or len(self.ranges) != n:
+            raise _fail("search.ranges",
+                        f"must hold one [low, high] per descriptor ({n}), got {self.ranges!r}")
+        ranges = []
+        for i, pair in enumerate(self.ranges):
+            where = f"search.ranges[{i}]"
+            if isinstance(pair, str) or not isinstance(pair, (list, tuple)) or len(pair) != 2:
+                raise _fail(where, f"must be [low, high], got {pair!r}")
+            lo, hi = (_number(v, where) for v in pair)
+            if not lo < hi:
+                raise _fail(where, f"low must be below high, got {[lo, hi]!r}")
+            ranges.append((lo, hi))
+        _set(self, "ranges", tuple(ranges))
+        if isinstance(self.bins, str) or not isinstance(self.bins, (list, tuple)) or len(self.bins) != n:
+            raise _fail("search.bins", f"must hold one count per descriptor ({n}), got {self.bins!r}")
+        _set(self, "bins", tuple(_int(b, f"search.bins[{i}]", 1, 1000) for i, b in enumerate(self.bins)))
+        _set(self, "offspring", _rate(self.offspring, "search.offspring"))
+        if self.offspring <= 0.0:
+            raise _fail("search.offspring", "must be above 0: a generation needs new offspring")
+
+
+_SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings,
+                              "search": SearchSettings}
+_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "search")
 
 
 def _section(cls: type, data: Any, name: str) -> Any:
@@ -187,6 +284,7 @@ class RunConfig:
     fitness: FitnessSpec = field(default_factory=FitnessSpec)
     environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
     islands: IslandSettings = field(default_factory=IslandSettings)
+    search: SearchSettings = field(default_factory=SearchSettings)
 
     def __post_init__(self) -> None:
         _set(self, "universe", _check_universe(self.universe))
@@ -215,12 +313,14 @@ class RunConfig:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, source: str = "<config>",
-                  base_dir: str | Path | None = None) -> RunConfig:
+                  base_dir: str | Path | None = None, criteria: Sequence[str] | None = None) -> RunConfig:
         """Build and validate from a parsed TOML table. ``environment`` may be a table or a path
-        (resolved against ``base_dir``, default the current directory). Errors name ``source`` and the
+        (resolved against ``base_dir``, default the current directory); the fitness covers
+        ``criteria`` (a run's; default every registered criterion). Errors name ``source`` and the
         field."""
         try:
-            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd())
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd(),
+                                  criteria)
         except ConfigError as exc:
             message = str(exc)
             if message.startswith(source):
@@ -228,7 +328,21 @@ class RunConfig:
             raise ConfigError(f"{source}: {message}") from None
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path) -> RunConfig:
+    def from_toml(cls, text: str, *, source: str = "<config>",
+                  criteria: Sequence[str] | None = None) -> RunConfig:
+        """Build and validate from TOML text (a run's stored configuration: the environment inline);
+        malformed TOML is a ``ConfigError`` naming ``source``."""
+        import tomllib
+
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_dict(data, source=source, criteria=criteria)
+
+    @classmethod
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path,
+                   criteria: Sequence[str] | None = None) -> RunConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"the configuration must be a table, got {data!r}")
         for key in data:
@@ -238,8 +352,8 @@ class RunConfig:
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
-        if "fitness" in data:
-            kwargs["fitness"] = FitnessSpec.from_dict(data["fitness"])
+        if "fitness" in data or criteria is not None:
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)
@@ -252,7 +366,7 @@ class RunConfig:
         out: dict[str, Any] = {"universe": self.universe, "seed": self.seed}
         for name in _SECTIONS:
             section = getattr(self, name)
-            out[name] = {f.name: getattr(section, f.name) for f in fields(section)}
+            out[name] = {f.name: _lists(getattr(section, f.name)) for f in fields(section)}
         out["fitness"] = self.fitness.to_dict()
         out["environment"] = _drop_none(self.environment.to_dict())
         return out
@@ -296,6 +410,13 @@ def _deep_merge(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str
         else:
             out[key] = value
     return out
+
+
+def _lists(value: Any) -> Any:
+    """Tuples as lists (TOML arrays), nested too."""
+    if isinstance(value, tuple):
+        return [_lists(v) for v in value]
+    return value
 
 
 def _drop_none(value: Any) -> Any:

@@ -12,7 +12,12 @@ than 1 (a size of 12 against a target of 10 costs 0.2) and absolute otherwise (a
 against 1 costs 0.2; a soft-boundary count of 3 against 0 costs 3). A scale can be set per criterion.
 Every raw value is kept next to the total, so a run's history can be re-weighted afterwards.
 
-The criteria, in the order ``CRITERIA`` lists them (V vertices with positions (x, y, z), E edges):
+Criteria are declared once, in a registry: ``register_criterion`` takes a name, the function that
+measures it, its default target and weight, a short heading and a description; the fitness
+specification, scoring, the run store's ``crit_<name>`` columns, the history's headings and the docs
+table (``criteria_table``) all iterate over it. A phenotype plugin declares its own criteria the same
+way, under its phenotype's name. The built-in surface criteria, in registry order (V vertices with
+positions (x, y, z), E edges):
 
 ========================  ==================================================================
 size                      ``max|x_i - x_j| + max|y_i - y_j|``: the x extent plus the y extent
@@ -26,16 +31,17 @@ symmetry                  ``(sym(x) + sym(y)) / 2``; ``sym(x)`` is the ratio (sm
 soft_boundary             the number of vertices on the wrong side of the soft boundaries
 ========================  ==================================================================
 
-Genr8's own default targets and weights are not in the sources we have; ``DEFAULT_CRITERIA`` holds
-ours, chosen for the default environment (start length 1, scale 1.5, 4 steps: a seed of side 1 grows
-to about 5 by 5, so size ~10): a flat (smoothness 0, undulation 0), moderately subdivided (0.5),
+Genr8's own default targets and weights are not in the sources we have; the registry holds ours,
+chosen for the default environment (start length 1, scale 1.5, 4 steps: a seed of side 1 grows to
+about 5 by 5, so size ~10): a flat (smoothness 0, undulation 0), moderately subdivided (0.5),
 balanced (symmetry 1) surface of size 10 that stays inside its soft boundaries.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -46,8 +52,18 @@ from genr8_dist.errors import ConfigError
 __all__ = [
     "CRITERIA",
     "DEFAULT_CRITERIA",
+    "SURFACE",
     "Criterion",
+    "CriterionInfo",
     "FitnessSpec",
+    "criteria_table",
+    "criterion_heading",
+    "criterion_info",
+    "criterion_names",
+    "register_criterion",
+    "registered",
+    "registered_criteria",
+    "score",
     "score_surface",
     "size",
     "smoothness",
@@ -55,10 +71,10 @@ __all__ = [
     "subdivisions",
     "symmetry",
     "undulation",
+    "unregister_criterion",
 ]
 
-CRITERIA: tuple[str, ...] = ("size", "smoothness", "undulation", "subdivisions", "symmetry", "soft_boundary")
-_ALLOWED = ", ".join(CRITERIA)
+SURFACE = "surface"  # the built-in phenotype: a HEMLS surface (vertices, edges, regions)
 
 
 class _SurfaceLike(Protocol):
@@ -160,23 +176,131 @@ def soft_boundary(vertices: Any, env: Any = None) -> float:
     return float(env.count_soft_violations(_positions(vertices)))
 
 
-def score_surface(surface: _SurfaceLike, env: Any = None) -> dict[str, float]:
-    """The raw value of every criterion of ``surface`` grown in ``env``, keyed as ``CRITERIA`` orders them.
+# --------------------------------------------------------------------------------------------------
+# The registry: every criterion declared once.
+
+Measure = Callable[[Any, Any], float]  # (phenotype, environment or None) -> raw value
+
+
+@dataclass(frozen=True, slots=True)
+class CriterionInfo:
+    """A criterion as declared: its ``name`` (the ``crit_<name>`` column), the ``measure`` that takes a
+    phenotype and its environment to the raw value, the default ``target`` and ``weight``, a short
+    ``heading`` for tables, a one-line ``description`` and the ``phenotype`` kind it measures."""
+
+    name: str
+    measure: Measure
+    target: float
+    weight: float = 1.0
+    heading: str = ""
+    description: str = ""
+    phenotype: str = SURFACE
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise ConfigError(f"criterion name {self.name!r}: must be an identifier (it names a column)")
+        if not callable(self.measure):
+            raise ConfigError(f"criterion {self.name!r}: measure must be callable, got {self.measure!r}")
+        checked = Criterion(self.target, self.weight, name=self.name)  # a configuration's checks
+        object.__setattr__(self, "target", checked.target)
+        object.__setattr__(self, "weight", checked.weight)
+        if not self.heading:
+            object.__setattr__(self, "heading", self.name)
+
+    def default(self) -> Criterion:
+        """The default target and weight of this criterion."""
+        return Criterion(self.target, self.weight, name=self.name)
+
+
+_REGISTRY: dict[str, dict[str, CriterionInfo]] = {}  # phenotype -> name -> criterion, in order
+
+
+def register_criterion(info: CriterionInfo) -> CriterionInfo:
+    """Declare a criterion (one entry: everything else iterates over the registry); returns it.
+
+    A name may be declared once per phenotype. New runs store and score every registered criterion of
+    their phenotype; a run keeps the criteria it was created with.
+    """
+    if not isinstance(info, CriterionInfo):
+        raise ConfigError(f"register_criterion takes a CriterionInfo, got {type(info).__name__}")
+    table = _REGISTRY.setdefault(info.phenotype, {})
+    if info.name in table:
+        raise ConfigError(f"criterion {info.name!r} is already registered for {info.phenotype} phenotypes")
+    table[info.name] = info
+    return info
+
+
+def unregister_criterion(name: str, phenotype: str = SURFACE) -> None:
+    """Remove a registered criterion (a plugin being unloaded, a test)."""
+    _REGISTRY.get(phenotype, {}).pop(name, None)
+
+
+@contextmanager
+def registered(info: CriterionInfo) -> Iterator[CriterionInfo]:
+    """``register_criterion(info)`` for the duration of a ``with`` block."""
+    register_criterion(info)
+    try:
+        yield info
+    finally:
+        unregister_criterion(info.name, info.phenotype)
+
+
+def registered_criteria(phenotype: str = SURFACE) -> tuple[CriterionInfo, ...]:
+    """The criteria registered for ``phenotype``, in registration order."""
+    return tuple(_REGISTRY.get(phenotype, {}).values())
+
+
+def criterion_names(phenotype: str = SURFACE) -> tuple[str, ...]:
+    """The names of the criteria registered for ``phenotype``, in registration order."""
+    return tuple(_REGISTRY.get(phenotype, {}))
+
+
+def criterion_info(name: str, phenotype: str = SURFACE) -> CriterionInfo:
+    """The declaration of criterion ``name``; a ``ConfigError`` naming the registered ones otherwise."""
+    info = _REGISTRY.get(phenotype, {}).get(name)
+    if info is None:
+        allowed = ", ".join(criterion_names(phenotype)) or "none"
+        raise ConfigError(f"criterion {name!r} is not registered for {phenotype} phenotypes; "
+                          f"registered: {allowed}")
+    return info
+
+
+def criterion_heading(name: str) -> str:
+    """The short table heading of criterion ``name`` (``smoothness`` -> ``smooth``); the name itself
+    when no phenotype registers it (a criterion of a plugin that is not loaded)."""
+    for table in _REGISTRY.values():
+        if name in table:
+            return table[name].heading
+    return name
+
+
+def criteria_table(phenotype: str = SURFACE) -> str:
+    """The registered criteria of ``phenotype`` as a Markdown table (the one in docs/run-config.md)."""
+    lines = ["| criterion | raw value (V vertices, E edges) | default target | default weight |",
+             "| --- | --- | --- | --- |"]
+    lines += [f"| `{c.name}` | {c.description} | `{c.target!r}` | `{c.weight!r}` |"
+              for c in registered_criteria(phenotype)]
+    return "\n".join(lines)
+
+
+def score(phenotype: Any, env: Any = None, criteria: Sequence[str] | None = None, *,
+          kind: str = SURFACE) -> dict[str, float]:
+    """The raw value of each of ``criteria`` (default: every criterion registered for ``kind``)
+    measured on ``phenotype`` grown in ``env``, in that order."""
+    names = criterion_names(kind) if criteria is None else tuple(criteria)
+    return {name: float(criterion_info(name, kind).measure(phenotype, env)) for name in names}
+
+
+def score_surface(surface: _SurfaceLike, env: Any = None, criteria: Sequence[str] | None = None
+                  ) -> dict[str, float]:
+    """The raw value of each of ``criteria`` (default: every registered surface criterion) of
+    ``surface`` grown in ``env``.
 
     ``surface`` needs ``vertices`` (V, 3) and ``edges`` (E, 2); ``env`` needs
     ``count_soft_violations(positions)`` (``None``: no soft boundaries). A surface without vertices or
     edges has NaN for the criteria that need them.
     """
-    pos = _positions(surface.vertices)
-    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
-    return {
-        "size": size(pos),
-        "smoothness": smoothness(pos, edges),
-        "undulation": undulation(pos),
-        "subdivisions": subdivisions(len(pos), len(edges)),
-        "symmetry": symmetry(pos),
-        "soft_boundary": soft_boundary(pos, env),
-    }
+    return score(surface, env, criteria, kind=SURFACE)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -235,76 +359,130 @@ class Criterion:
         return out
 
 
-DEFAULT_CRITERIA: dict[str, dict[str, float]] = {
-    "size": {"target": 10.0, "weight": 1.0},
-    "smoothness": {"target": 0.0, "weight": 1.0},
-    "undulation": {"target": 0.0, "weight": 1.0},
-    "subdivisions": {"target": 0.5, "weight": 1.0},
-    "symmetry": {"target": 1.0, "weight": 1.0},
-    "soft_boundary": {"target": 0.0, "weight": 1.0},
-}
+def _surface_arrays(surface: Any) -> tuple[np.ndarray, np.ndarray]:
+    return _positions(surface.vertices), np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
 
 
-def _default(name: str) -> Criterion:
-    return Criterion(name=name, **DEFAULT_CRITERIA[name])
+for _info in (
+    CriterionInfo("size", lambda s, env: size(s.vertices), 10.0, heading="size",
+                  description="x extent + y extent: `max abs(xi - xj) + max abs(yi - yj)`"),
+    CriterionInfo("smoothness", lambda s, env: smoothness(*_surface_arrays(s)), 0.0, heading="smooth",
+                  description="`1/2 sum_i sum_{j in N(i)} abs(zi - zj)`: z differences between "
+                              "neighbours (each pair once)"),
+    CriterionInfo("undulation", lambda s, env: undulation(s.vertices), 0.0, heading="undul",
+                  description="z range: `max abs(zi - zj)`"),
+    CriterionInfo("subdivisions", lambda s, env: subdivisions(*map(len, _surface_arrays(s))), 0.5,
+                  heading="subdiv",
+                  description="`V / E`: 1 for a polygon, lower as branches join into cells "
+                              "(four-sided tiles after 4 steps: 289/544 = 0.53)"),
+    CriterionInfo("symmetry", lambda s, env: symmetry(s.vertices), 1.0, heading="symm",
+                  description="`(sym(x) + sym(y)) / 2`, `sym` the smaller over the larger vertex count "
+                              "either side of the axis through the centre of the x-y bounding box; 1 "
+                              "is balanced"),
+    CriterionInfo("soft_boundary", lambda s, env: soft_boundary(s.vertices, env), 0.0, heading="soft",
+                  description="vertices on the wrong side of the environment's soft boundaries"),
+):
+    register_criterion(_info)
+
+# The built-in surface criteria (what runs created before the registry store).
+CRITERIA: tuple[str, ...] = criterion_names(SURFACE)
 
 
-@dataclass(frozen=True, slots=True)
+def _defaults() -> dict[str, dict[str, float]]:
+    return {c.name: {"target": c.target, "weight": c.weight} for c in registered_criteria(SURFACE)}
+
+
+DEFAULT_CRITERIA: dict[str, dict[str, float]] = _defaults()  # the built-ins' default target and weight
+
+
+@dataclass(frozen=True, slots=True, init=False)
 class FitnessSpec:
     """Per criterion a target and a weight; ``evaluate`` turns raw criteria into the total (lower is
-    better)."""
+    better). A spec covers a fixed list of criteria (``names``): by default every registered surface
+    criterion, for a run the criteria it was created with. ``spec[name]`` and ``spec.<name>`` are the
+    ``Criterion`` of one of them."""
 
-    size: Criterion = field(default_factory=lambda: _default("size"))
-    smoothness: Criterion = field(default_factory=lambda: _default("smoothness"))
-    undulation: Criterion = field(default_factory=lambda: _default("undulation"))
-    subdivisions: Criterion = field(default_factory=lambda: _default("subdivisions"))
-    symmetry: Criterion = field(default_factory=lambda: _default("symmetry"))
-    soft_boundary: Criterion = field(default_factory=lambda: _default("soft_boundary"))
+    names: tuple[str, ...]
+    criteria: tuple[Criterion, ...]
 
-    def __post_init__(self) -> None:
-        for name in CRITERIA:
-            value = getattr(self, name)
-            if not isinstance(value, Criterion):
+    def __init__(self, criteria: Mapping[str, Criterion] | None = None, *,
+                 names: Sequence[str] | None = None, phenotype: str = SURFACE) -> None:
+        given = dict(criteria or {})
+        order = tuple(names) if names is not None else criterion_names(phenotype)
+        unknown = [name for name in given if name not in order]
+        if unknown:
+            raise ConfigError(f"field 'fitness.{unknown[0]}': unknown criterion; allowed: "
+                              f"{', '.join(order)}")
+        out = []
+        for name in order:
+            value = given.get(name)
+            if value is None:
+                value = criterion_info(name, phenotype).default()
+            elif not isinstance(value, Criterion):
                 raise ConfigError(f"field 'fitness.{name}': expected a Criterion, got {value!r}")
-            if value.name != name:
-                object.__setattr__(self, name, Criterion(value.target, value.weight, value.scale, name=name))
+            elif value.name != name:
+                value = Criterion(value.target, value.weight, value.scale, name=name)
+            out.append(value)
+        object.__setattr__(self, "names", order)
+        object.__setattr__(self, "criteria", tuple(out))
 
     def __getitem__(self, name: str) -> Criterion:
-        if name not in CRITERIA:
-            raise KeyError(name)
-        return getattr(self, name)
+        try:
+            return self.criteria[self.names.index(name)]
+        except ValueError:
+            raise KeyError(name) from None
+
+    def __getattr__(self, name: str) -> Criterion:
+        if name in ("names", "criteria") or name.startswith("_"):
+            raise AttributeError(name)
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(f"FitnessSpec has no criterion {name!r}") from None
+
+    def __getstate__(self) -> tuple[tuple[str, ...], tuple[Criterion, ...]]:
+        return self.names, self.criteria
+
+    def __setstate__(self, state: tuple[tuple[str, ...], tuple[Criterion, ...]]) -> None:
+        object.__setattr__(self, "names", state[0])
+        object.__setattr__(self, "criteria", state[1])
 
     def deviations(self, raw: Mapping[str, float]) -> dict[str, float]:
-        """The weighted deviation of each criterion (``CRITERIA`` order); a missing raw value is an error."""
-        missing = [name for name in CRITERIA if name not in raw]
+        """The weighted deviation of each criterion (``names`` order); a missing raw value is an error."""
+        missing = [name for name in self.names if name not in raw]
         if missing:
             raise ValueError(f"raw criteria lack {', '.join(missing)}")
-        return {name: self[name].deviation(raw[name]) for name in CRITERIA}
+        return {c.name: c.deviation(raw[c.name]) for c in self.criteria}
 
     def evaluate(self, raw: Mapping[str, float]) -> float:
         """``sum_i w_i * |raw_i - target_i| / scale_i``: 0 when every target is met, lower is better."""
         return float(math.fsum(self.deviations(raw).values()))
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any] | None, *, source: str | None = None) -> FitnessSpec:
-        """Build from ``{criterion: {target, weight, scale}}``; criteria and keys left out keep defaults.
+    def from_dict(cls, data: Mapping[str, Any] | None, *, source: str | None = None,
+                  names: Sequence[str] | None = None, phenotype: str = SURFACE) -> FitnessSpec:
+        """Build from ``{criterion: {target, weight, scale}}`` over ``names`` (default: every
+        registered criterion of ``phenotype``); criteria and keys left out keep their defaults.
 
         Errors are ``ConfigError`` naming the field (and ``source``, a file name, when given).
         """
         try:
-            return cls._from_dict({} if data is None else data)
+            return cls._from_dict({} if data is None else data, names, phenotype)
         except ConfigError as exc:
             if source is None:
                 raise
             raise ConfigError(f"{source}: {exc}") from None
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any]) -> FitnessSpec:
+    def _from_dict(cls, data: Mapping[str, Any], names: Sequence[str] | None,
+                   phenotype: str) -> FitnessSpec:
         if not isinstance(data, Mapping):
             raise ConfigError(f"field 'fitness': must be a table, got {data!r}")
-        unknown = [k for k in data if k not in CRITERIA]
+        order = tuple(names) if names is not None else criterion_names(phenotype)
+        unknown = [k for k in data if k not in order]
         if unknown:
-            raise ConfigError(f"field 'fitness.{unknown[0]}': unknown criterion; allowed: {_ALLOWED}")
+            raise ConfigError(f"field 'fitness.{unknown[0]}': unknown criterion; allowed: "
+                              f"{', '.join(order)}")
         kwargs = {}
         for name, table in data.items():
             if not isinstance(table, Mapping):
@@ -314,24 +492,28 @@ class FitnessSpec:
                 raise ConfigError(
                     f"field 'fitness.{name}.{bad[0]}': unknown key; allowed: target, weight, scale"
                 )
-            merged = {**DEFAULT_CRITERIA[name], **table}
+            if "target" in table and "weight" in table:
+                merged = dict(table)
+            else:
+                merged = {**criterion_info(name, phenotype).default().to_dict(), **table}
             kwargs[name] = Criterion(name=name, **merged)
-        return cls(**kwargs)
+        return cls(kwargs, names=order, phenotype=phenotype)
 
     def to_dict(self) -> dict[str, dict[str, float]]:
         """``{criterion: {target, weight[, scale]}}`` for every criterion (TOML-ready)."""
-        return {name: self[name].to_dict() for name in CRITERIA}
+        return {c.name: c.to_dict() for c in self.criteria}
 
     def replace(self, changes: Mapping[str, Any]) -> FitnessSpec:
         """A copy with ``{criterion: {target/weight/scale: value}}`` merged in (an intervention)."""
         current = self.to_dict()
         for name, table in changes.items():
-            if name not in CRITERIA:
-                raise ConfigError(f"field 'fitness.{name}': unknown criterion; allowed: {_ALLOWED}")
+            if name not in self.names:
+                raise ConfigError(f"field 'fitness.{name}': unknown criterion; allowed: "
+                                  f"{', '.join(self.names)}")
             if isinstance(table, Criterion):
                 current[name] = table.to_dict()
             elif isinstance(table, Mapping):
                 current[name] = {**current[name], **table}
             else:
                 raise ConfigError(f"field 'fitness.{name}': must be a table (target, weight), got {table!r}")
-        return FitnessSpec.from_dict(current)
+        return FitnessSpec.from_dict(current, names=self.names)

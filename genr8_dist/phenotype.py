@@ -78,9 +78,9 @@ class Phenotype:
         raise NotImplementedError
 
     def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
-        """Why a measured phenotype cannot be scored (``None``: it can); by default, criteria that
+        """Why a measured phenotype cannot be scored (``None``: it can); by default, raw values that
         are not finite."""
-        bad = [name for name in self.criteria if not math.isfinite(raw[name])]
+        bad = [name for name, value in raw.items() if not math.isfinite(value)]
         return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
 
     def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
@@ -103,9 +103,9 @@ class SurfacePhenotype(Phenotype):
 
     @property
     def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
-        from genr8_dist.fitness import CRITERIA
+        from genr8_dist.fitness import SURFACE, criterion_names
 
-        return tuple(CRITERIA)
+        return criterion_names(SURFACE)
 
     def develop(self, text: str, config: Any) -> Developed:
         from genr8_dist.hemls import grow, parse
@@ -129,7 +129,7 @@ class SurfacePhenotype(Phenotype):
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
         from genr8_dist.fitness import score_surface
 
-        return score_surface(developed.value, config.environment)
+        return score_surface(developed.value, config.environment, config.fitness.names)
 
     def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
         if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):

@@ -8,6 +8,7 @@ that is interrupted and resumed draws exactly what an uninterrupted one draws. N
 
 from __future__ import annotations
 
+import functools
 import hashlib
 
 import numpy as np
@@ -37,6 +38,18 @@ def seed_sequence(seed: int, *keys: int | str) -> np.random.SeedSequence:
     return np.random.SeedSequence(entropy=int(seed), spawn_key=tuple(words))
 
 
+@functools.lru_cache(maxsize=1024)
+def _initial_state(seed: int, keys: tuple[int | str, ...]) -> dict:
+    return np.random.PCG64(seed_sequence(seed, *keys)).state
+
+
 def stream(seed: int, *keys: int | str) -> np.random.Generator:
-    """A fresh PCG64 generator for ``seed`` and the key path ``keys``."""
-    return np.random.Generator(np.random.PCG64(seed_sequence(seed, *keys)))
+    """A fresh PCG64 generator for ``seed`` and the key path ``keys`` (its seeded state is computed
+    once per process: a growth or an island asks for the same streams again and again)."""
+    try:
+        state = _initial_state(int(seed), keys)
+    except TypeError:   # an unhashable key: seed_sequence names the problem
+        return np.random.Generator(np.random.PCG64(seed_sequence(seed, *keys)))
+    bits = np.random.PCG64(0)
+    bits.state = state
+    return np.random.Generator(bits)

@@ -19,7 +19,7 @@ from genr8_dist.errors import Genr8Error
 __all__ = ["build_parser", "main"]
 
 # Subcommand modules, in the order their commands are listed by --help.
-COMMAND_MODULES: tuple[str, ...] = ("universes", "grow", "score", "run", "history")
+COMMAND_MODULES: tuple[str, ...] = ("universes", "grow", "score", "run", "history", "studio")
 
 
 def build_parser() -> argparse.ArgumentParser:

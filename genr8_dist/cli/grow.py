@@ -117,6 +117,9 @@ def _write(surface: Any, args: argparse.Namespace, env: Any, title: str, step: i
 def _cap_message(capped: str, env: Any) -> str:
     if capped == "edges":
         return f"the edge cap (max_edges = {env.max_edges}) would be exceeded"
+    if capped == "work":
+        return (f"the work cap (max_work = {env.max_work} edge-steps) was reached; raise max_work in the "
+                "environment (0: no cap) to grow further")
     if capped == "time":
         return f"the time cap (max_seconds = {env.max_seconds:g}) was reached"
     return f"the {capped} cap was reached"

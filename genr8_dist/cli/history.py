@@ -25,6 +25,26 @@ def _generation(text: str) -> int:
         raise argparse.ArgumentTypeError(f"not a generation number: {text!r}") from None
 
 
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{value}: must be 0 or more")
+    return value
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not 0 < value < 1e9:
+        raise argparse.ArgumentTypeError(f"{text}: must be a positive number of seconds")
+    return value
+
+
 def register(subparsers: Any) -> None:
     """Add the history commands to ``genr8``."""
     p = subparsers.add_parser(
@@ -83,7 +103,9 @@ def register(subparsers: Any) -> None:
     out = p.add_mutually_exclusive_group()
     out.add_argument("--csv", metavar="OUT.csv", help="write the result as CSV")
     out.add_argument("--parquet", metavar="OUT.parquet", help="write the result as Parquet")
-    p.add_argument("--max-rows", type=int, default=100, help="rows printed at most (default 100)")
+    p.add_argument("--max-rows", type=_count, default=100, help="rows printed at most (default 100)")
+    p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
+                   help="interrupt a statement running longer (default 60)")
     p.set_defaults(handler=_query)
 
     p = subparsers.add_parser(
@@ -121,6 +143,7 @@ def _print(text: str) -> None:
 def _history(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
+    from genr8_dist.store.schema import criterion_column
 
     store = history.open_run(args.run)
     table = history.per_generation(store, island=args.island)
@@ -130,7 +153,7 @@ def _history(args: argparse.Namespace) -> int:
     else:
         crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
-        headings.update({f"best_{c}": _text.short_criterion(c) for c in crits})
+        headings.update({f"best_{c}": _text.heading(criterion_column(c)) for c in crits})
         columns = ["generation", "island", "n", "n_valid", "best", "median", "worst", "best_id"]
         _print(_text.format_table(table, columns + [f"best_{c}" for c in crits], headings=headings))
     if args.png:
@@ -147,13 +170,10 @@ def _top(args: argparse.Namespace) -> int:
 
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
                         criterion=args.criterion, systems=args.systems)
-    crits = [c[5:] for c in table.column_names if c.startswith("crit_")]
-    columns = ["rank", "id", "generation", "island", "fitness"]
+    columns = ["rank", *_text.shown_columns(table.column_names)]
     if args.criterion:
-        columns.append("deviation")
-    columns += [f"crit_{c}" for c in crits] + ["origin"]
-    headings = {"generation": "gen", "island": "isl"}
-    headings.update({f"crit_{c}": _text.short_criterion(c) for c in crits})
+        columns.insert(columns.index("fitness") + 1, "deviation")
+    headings = {name: _text.heading(name) for name in columns}
     if not args.systems:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
@@ -187,6 +207,7 @@ def _show(args: argparse.Namespace) -> int:
 
     from genr8_dist.history import HistoryError, _text
     from genr8_dist.history import _regrow as regrow
+    from genr8_dist.store.schema import criterion_of
 
     for path in args.output:  # refuse a bad name before anything is grown or written
         suffix = Path(path).suffix.lower().lstrip(".")
@@ -197,7 +218,7 @@ def _show(args: argparse.Namespace) -> int:
         raise HistoryError(f"{args.png}: --png writes a .png file")
     result = regrow.regrow(args.run, args.id)
     row = result.row
-    crits = {k[5:]: v for k, v in row.items() if k.startswith("crit_")}
+    crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
     _print(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
            f"{row['origin']}, configuration version {row['config_version']}")
     if row["valid"]:
@@ -235,8 +256,14 @@ def _query(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
 
-    table = history.query(args.run, args.sql)
+    timeout = args.timeout if args.timeout is not None else history.QUERY_TIMEOUT
     target = args.csv or args.parquet
+    if target:
+        inside = history.run_directory_holding(target)
+        if inside is not None:
+            raise history.HistoryError(f"{target}: is inside the run directory {inside}; query never "
+                                       "writes into a run: choose a path outside it")
+    table = history.query(args.run, args.sql, timeout=timeout)
     if target:
         history.write_table(table, target, format="csv" if args.csv else "parquet")
         _print(f"wrote {table.num_rows} rows to {target}")

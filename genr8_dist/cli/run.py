@@ -1,4 +1,4 @@
-"""``genr8 run``, ``genr8 resume`` and ``genr8 edit``: start a foray, go on with it, intervene in it.
+"""``genr8 run``, ``resume``, ``repair`` and ``edit``: start a foray, go on with it, mend it, intervene.
 
 Interruption, intervention and resumption (thesis 4.2): Ctrl-C (or SIGTERM, what ``ray job stop``
 sends) stops a run after committing every complete generation and prints how to resume; ``genr8 edit``
@@ -35,7 +35,18 @@ def _options(args: argparse.Namespace):
 def _run(args: argparse.Namespace) -> int:
     from genr8_dist.distributed.session import start_run
 
-    start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
+    if not args.studio:
+        start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
+        return 0
+    from genr8_dist.cli.studio import start_studio, wait_for_interrupt
+
+    studio = start_studio(args.run_dir, args.studio_host, args.studio_port, args.studio_token)
+    try:
+        start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
+        print(f"the studio stays open at {studio.url}; Ctrl-C closes it", flush=True)
+        wait_for_interrupt()
+    finally:
+        studio.close()
     return 0
 
 
@@ -46,15 +57,45 @@ def _resume(args: argparse.Namespace) -> int:
     return 0
 
 
+def _repair(args: argparse.Namespace) -> int:
+    from genr8_dist.store import RunStore
+
+    store = RunStore.open(args.run_dir)
+    problems = store.verify()
+    if not problems:
+        print(f"{args.run_dir}: intact (commit {store.version}); nothing to repair")
+        return 0
+    for problem in problems:
+        print(f"damaged: {problem}")
+    store.repair()
+    print(f"repaired: {store.last_repair}")
+    print(f"{args.run_dir}: now at commit {store.version}; islands committed up to "
+          + ", ".join(f"{i}: {g}" for i, g in store.committed_generations().items()))
+    return 0
+
+
 def _edit(args: argparse.Namespace) -> int:
     from genr8_dist.distributed.intervene import Edit, apply_edit
+    from genr8_dist.errors import ConfigError
 
+    hand = []
+    for text in args.hand_fitness or ():
+        ident, sep, value = text.partition("=")
+        try:
+            hand.append((ident.strip(), float(value)))
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise ConfigError(f"--hand-fitness {text!r}: expected ID=FITNESS, e.g. 0-12-3=0.25")
     edit = Edit(assignments=args.set or (), inject_copy=args.inject_copy or (),
                 inject_text=args.inject_text or (), inject_from=args.inject_from or (),
-                island=args.island, generations=args.generations)
+                island=args.island, generations=args.generations, favour=args.favour or (),
+                hand_fitness=hand)
     result = apply_edit(args.run_dir, edit)
     what = [f"{k} = {v!r}" for k, v in result.changes.items()]
     what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
+    what += [f"hand fitness {h['id']} = {h['fitness']:.6g} (computed {h['computed']:.6g}) among the parents "
+             f"of island {h['island']}" for h in result.hand_fitness]
     if result.queued:
         print(f"{args.run_dir}: the run is running; the edit is queued ({result.queued}) and takes effect "
               f"at its next epoch (generation {result.effective_generation} or later)")
@@ -70,7 +111,7 @@ def _edit(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``run``, ``resume`` and ``edit``."""
+    """Add ``run``, ``resume``, ``repair`` and ``edit``."""
     p = subparsers.add_parser(
         "run", help="start an evolution run (islands on Ray) in a new run directory",
         description="Start an evolution run of the configuration CONFIG in the new directory DIR, on a "
@@ -79,6 +120,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--run-dir", required=True, metavar="DIR",
                    help="where the run is kept: a new or empty local directory, or a URI such as s3://b/r")
     _ray_options(p)
+    p.add_argument("--studio", action="store_true",
+                   help="serve the studio over the run while it runs (and after, until Ctrl-C): watch it "
+                        "and steer it from a browser (docs/studio.md)")
+    from genr8_dist.cli.studio import add_server_options
+
+    add_server_options(p, prefix="studio-")
     p.set_defaults(handler=_run)
 
     p = subparsers.add_parser(
@@ -88,6 +135,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
     _ray_options(p)
     p.set_defaults(handler=_resume)
+
+    p = subparsers.add_parser(
+        "repair", help="check every file of a run and mend what is damaged, keeping every intact commit",
+        description="Check every committed file of the run in DIR against its manifest. A damaged "
+                    "configuration is restored from the manifest's copy; a damaged data file is replaced "
+                    "by the files it was compacted from, or dropped alone (later commits stay). What is "
+                    "dropped is printed in one line and recorded as a recovery event.")
+    p.add_argument("run_dir", metavar="DIR", help="the run directory")
+    p.set_defaults(handler=_repair)
 
     p = subparsers.add_parser(
         "edit", help="intervene in a run: change its configuration, inject individuals",
@@ -105,6 +161,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="inject the rewrite system written in FILE, through the universe's inverse mapping")
     p.add_argument("--inject-from", action="append", metavar="RUN:ID",
                    help="inject individual ID of another run directory RUN")
+    p.add_argument("--favour", action="append", metavar="ID",
+                   help="favour individual ID as a parent: a copy joins the next generation on its island")
+    p.add_argument("--hand-fitness", action="append", metavar="ID=FITNESS",
+                   help="give individual ID this fitness (lower is better) when the next generation's "
+                        "elites and parents are chosen (interactive evolution; repeatable)")
     p.add_argument("--island", type=int, default=None, metavar="N",
                    help="the island injected individuals go to (default: a copy's own island, else 0)")
     p.add_argument("--generations", type=int, default=None, metavar="N",

@@ -46,14 +46,14 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
     from genr8_dist.evolution.evaluate import regions_of, steps_of
-    from genr8_dist.fitness import CRITERIA, score_surface
+    from genr8_dist.fitness import score_surface
     from genr8_dist.hemls import grow, parse
 
     if isinstance(system, str):
         system = parse(system, source=name)
     result = grow(system, env)
     surface = result.surface
-    raw = score_surface(surface, env)
+    raw = score_surface(surface, env, spec.names)
     deviations = spec.deviations(raw)
     total = spec.evaluate(raw)
     capped = result.capped if isinstance(result.capped, str) or not result.capped else "cap"
@@ -73,7 +73,7 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
         "capped": capped or None,
         "criteria": {key: {"raw": _finite(raw[key]), "target": spec[key].target,
                            "weight": spec[key].weight, "deviation": _finite(deviations[key])}
-                     for key in CRITERIA},
+                     for key in spec.names},
         "total": _finite(total),
         "valid": problem is None,
         "problem": problem,

@@ -47,6 +47,7 @@ from genr8_dist.evolution.individual import Individual
 
 __all__ = [
     "Coordinator",
+    "Epoch",
     "RunSummary",
     "StopRequest",
     "StoredEvent",
@@ -91,12 +92,10 @@ def stored_events(table: Any) -> list[StoredEvent]:
 
 
 def parse_config(toml_text: str, source: str) -> Any:
-    """A stored configuration version (TOML text) as a ``RunConfig``."""
-    import tomllib
-
+    """A configuration's TOML text as a ``RunConfig`` (a run's own versions: ``RunStore.config``)."""
     from genr8_dist.config import RunConfig
 
-    return RunConfig.from_dict(tomllib.loads(toml_text), source=source)
+    return RunConfig.from_toml(toml_text, source=source)
 
 
 class StopRequest:
@@ -190,7 +189,7 @@ class Coordinator:
     def _load_versions(self) -> list[tuple[int, int, Any]]:
         """(version, effective generation, config), by effective generation then version."""
         out = [(int(v.version), int(v.effective_generation),
-                parse_config(v.toml, f"{self.store.path} configuration v{v.version}"))
+                self.store.config(v))
                for v in self._timed_store(self.store.configs)]
         if not out:
             raise RunError(f"{self.store.path}: the run has no configuration")
@@ -324,7 +323,7 @@ class Coordinator:
         populations = {i: self._population(i, generation) for i in range(self.n_islands)}
         islands = config.islands
         plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
-                              generation)
+                              generation, islands.emigrants)
         if self.n_islands > 1 and islands.migrants:
             self.progress.message(f"migration after generation {generation}: {islands.migrants} "
                                   f"migrant(s) per island, {islands.topology} topology")
@@ -342,111 +341,7 @@ class Coordinator:
         return Event(kind=kind, generation=max(0, generation), island=island, detail=detail)
 
     def _epoch(self, committed: dict[int, int], end: int) -> dict[int, int]:
-        import ray
-
-        cursor = dict(committed)
-        results: dict[int, dict[int, list[Individual]]] = {i: {} for i in range(self.n_islands)}
-        pending: dict[Any, tuple[int, int]] = {}
-        tickets: dict[Any, int] = {}
-        lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
-        offers: list[Any] = []
-        migrants_after: dict[int, dict[int, list[Individual]]] = {}
-        shown = min(committed.values())
-
-        def free() -> list[int]:
-            busy = {i for i, c in cursor.items() if c < end}
-            return [n for n in self.hosts.idle(busy) if n not in lent]
-
-        def submit(island: int) -> None:
-            g = cursor[island] + 1
-            version, config = self.config_for(g)
-            migrants: Sequence[Individual] = ()
-            if is_migration_generation(g - 1, self.interval):
-                if g - 1 not in migrants_after:
-                    migrants_after[g - 1] = self._migrants(g - 1, config)
-                migrants = migrants_after[g - 1][island]
-            injected = self._injections.get((g, island), ())
-            hand = self._hand.get((g, island), ())
-            host = self.hosts.host_of(island)
-            send = (id(host), version) not in self._sent
-            self._sent.add((id(host), version))
-            helpers = free()
-            ticket = next(_TICKETS)
-            ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                      [self.hosts.handle(n) for n in helpers], ticket, hand)
-            pending[ref] = (island, g)
-            tickets[ref] = ticket
-            lent.update(dict.fromkeys(helpers, ref))
-
-        def release(ref: Any) -> tuple[int, int]:
-            """Forget the generation ``ref`` (done or lost) and free the hosts lent to it."""
-            for n in [n for n, r in lent.items() if r == ref]:
-                del lent[n]
-            return pending.pop(ref)
-
-        def lend() -> None:
-            """Offer each free idle host to a generation under way, most generations left first."""
-            targets = sorted(pending, key=lambda r: (cursor[pending[r][0]] - end, pending[r][0]))
-            for n, ref in zip(free(), targets, strict=False):
-                owner = self.hosts.host_of(pending[ref][0])
-                offers.append(owner.offer.options(concurrency_group=OFFERS).remote(
-                    tickets[ref], self.hosts.handle(n)))
-                lent[n] = ref
-
-        def recover(island: int, exc: BaseException) -> None:
-            moved = self.hosts.replace(island)
-            for isl in moved:
-                for ref in [r for r, (i, _) in pending.items() if i == isl]:
-                    release(ref)
-                results[isl].clear()
-                cursor[isl] = committed[isl]
-                self.summary.recoveries += 1
-                self._pending_events.append(self._event(
-                    "recovery", committed[isl] + 1, isl,
-                    {"reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
-                     "restarted_from": committed[isl]}))
-                self.progress.message(
-                    f"island {isl}: its host was lost; rebuilt from generation {committed[isl]}")
-                if cursor[isl] < end:
-                    submit(isl)
-
-        for island in range(self.n_islands):
-            if cursor[island] < end:
-                submit(island)
-        try:
-            while pending and not self.stop:
-                lend()
-                t = time.perf_counter()
-                ready, _ = ray.wait(list(pending), num_returns=1, timeout=self.poll_seconds)
-                self.summary.wait_seconds += time.perf_counter() - t
-                for ref in ready:
-                    if ref not in pending:
-                        continue
-                    island, g = release(ref)
-                    try:
-                        population = ray.get(ref)
-                    except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
-                        recover(island, exc)
-                        continue
-                    except ray.exceptions.RayTaskError as exc:
-                        cause = getattr(exc, "cause", None)
-                        if isinstance(cause, Genr8Error):
-                            raise cause from None
-                        what = f"{type(cause).__name__}: {cause}" if cause is not None else str(exc)
-                        raise RunError(f"island {island} failed at generation {g} on its host: "
-                                       f"{what.strip().splitlines()[0]}") from exc
-                    results[island][g] = population
-                    cursor[island] = g
-                    if g < end:
-                        submit(island)
-                    low = min(cursor.values())
-                    while shown < low:
-                        shown += 1
-                        self._show(shown, results)
-        finally:
-            self._settle(offers)
-            committed = self._commit(committed, results)
-        return committed
+        return Epoch(self, committed, end).run()
 
     @staticmethod
     def _settle(offers: Sequence[Any]) -> None:
@@ -492,3 +387,138 @@ class Coordinator:
         if self.on_commit is not None:
             self.on_commit(self, after)
         return after
+
+
+class Epoch:
+    """One epoch: every island advanced, one generation per host call, from its committed generation
+    to ``end``, idle hosts lent to generations under way, lost hosts' islands restarted; then one
+    commit. Its bookkeeping (which generation each island is at, what is under way, which hosts are
+    lent) is plain data, so each step (``submit``, ``release``, ``lend``, ``recover``, ``receive``)
+    can be exercised alone; ``run`` is the loop that waits on Ray."""
+
+    def __init__(self, coordinator: Coordinator, committed: Mapping[int, int], end: int) -> None:
+        self.run_ = coordinator
+        self.committed = dict(committed)
+        self.end = end
+        self.cursor = dict(committed)     # island -> its newest generation done (committed or not)
+        self.results: dict[int, dict[int, list[Individual]]] = {i: {} for i in committed}
+        self.pending: dict[Any, tuple[int, int]] = {}   # ref of a generation under way -> (island, g)
+        self.tickets: dict[Any, int] = {}
+        self.lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
+        self.offers: list[Any] = []
+        self.migrants_after: dict[int, dict[int, list[Individual]]] = {}
+        self.shown = min(committed.values())
+
+    def free(self) -> list[int]:
+        """The hosts with no island left to advance in this epoch and not lent already."""
+        busy = {i for i, c in self.cursor.items() if c < self.end}
+        return [n for n in self.run_.hosts.idle(busy) if n not in self.lent]
+
+    def submit(self, island: int) -> None:
+        """Ask ``island``'s host for its next generation, naming the free hosts as its helpers."""
+        run = self.run_
+        g = self.cursor[island] + 1
+        version, config = run.config_for(g)
+        migrants: Sequence[Individual] = ()
+        if is_migration_generation(g - 1, run.interval):
+            if g - 1 not in self.migrants_after:
+                self.migrants_after[g - 1] = run._migrants(g - 1, config)
+            migrants = self.migrants_after[g - 1][island]
+        injected = run._injections.get((g, island), ())
+        hand = run._hand.get((g, island), ())
+        host = run.hosts.host_of(island)
+        send = (id(host), version) not in run._sent
+        run._sent.add((id(host), version))
+        helpers = self.free()
+        ticket = next(_TICKETS)
+        ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
+                                  [run.hosts.handle(n) for n in helpers], ticket, hand)
+        self.pending[ref] = (island, g)
+        self.tickets[ref] = ticket
+        self.lent.update(dict.fromkeys(helpers, ref))
+
+    def release(self, ref: Any) -> tuple[int, int]:
+        """Forget the generation ``ref`` (done or lost) and free the hosts lent to it."""
+        for n in [n for n, r in self.lent.items() if r == ref]:
+            del self.lent[n]
+        return self.pending.pop(ref)
+
+    def lend(self) -> None:
+        """Offer each free idle host to a generation under way, most generations left first."""
+        run = self.run_
+        targets = sorted(self.pending, key=lambda r: (self.cursor[self.pending[r][0]] - self.end,
+                                                      self.pending[r][0]))
+        for n, ref in zip(self.free(), targets, strict=False):
+            owner = run.hosts.host_of(self.pending[ref][0])
+            self.offers.append(owner.offer.options(concurrency_group=OFFERS).remote(
+                self.tickets[ref], run.hosts.handle(n)))
+            self.lent[n] = ref
+
+    def recover(self, island: int, exc: BaseException) -> None:
+        """``island``'s host was lost: every island it held restarts from its committed generation."""
+        run = self.run_
+        moved = run.hosts.replace(island)
+        for isl in moved:
+            for ref in [r for r, (i, _) in self.pending.items() if i == isl]:
+                self.release(ref)
+            self.results[isl].clear()
+            self.cursor[isl] = self.committed[isl]
+            run.summary.recoveries += 1
+            run._pending_events.append(run._event(
+                "recovery", self.committed[isl] + 1, isl,
+                {"reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
+                 "restarted_from": self.committed[isl]}))
+            run.progress.message(
+                f"island {isl}: its host was lost; rebuilt from generation {self.committed[isl]}")
+            if self.cursor[isl] < self.end:
+                self.submit(isl)
+
+    def receive(self, island: int, g: int, population: list[Individual]) -> None:
+        """Generation ``g`` of ``island`` is done: keep it, ask for the next one, and show every
+        generation all islands have now reached."""
+        self.results[island][g] = population
+        self.cursor[island] = g
+        if g < self.end:
+            self.submit(island)
+        low = min(self.cursor.values())
+        while self.shown < low:
+            self.shown += 1
+            self.run_._show(self.shown, self.results)
+
+    def run(self) -> dict[int, int]:
+        """Run the epoch to its end (or a stop), commit what is complete, return the committed
+        generations."""
+        import ray
+
+        run = self.run_
+        for island in sorted(self.cursor):
+            if self.cursor[island] < self.end:
+                self.submit(island)
+        committed = self.committed
+        try:
+            while self.pending and not run.stop:
+                self.lend()
+                t = time.perf_counter()
+                ready, _ = ray.wait(list(self.pending), num_returns=1, timeout=run.poll_seconds)
+                run.summary.wait_seconds += time.perf_counter() - t
+                for ref in ready:
+                    if ref not in self.pending:
+                        continue
+                    island, g = self.release(ref)
+                    try:
+                        population = ray.get(ref)
+                    except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
+                        self.recover(island, exc)
+                        continue
+                    except ray.exceptions.RayTaskError as exc:
+                        cause = getattr(exc, "cause", None)
+                        if isinstance(cause, Genr8Error):
+                            raise cause from None
+                        what = f"{type(cause).__name__}: {cause}" if cause is not None else str(exc)
+                        raise RunError(f"island {island} failed at generation {g} on its host: "
+                                       f"{what.strip().splitlines()[0]}") from exc
+                    self.receive(island, g, population)
+        finally:
+            run._settle(self.offers)
+            committed = run._commit(self.committed, self.results)
+        return committed

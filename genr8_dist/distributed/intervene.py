@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError, StoreError
+from genr8_dist.evolution.individual import parse_id
 
 __all__ = ["Edit", "EditResult", "apply_edit", "parse_assignment", "record_edit", "take_queued"]
 
@@ -136,10 +137,10 @@ def _assign(table: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
 
 
 def _individual(store: Any, ident: str, what: str) -> Any:
-    parts = ident.strip().split("-")
-    if len(parts) != 3 or not all(p.isdigit() for p in parts):
+    parsed = parse_id(ident.strip())
+    if parsed is None:
         raise ConfigError(f"{what} {ident!r}: an individual id is ISLAND-GENERATION-INDEX, e.g. 0-12-3")
-    island, generation, index = (int(p) for p in parts)
+    island, generation, index = parsed
     try:
         population = store.load_generation(island, generation)
     except StoreError:
@@ -208,7 +209,7 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
             raise ConfigError(f"--generations {edit.generations}: must be >= 1")
         data["ea"]["generations"] = effective - 1 + edit.generations
         changes["ea.generations"] = data["ea"]["generations"]
-    config = RunConfig.from_dict(data, source="--set")
+    config = RunConfig.from_dict(data, source="--set", criteria=store.criteria)
     if config.ea.generations < effective:
         raise ConfigError(
             f"ea.generations = {config.ea.generations}: the run has committed generation {effective - 1} "

@@ -2,7 +2,9 @@
 
 Migration happens after every generation ``g > 0`` with ``g % migration_interval == 0``: each island's
 *emigrants* are the best ``k`` individuals of its generation ``g`` (lowest fitness first, ties broken by
-index), and they enter the destination's generation ``g + 1`` through ``Island.step(migrants=...)``.
+index), or with ``islands.emigrants = "novel"`` the fitter ones least like the destination's
+population, and they enter the destination's generation ``g + 1`` through
+``Island.step(migrants=...)``.
 Everything here is a pure function of the committed generation, the run seed and ``g``, so a resumed or
 recovered run migrates exactly what an uninterrupted one does.
 
@@ -34,6 +36,7 @@ __all__ = [
     "is_migration_generation",
     "plan_migration",
     "select_emigrants",
+    "select_novel",
 ]
 
 def _rank_key(individual: Individual) -> tuple[float, int, int]:
@@ -53,6 +56,43 @@ def select_emigrants(population: Sequence[Individual], k: int) -> list[Individua
     if k < 0:
         raise ValueError(f"the number of migrants must be non-negative, got {k}")
     return sorted(population, key=_rank_key)[:k]
+
+
+def _features(individuals: Sequence[Individual]) -> list[list[float]]:
+    names = sorted({name for ind in individuals for name in ind.criteria})
+    rows = []
+    for ind in individuals:
+        row = [float(ind.criteria.get(name, math.nan)) for name in names]
+        rows.append([v if math.isfinite(v) else 0.0 for v in row] + [math.log1p(ind.n_regions)])
+    return rows
+
+
+def select_novel(population: Sequence[Individual], destination: Sequence[Individual], k: int
+                 ) -> list[Individual]:
+    """``k`` emigrants unlike ``destination``: among the valid individuals of the better half of
+    ``population`` whose surface the destination does not hold, the ``k`` farthest from every member
+    of the destination (criteria and log region count, each scaled by its spread over both
+    populations), ties to the fitter; topped up with the best when too few qualify."""
+    if k <= 0:
+        return []
+    ranked = sorted(population, key=_rank_key)
+    held = {ind.surface_digest for ind in destination if ind.valid}
+    half = ranked[:max(k, (len(ranked) + 1) // 2)]
+    candidates = [ind for ind in half if ind.valid and ind.surface_digest not in held]
+    there = [ind for ind in destination if ind.valid]
+    if candidates and there:
+        rows = _features(candidates + there)
+        spread = [max(col) - min(col) or 1.0 for col in zip(*rows, strict=True)]
+        scaled = [[v / s for v, s in zip(row, spread, strict=True)] for row in rows]
+        mine, theirs = scaled[:len(candidates)], scaled[len(candidates):]
+        distance = [min(math.dist(a, b) for b in theirs) for a in mine]
+        order = sorted(range(len(candidates)), key=lambda i: (-distance[i], _rank_key(candidates[i])))
+        chosen = [candidates[i] for i in order[:k]]
+    else:
+        chosen = candidates[:k]
+    ids = {ind.id for ind in chosen}
+    chosen += [ind for ind in ranked if ind.id not in ids][:k - len(chosen)]
+    return sorted(chosen, key=_rank_key)
 
 
 def destinations(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
@@ -77,11 +117,15 @@ def plan_migration(
     k: int,
     seed: int,
     generation: int,
+    emigrants: str = "best",
 ) -> dict[int, list[Individual]]:
     """The migrants each island receives after ``generation``, from each island's population of it.
 
     ``populations`` maps every island index ``0..n-1`` to its generation ``generation``. The result maps
-    every island to its incoming migrants (at most ``k``), ordered best first.
+    every island to its incoming migrants (at most ``k``), ordered best first. ``emigrants``:
+    ``"best"`` sends each island's best ``k``; ``"novel"`` sends, to each destination, ``k`` of the
+    source's better half that are unlike the destination's population (``select_novel``), so that
+    islands exchange what they lack rather than converge on one surface.
     """
     n = len(populations)
     if sorted(populations) != list(range(n)):
@@ -89,8 +133,11 @@ def plan_migration(
     incoming: dict[int, list[Individual]] = {i: [] for i in range(n)}
     if k == 0:
         return incoming
+    if emigrants not in ("best", "novel"):
+        raise ConfigError(f"islands.emigrants: {emigrants!r} is not one of 'best', 'novel'")
     for source, targets in destinations(topology, n, seed, generation).items():
-        emigrants = select_emigrants(populations[source], k)
+        best = select_emigrants(populations[source], k)
         for target in targets:
-            incoming[target].extend(emigrants)
+            incoming[target].extend(best if emigrants == "best"
+                                    else select_novel(populations[source], populations[target], k))
     return {i: sorted(arrived, key=_rank_key)[:k] for i, arrived in incoming.items()}

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
-from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest, parse_config
+from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 from genr8_dist.distributed.interrupts import stop_on_signals
 from genr8_dist.distributed.progress import ProgressDisplay, format_duration
 from genr8_dist.errors import RunError, StoreError
@@ -132,24 +132,32 @@ def _local_path(run_dir: str) -> Path | None:
 
 
 def _check_new_run_dir(run_dir: str) -> None:
-    """Refuse, before anything starts, a local run directory that holds a run or anything else."""
+    """Refuse, before anything starts, a local run directory that holds a run or anything else (a
+    creation that stopped before its first commit is finished by ``RunStore.create``)."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.runstore import half_created
+
     path = _local_path(run_dir)
     if path is None or not path.exists():
         return
     if not path.is_dir():
         raise StoreError(f"{run_dir}: exists and is not a directory; choose another --run-dir")
-    if (path / "_manifest").is_dir():
+    state = half_created(resolve(run_dir))
+    if state == "run":
         raise StoreError(
             f"{run_dir}: already holds a run; go on with `genr8 resume {run_dir}` or choose another --run-dir"
         )
-    if any(path.iterdir()):
+    if state == "damaged":
+        raise StoreError(f"{run_dir}: holds a damaged run (data but no intact manifest); choose another "
+                         "--run-dir")
+    if state == "foreign":
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
 def latest_config(store: Any) -> Any:
     """The run's newest configuration version, as a ``RunConfig``."""
     newest = store.configs()[-1]
-    return parse_config(newest.toml, f"{store.path} configuration v{newest.version}")
+    return store.config(newest)
 
 
 def _creation_config(store: Any) -> Any:
@@ -160,7 +168,7 @@ def _creation_config(store: Any) -> Any:
     except StoreError:
         store.repair()
         raise
-    return parse_config(first.toml, f"{store.path} configuration v{first.version}")
+    return store.config(first)
 
 
 @contextmanager
@@ -310,6 +318,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                 for problem in problems:
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
+                print(f"repaired: {store.last_repair}", file=out, flush=True)
+            else:
+                store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from genr8_dist.environment.boundaries import (
     BEHAVIOURS,
+    Behaviour,
     Boundary,
     BoxBoundary,
     MeshBoundary,
@@ -22,6 +23,7 @@ from genr8_dist.environment.model import Environment, SizeIncrease, load_environ
 __all__ = [
     "BEHAVIOURS",
     "LAWS",
+    "Behaviour",
     "Boundary",
     "BoxBoundary",
     "Environment",

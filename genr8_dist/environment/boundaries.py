@@ -19,6 +19,10 @@ the boundary's **behaviour**:
   the mirror image still violates (corners, strong curvature) it slides instead.
 - ``soft``: the vertex passes through; ``Environment.count_soft_violations`` counts the vertices on
   the wrong side, and the fitness's soft-boundary criterion penalises them.
+
+Each behaviour is one ``Behaviour`` entry of ``BEHAVIOURS`` (its constraint, hard or soft, whether it
+stops the vertex), as each boundary kind is one class; the physics looks the behaviour up and an
+unknown name is refused when a boundary is built.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from __future__ import annotations
 import abc
 import copy
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -45,6 +50,7 @@ from genr8_dist.errors import ConfigError, GrowthError
 
 __all__ = [
     "BEHAVIOURS",
+    "Behaviour",
     "Boundary",
     "BoxBoundary",
     "MeshBoundary",
@@ -53,7 +59,52 @@ __all__ = [
     "boundary_from_dict",
 ]
 
-BEHAVIOURS = ("slide", "cut-off", "reflect", "soft")
+Resolve = Callable[["Boundary", np.ndarray, np.ndarray, float], np.ndarray]
+
+
+@dataclass(frozen=True)
+class Behaviour:
+    """What a boundary does to a vertex whose move ``p -> q`` ends on its wrong side: ``hard`` ones
+    constrain the move (``resolve(boundary, p, q, extent)`` gives where it ends instead, ``stops``:
+    the vertex never moves again); a soft one lets it pass and the fitness counts it."""
+
+    name: str
+    hard: bool
+    resolve: Resolve
+    stops: bool = False
+
+
+def _slide(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.ndarray:
+    return b.project(q, extent)
+
+
+def _cut_off(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.ndarray:
+    start_ok = b.violation(p) <= 0.0
+    return np.where(start_ok[:, None], b.first_contact(p, q), b.project(q, extent))
+
+
+def _pass(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.ndarray:
+    return q
+
+
+def _reflect(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.ndarray:
+    mirrored = 2.0 * b.closest_points(q) - q
+    still = b.violation(mirrored) > 0.0
+    if np.any(still):
+        mirrored[still] = b.project(mirrored[still], extent)
+    return mirrored
+
+
+#: Every boundary behaviour by name (the ``behaviour`` key of a boundary's table); an unknown name is
+#: refused when the environment is read.
+BEHAVIOURS: dict[str, Behaviour] = {
+    b.name: b for b in (
+        Behaviour("slide", hard=True, resolve=_slide),
+        Behaviour("cut-off", hard=True, resolve=_cut_off, stops=True),
+        Behaviour("reflect", hard=True, resolve=_reflect),
+        Behaviour("soft", hard=False, resolve=_pass),
+    )
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,6 +129,16 @@ class Boundary(abc.ABC):
 
     def _where(self) -> str:
         return f"{self.kind} boundary"
+
+    @property
+    def rule(self) -> Behaviour:
+        """This boundary's behaviour (its constraint, hard or soft)."""
+        return BEHAVIOURS[self.behaviour]
+
+    @property
+    def hard(self) -> bool:
+        """Whether the boundary constrains moves (every behaviour but ``soft``)."""
+        return self.rule.hard
 
     # -- geometry, per subclass ------------------------------------------------------------------------
     @abc.abstractmethod

@@ -19,6 +19,7 @@ import numpy as np
 from genr8_dist.environment._fields import (
     fail,
     read_bool,
+    read_choice,
     read_float,
     read_int,
     read_vec3,
@@ -29,7 +30,12 @@ from genr8_dist.environment.forces import PointForce, point_force_displacement, 
 from genr8_dist.errors import ConfigError
 from genr8_dist.tomlfile import read_toml
 
-__all__ = ["Environment", "SizeIncrease", "load_environment"]
+__all__ = ["BRANCH_JOINS", "Environment", "SizeIncrease", "load_environment"]
+
+#: How two branches' orientations are compared when they join (docs/environment.md, docs/fidelity.md):
+#: "orientation" (the thesis: opposite within BranchAngle, facing each other), "cone" (each points at
+#: the other's vertex within BranchAngle).
+BRANCH_JOINS = ("orientation", "cone")
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -96,10 +102,12 @@ class Environment:
     seed_polygon: tuple[tuple[float, float, float], ...] | None = None
     seed_masses: tuple[float, ...] | None = None
     branch_length: float = -1.0
+    branch_join: str = "orientation"
     label_noise: float = 0.0
     position_noise: float = 0.0
     vertex_mass: float = 1.0
     max_edges: int = 200_000
+    max_work: int = 20_000
     max_seconds: float = 60.0
     fixed_perimeter: bool = False
     fixed_centre: bool = False
@@ -143,11 +151,13 @@ class Environment:
         if branch != -1.0 and branch <= 0.0:
             raise fail(src, "branch_length", f"must be -1 (unlimited) or > 0, got {self.branch_length!r}")
         put(self, "branch_length", branch)
+        read_choice(self.branch_join, src, "branch_join", BRANCH_JOINS)
         put(self, "label_noise", read_float(self.label_noise, src, "label_noise", minimum=0.0, maximum=1.0))
         put(self, "position_noise", read_float(self.position_noise, src, "position_noise", minimum=0.0))
         put(self, "vertex_mass", read_float(self.vertex_mass, src, "vertex_mass", minimum=0.0,
                                             strict_minimum=True))
         put(self, "max_edges", read_int(self.max_edges, src, "max_edges", minimum=3))
+        put(self, "max_work", read_int(self.max_work, src, "max_work", minimum=0))
         put(self, "max_seconds", read_float(self.max_seconds, src, "max_seconds", minimum=0.0,
                                             strict_minimum=True))
         for name in ("fixed_perimeter", "fixed_centre", "uniform_cells"):
@@ -292,7 +302,7 @@ class Environment:
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         wrong = np.zeros(len(points), dtype=bool)
         for b in self.boundaries:
-            if b.behaviour == "soft":
+            if not b.hard:
                 wrong |= b.violation(points) > 0.0
         return int(wrong.sum())
 

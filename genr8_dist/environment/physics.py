@@ -138,7 +138,7 @@ def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
     in); against a cut-off wall it also stops there. ``stopped`` is updated in place; vertices
     already stopped never move.
     """
-    hard = [b for b in env.boundaries if b.behaviour != "soft"]
+    hard = [b for b in env.boundaries if b.hard]
     if not hard:
         return p
     p = p.copy()
@@ -148,7 +148,7 @@ def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
             bad = np.flatnonzero((b.violation(p) > 0.0) & ~stopped)
             if len(bad):
                 p[bad] = b.project(p[bad], extent)
-                if b.behaviour == "cut-off":
+                if b.rule.stops:
                     stopped[bad] = True
     return p
 
@@ -157,28 +157,17 @@ def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: n
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Resolve each vertex's move p -> q against the boundaries (slide, cut-off, reflect; soft passes)."""
     extent = float(np.max(np.abs(q))) if len(q) else 1.0
-    hard = [b for b in env.boundaries if b.behaviour != "soft"]
+    hard = [b for b in env.boundaries if b.hard]
     touched = np.zeros(len(q), dtype=bool)
     for b in hard:
         bad = np.flatnonzero(b.violation(q) > 0.0)
         if len(bad) == 0:
             continue
         touched[bad] = True
-        target = q[bad]
-        if b.behaviour == "slide":
-            q[bad] = b.project(target, extent)
-        elif b.behaviour == "cut-off":
-            start = p[bad]
-            start_ok = b.violation(start) <= 0.0
-            hit = np.where(start_ok[:, None], b.first_contact(start, target), b.project(target, extent))
-            q[bad] = hit
+        rule = b.rule
+        q[bad] = rule.resolve(b, p[bad], q[bad], extent)
+        if rule.stops:
             stopped[bad] = True
-        else:  # reflect
-            mirrored = 2.0 * b.closest_points(target) - target
-            still = b.violation(mirrored) > 0.0
-            if np.any(still):
-                mirrored[still] = b.project(mirrored[still], extent)
-            q[bad] = mirrored
     idx = np.flatnonzero(touched)
     if len(idx):
         # A later boundary may have pushed a vertex across an earlier one (or rounding left it a hair

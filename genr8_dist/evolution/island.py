@@ -17,6 +17,18 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
+   With ``ea.within_used`` the cut and the flips fall within the codons the mapper read.
+
+No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
+5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
+parent's or an earlier member's of the generation is mutated again before it is evaluated, and one
+whose surface repeats a parent's or an earlier member's after it, each up to ``ea.unique_retries``
+times (draws from the generation's ``revary`` streams; each redraws at least one codon the mapper
+read, since a copy's read codons are what make it a copy). Generation 0 likewise redraws a founder that is
+trivial (invalid, or a surface of at most one region: the axiom left as it was) or repeats an earlier
+founder's surface, up to ``ea.founder_retries`` times; founders are random genomes or, with
+``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
+``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
 choice of elites and parents of generation g; a marked individual not of generation g-1 joins the pool.
@@ -34,6 +46,7 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -42,15 +55,17 @@ from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
+    Genome,
     int_flip_mutation,
     one_point_crossover,
     random_genome,
     select_elites,
     tournament_select,
 )
+from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
-__all__ = ["Birth", "Injected", "Island", "IslandStats"]
+__all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
 # What a user may inject: a genome, a rewrite system's text, or an existing individual (a copy).
 Injected = Sequence[int] | str | Individual
@@ -66,6 +81,11 @@ class IslandStats:
     grown: int = 0           # distinct texts grown this generation
     cache_hits: int = 0
     invalid: int = 0
+    founders_redrawn: int = 0   # founder draws replaced (trivial or a repeated surface)
+    mates_redrawn: int = 0      # second parents drawn again (the first one, or its text)
+    revaried_text: int = 0      # offspring varied again because their text repeated another's
+    revaried_surface: int = 0   # offspring varied again because their surface repeated another's
+    unresolved: int = 0         # offspring or founders still repeating after every retry
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,6 +97,34 @@ class Birth:
     origin: str
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
+    avoid: frozenset[str] = frozenset()   # the parents' texts and surface digests (copies to avoid)
+
+
+_OFFSPRING = ("crossover", "mutation", "crossover+mutation")
+_MATE_RETRIES = 5
+
+
+def pareto_objectives(config: Any) -> tuple[str, ...]:
+    """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
+    with a weight above 0."""
+    if config.search.objectives:
+        return tuple(config.search.objectives)
+    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
+
+
+def is_trivial(evaluation: Evaluation) -> bool:
+    """Whether an evaluation is not worth a founder's place: invalid, or a surface of at most one
+    region (the axiom polygon as it was, or grown without a subdivision)."""
+    return not evaluation.valid or evaluation.n_regions <= 1
+
+
+def _keys(ind: Individual | Evaluation) -> set[str]:
+    keys = set()
+    if ind.text is not None:
+        keys.add(ind.text)
+    if ind.valid and ind.surface_digest is not None:
+        keys.add(ind.surface_digest)
+    return keys
 
 
 class Island:
@@ -101,9 +149,32 @@ class Island:
 
     # -- random streams -----------------------------------------------------------------------
 
-    def rng(self, generation: int, purpose: str):
-        """The generator for ``purpose`` in ``generation`` of this island."""
-        return stream(self.config.seed, "island", self.index, "generation", generation, purpose)
+    def rng(self, generation: int, purpose: str, *keys: int):
+        """The generator for ``purpose`` (and ``keys``) in ``generation`` of this island."""
+        return stream(self.config.seed, "island", self.index, "generation", generation, purpose, *keys)
+
+    def _founders(self, rng, count: int, first: int = 0) -> list[Genome]:
+        """``count`` founder genomes drawn from ``rng`` (``ea.init``); ``first``: the position of the
+        first in the ramp of depth limits."""
+        g = self.config.genome
+        if self.config.ea.init == "ramped":
+            from genr8_dist.grammar.derivations import ramped_genomes
+
+            return ramped_genomes(self.evaluator.universe, rng, count, length=g.length,
+                                  codon_max=g.codon_max, max_depth=g.max_depth, first=first)
+        return [random_genome(rng, g.length, g.codon_max) for _ in range(count)]
+
+    def _mapped(self, genome: Genome) -> tuple[str | None, int]:
+        """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
+        g = self.config.genome
+        result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
+        return result.text, result.codons_used
+
+    def _revary(self, rng, genome: Genome, codons: int) -> Genome:
+        """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
+        a copy because its read codons are: flipping an unread one would change nothing)."""
+        return int_flip_mutation(rng, genome, self.config.ea.mutation_rate, self.config.genome.codon_max,
+                                 at_least_one=True, within=codons if codons > 0 else None)[0]
 
     # -- building individuals -----------------------------------------------------------------
 
@@ -127,6 +198,7 @@ class Island:
     def _finish(self, generation: int, population: list[Individual], before: tuple[int, int, int]
                 ) -> list[Individual]:
         ev = self.evaluator
+        counted = self.stats
         self.stats = IslandStats(
             generation=generation,
             individuals=len(population),
@@ -134,6 +206,11 @@ class Island:
             grown=ev.growths - before[1],
             cache_hits=ev.cache_hits - before[2],
             invalid=sum(1 for ind in population if not ind.valid),
+            founders_redrawn=counted.founders_redrawn,
+            mates_redrawn=counted.mates_redrawn,
+            revaried_text=counted.revaried_text,
+            revaried_surface=counted.revaried_surface,
+            unresolved=counted.unresolved,
         )
         for hook in self.hooks:
             hook(population)
@@ -175,12 +252,12 @@ class Island:
         ``hand`` pairs an individual with the fitness a designer gave it: it competes for elite places
         and tournaments with that fitness (added to the pool when it is not of ``previous``)."""
         self._bred_at = self._counters()
+        self.stats = IslandStats(generation=generation)
         ea = self.config.ea
         g = self.config.genome
         if generation == 0:
-            rng = self.rng(0, "genomes")
-            return [Birth(tuple(random_genome(rng, g.length, g.codon_max)), "random")
-                    for _ in range(ea.population)]
+            return [Birth(genome, "random") for genome in self._founders(self.rng(0, "genomes"),
+                                                                         ea.population)]
         if not previous:
             raise ValueError(f"generation {generation} needs a non-empty previous generation")
         if len(migrants) + len(injected) > ea.population:
@@ -210,30 +287,98 @@ class Island:
             fitnesses.append(float(fitness))
 
         room = ea.population - len(births)
-        for i in select_elites(fitnesses, min(ea.elites, room)):
+        scores, elites, mates = self._selection(pool, fitnesses, room)
+        for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
+
+        def pick(rng) -> int:
+            if mates:
+                return mates[int(rng.integers(0, len(mates)))]
+            return tournament_select(rng, scores, ea.tournament)
 
         select_rng = self.rng(generation, "selection")
         cross_rng = self.rng(generation, "crossover")
         mutate_rng = self.rng(generation, "mutation")
+        revary_rng = self.rng(generation, "revary")
+        unique = ea.unique_retries > 0
+        texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
         while len(births) < ea.population:
-            a = tournament_select(select_rng, fitnesses, ea.tournament)
-            b = tournament_select(select_rng, fitnesses, ea.tournament)
+            a = pick(select_rng)
+            b = pick(select_rng)
+            tries = 0
+            while unique and tries < _MATE_RETRIES and (
+                    b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
+                b = pick(select_rng)
+                tries += 1
+            self.stats.mates_redrawn += tries
+            used_a, used_b = pool[a].codons_used, pool[b].codons_used
             crossed = bool(cross_rng.random() < ea.crossover_rate)
             if crossed:
-                children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome)
-                lineage = ((parent_ids[a], parent_ids[b]), (parent_ids[b], parent_ids[a]))
+                within = min(used_a, used_b) if ea.within_used and min(used_a, used_b) > 0 else None
+                children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome, within=within)
+                lineage = ((a, b), (b, a))
+                used = (max(used_a, used_b),) * 2
             else:
                 children = (pool[a].genome, pool[b].genome)
-                lineage = ((parent_ids[a],), (parent_ids[b],))
-            for child, parents in zip(children, lineage, strict=True):
+                lineage = ((a,), (b,))
+                used = (used_a, used_b)
+            for child, parents, codons in zip(children, lineage, used, strict=True):
                 if len(births) >= ea.population:
                     break
+                within = codons if ea.within_used and codons > 0 else None
                 genome, flipped = int_flip_mutation(mutate_rng, child, ea.mutation_rate, g.codon_max,
-                                                    at_least_one=not crossed)
+                                                    at_least_one=not crossed, within=within)
                 origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
-                births.append(Birth(tuple(int(c) for c in genome), origin, parents))
+                avoid: set[str] = set()
+                if unique:
+                    for i in parents:
+                        avoid |= _keys(pool[i])
+                    text, read = self._mapped(genome)
+                    for _ in range(ea.unique_retries):
+                        if text is None or (text not in avoid and text not in texts):
+                            break
+                        genome = self._revary(revary_rng, genome, read)
+                        text, read = self._mapped(genome)
+                        self.stats.revaried_text += 1
+                        if origin == "crossover":
+                            origin = "crossover+mutation"
+                    texts.add(text)
+                births.append(Birth(tuple(int(c) for c in genome), origin,
+                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
         return births
+
+    def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
+                   ) -> tuple[list[float], list[int], list[int]]:
+        """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
+        of the elites to keep, and the positions parents are drawn from uniformly (empty: by
+        tournament).
+
+        ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
+        crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
+        first front, least crowded first, at least ``ea.elites`` and up to half the room. ``map-elites``:
+        the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
+        the population, and parents drawn uniformly from it."""
+        ea, search = self.config.ea, self.config.search
+        if search.mode == "pareto":
+            from genr8_dist.evolution.pareto import objectives_of, pareto_order
+
+            names = pareto_objectives(self.config)
+            ranks, position = pareto_order(objectives_of([p.criteria for p in pool], [p.valid for p in pool],
+                                                         self.config.fitness, names))
+            scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
+            front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
+                           key=lambda i: scores[i])
+            keep = min(room, max(min(ea.elites, room), min(len(front), room // 2)))
+            return scores, front[:keep], []
+        if search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(search)
+            cap = max(0, room - math.ceil(search.offspring * ea.population))
+            where = {id(p): i for i, p in enumerate(pool)}
+            elites = [where[id(ind)] for ind in grid.elites(pool, cap)]
+            return list(fitnesses), elites, list(elites)
+        return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
         """The distinct genomes of ``births`` that need an evaluation this island has not cached."""
@@ -244,20 +389,70 @@ class Island:
                  evaluated: Mapping[tuple[int, ...], Evaluation] | None = None) -> list[Individual]:
         """Generation ``generation``: ``births`` evaluated (by ``evaluated`` where it has the genome,
         computed elsewhere; here otherwise) and made individuals, index by index."""
+        if self._bred_at is None:
+            self.stats = IslandStats(generation=generation)
         before, self._bred_at = self._bred_at or self._counters(), None
         fresh = dict(evaluated or {})
         for genome, evaluation in fresh.items():
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
                 self.evaluator.adopt(genome, evaluation)
         population = []
+        seen: set[str] = set()   # the surfaces of this generation so far
         for index, birth in enumerate(births):
             evaluation = birth.evaluation
             if evaluation is None:
                 # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
                 evaluation = fresh.pop(birth.genome, None) or self.evaluate(birth.genome)
-            population.append(self._make(generation, index, birth.genome, birth.origin, birth.parents,
-                                         evaluation))
+            genome, origin = birth.genome, birth.origin
+            if generation == 0 and origin == "random":
+                genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)
+            elif origin in _OFFSPRING and self.config.ea.unique_retries:
+                genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
+                                                                    seen)
+            if evaluation.valid and evaluation.surface_digest is not None:
+                seen.add(evaluation.surface_digest)
+            population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
         return self._finish(generation, population, before)
+
+    def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
+                        ) -> tuple[Genome, Evaluation]:
+        """A founder that is trivial or repeats an earlier founder's surface, drawn again."""
+        retries = self.config.ea.founder_retries
+        if not retries:
+            return genome, evaluation
+        rng = None
+        for _ in range(retries):
+            if not is_trivial(evaluation) and evaluation.surface_digest not in seen:
+                return genome, evaluation
+            rng = rng or self.rng(0, "founders", index)
+            genome = tuple(self._founders(rng, 1, first=index)[0])
+            evaluation = self.evaluate(genome)
+            self.stats.founders_redrawn += 1
+        if is_trivial(evaluation) or evaluation.surface_digest in seen:
+            self.stats.unresolved += 1
+        return genome, evaluation
+
+    def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
+                          seen: set[str]) -> tuple[Genome, Evaluation, str]:
+        """An offspring whose surface repeats a parent's or an earlier member's, varied again."""
+        genome, origin = birth.genome, birth.origin
+
+        def repeats(ev: Evaluation) -> bool:
+            return ev.valid and (ev.surface_digest in seen or ev.surface_digest in birth.avoid)
+
+        rng = None
+        for _ in range(self.config.ea.unique_retries):
+            if not repeats(evaluation):
+                return genome, evaluation, origin
+            rng = rng or self.rng(generation, "revary", index)
+            genome = self._revary(rng, genome, evaluation.codons_used)
+            evaluation = self.evaluate(genome)
+            self.stats.revaried_surface += 1
+            if origin == "crossover":
+                origin = "crossover+mutation"
+        if repeats(evaluation):
+            self.stats.unresolved += 1
+        return genome, evaluation, origin
 
     def run(self, generations: int | None = None) -> list[list[Individual]]:
         """Generations 0..``generations`` (default ``ea.generations``) of this island alone, no

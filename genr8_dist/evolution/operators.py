@@ -67,17 +67,21 @@ def select_elites(fitnesses: Sequence[float], count: int) -> list[int]:
 
 
 def one_point_crossover(
-    rng: np.random.Generator, a: Sequence[int], b: Sequence[int]
+    rng: np.random.Generator, a: Sequence[int], b: Sequence[int], *, within: int | None = None
 ) -> tuple[Genome, Genome]:
     """Swap the tails of ``a`` and ``b`` after one cut point drawn in ``1..min(len)-1``.
 
     The children are ``a[:p] + b[p:]`` and ``b[:p] + a[p:]``: with equal lengths both keep the length;
     otherwise the lengths are exchanged. Genomes shorter than 2 codons cannot be cut: copies come back
-    (and no number is drawn).
+    (and no number is drawn). With ``within`` (the codons the mapper read of the parent that read
+    fewer: PonyGE2's *within used*), the cut falls in ``1..within-1``, so it always changes codons the
+    mapper reads; ``within`` below 2 leaves nowhere to cut (copies come back).
     """
     _check_rng(rng)
     a, b = tuple(a), tuple(b)
     shortest = min(len(a), len(b))
+    if within is not None:
+        shortest = min(shortest, int(within))
     if shortest < 2:
         return a, b
     p = int(rng.integers(1, shortest))
@@ -91,12 +95,15 @@ def int_flip_mutation(
     codon_max: int,
     *,
     at_least_one: bool = False,
+    within: int | None = None,
 ) -> tuple[Genome, int]:
     """Replace each codon with probability ``rate`` by a uniform draw from ``0..codon_max``.
 
     Returns the mutated genome and how many codons were redrawn. With ``at_least_one``, a genome that no
     codon was drawn for gets one codon (at a uniform position) redrawn, so the child is never a silent
-    copy. A redrawn codon can equal the old one by chance; it still counts as redrawn.
+    copy. A redrawn codon can equal the old one by chance; it still counts as redrawn. With ``within``
+    (the codons the mapper read), only the first ``within`` codons may be redrawn (PonyGE2's *within
+    used*); the rest of the genome is kept as it is.
     """
     _check_rng(rng)
     if not 0.0 <= rate <= 1.0:
@@ -106,9 +113,11 @@ def int_flip_mutation(
     g = np.asarray(genome, dtype=np.int64)
     if g.size == 0:
         return (), 0
-    mask = rng.random(g.size) < rate
+    span = g.size if within is None else max(1, min(g.size, int(within)))
+    mask = np.zeros(g.size, dtype=bool)
+    mask[:span] = rng.random(span) < rate
     if at_least_one and not mask.any():
-        mask[int(rng.integers(0, g.size))] = True
+        mask[int(rng.integers(0, span))] = True
     n = int(mask.sum())
     if n:
         g = g.copy()

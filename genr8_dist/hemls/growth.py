@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from genr8_dist.errors import GrowthError
-from genr8_dist.hemls.language import RewriteSystem
+from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Successor
 from genr8_dist.hemls.surface import Surface
 from genr8_dist.hemls.turtle import AT_END, LEFT, RIGHT, Template, draw, sector_side
 from genr8_dist.rng import stream
@@ -56,11 +56,20 @@ class GrowthResult:
     steps: list[StepStats]
     capped: str | None = None
     history: list[Surface] = field(default_factory=list)
+    work: int = 0   # edge-steps spent (what ``max_work`` caps); see ``WORK_PAIRS``
 
     @property
     def seconds(self) -> float:
         """Total seconds spent in derivation steps."""
         return sum(s.seconds for s in self.steps)
+
+
+#: Branch pairs tested for joining that count as one edge-step of work (the ``max_work`` cap):
+#: testing a pair costs about a fortieth of carrying an edge through a derivation step.
+WORK_PAIRS = 40
+#: Edge-steps one successor's placement on a batch of edges counts for besides its edges (the fixed
+#: cost of a pass over the arrays, which dominates on small maps).
+WORK_BATCH = 64
 
 
 class _Capped(Exception):
@@ -98,12 +107,36 @@ class _Compiled:
     sync: bool
 
 
+@functools.lru_cache(maxsize=4096)
+def _names(symbols: tuple) -> tuple[str, ...]:
+    """The segment names in ``symbols`` (brackets included), in order."""
+    out: list[str] = []
+    for sym in symbols:
+        if isinstance(sym, Segment):
+            out.append(sym.name)
+        elif isinstance(sym, Branch):
+            out.extend(_names(sym.symbols))
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=8192)
+def _drawn(successor: Successor, angle: float, labels: tuple[int, ...]) -> Template:
+    names = _names(successor.symbols)
+    return draw(successor, angle, dict(zip(names, labels, strict=True)))
+
+
+def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Template:
+    """``draw(successor, angle, ids)``, drawn once per process for each successor, angle and labels
+    (universes write the same successors into many rewrite systems)."""
+    return _drawn(successor, angle, tuple(ids[n] for n in _names(successor.symbols)))
+
+
 @functools.lru_cache(maxsize=256)
 def _compile(system: RewriteSystem) -> _Compiled:
     ids = system.label_ids()
     groups: dict[int, list[_CompiledRule]] = {}
     for rule in system.rules:
-        templates = tuple(draw(s, system.turn_angle, ids) for s in rule.successors)
+        templates = tuple(_template(s, system.turn_angle, ids) for s in rule.successors)
         w = np.array(rule.weights, dtype=np.float64)
         cum = np.cumsum(w / w.sum())
         cum[-1] = 1.0
@@ -445,11 +478,16 @@ class _Grower:
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
         self.max_edges = int(env.max_edges)
+        self.max_work = int(getattr(env, "max_work", 0) or 0)   # 0: no work cap
+        self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
+        self.pairs = 0      # branch pairs tested and re-tested for joining
+        self.cone = getattr(env, "branch_join", "orientation") == "cone"
         self._keys: np.ndarray | None = None
 
     # -- step ------------------------------------------------------------------------------------
     def step(self, step: int) -> None:
         m = self.m
+        self._spend(m.n_alive())
         inc = self.env.increase_size(m.pos[:m.nv].copy(), step=step, masses=m.mass[:m.nv].copy(),
                                      stopped=m.stopped[:m.nv].copy(), perimeter=m.perimeter_mask(),
                                      edges=m.edge_array(), rng=self.rng)
@@ -479,6 +517,20 @@ class _Grower:
         fixed = self.env.constrain(m.pos[:m.nv], stopped=m.stopped[:m.nv])
         m.pos[:m.nv] = fixed.positions
         m.stopped[:m.nv] = fixed.stopped
+
+    @property
+    def spent(self) -> int:
+        """The work done so far in edge-steps: every edge alive when a derivation step starts, and
+        every edge rewriting makes, counts one; each successor placed on a batch of edges counts
+        ``WORK_BATCH`` more; ``WORK_PAIRS`` branch pairs tested for joining count one."""
+        return self.work + self.pairs // WORK_PAIRS
+
+    def _spend(self, edges: int = 0, pairs: int = 0) -> None:
+        """Count work; past ``max_work`` growth stops (a count, so the same on every machine)."""
+        self.work += edges
+        self.pairs += pairs
+        if self.max_work and self.spent > self.max_work:
+            raise _Capped("work")
 
     def _check_time(self) -> None:
         if time.perf_counter() > self.deadline:
@@ -561,6 +613,7 @@ class _Grower:
             return
         if m.n_alive() + grow_edges > self.max_edges:
             raise _Capped("edges")
+        self._spend(grow_edges + WORK_BATCH * len(batches))
         areas = m.face_areas()
         for part, tpl in batches:
             self._rewrite(part, tpl, areas, pending)
@@ -710,7 +763,8 @@ class _Grower:
             pj = cand[(gs[:, None] + tj).ravel()]
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
-            keep = self._pair_ok(pi, pj, points, heading, max_dist)
+            self._spend(pairs=len(pi))
+            keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
             pi_all.append(pi[keep])
             pj_all.append(pj[keep])
         for g in np.flatnonzero(sizes > 48):
@@ -722,9 +776,10 @@ class _Grower:
             for r0 in range(0, len(members), rows):
                 self._check_time()
                 block = members[r0:r0 + rows]
+                self._spend(pairs=len(block) * len(new))
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
                 pi, pj = block[ri], new[cj]
-                keep = self._pair_ok(pi, pj, points, heading, max_dist)
+                keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
                 pi_all.append(pi[keep])
                 pj_all.append(pj[keep])
         pi = np.concatenate(pi_all) if pi_all else np.zeros(0, dtype=np.int64)
@@ -732,7 +787,7 @@ class _Grower:
         if not len(pi):
             pending.checked = n
             return
-        ci, cj, dist = self._aim(pi, pj, points, heading)
+        ci, cj, dist, _ = self._aim(pi, pj, points, heading, normal)
         score = -np.round(ci + cj, 9)
         order = np.lexsort((pj, pi, np.round(dist, 9), score))
         pi, pj = pi[order], pj[order]
@@ -740,12 +795,16 @@ class _Grower:
         live = np.ones(len(pi), dtype=bool)
         while True:
             self._check_time()
+            self._spend(pairs=len(pi))
             fi = m.face[corner[pi]]
             fj = m.face[corner[pj]]
             live &= ~used[pi] & ~used[pj] & (fi == fj) & (fi != 0)
             at = np.flatnonzero(live)
             if not len(at):
                 break
+            if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
+                pi, pj, live, fi = pi[at], pj[at], live[at], fi[at]
+                at = np.arange(len(pi))
             # one join per face per round (a join splits its face), best pair first
             _, firsts = np.unique(fi[at], return_index=True)
             chosen = at[np.sort(firsts)]
@@ -780,12 +839,13 @@ class _Grower:
     def _prefilter(self, rows, cols, points, heading, max_dist):
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.
 
-        Two branches that point at each other within cones of half-angle a have headings at most
-        2a from opposite, so h_i . h_j <= -cos(2a): a five-operation test per pair that removes
-        most pairs of a large region before the exact test."""
+        Joining branches have headings at most a from opposite (``orientation``), or, pointing at each
+        other within cones of half-angle a, at most 2a (``cone``); so h_i . h_j <= -cos(a or 2a): a
+        five-operation test per pair that removes most pairs of a large region before the exact test."""
         hr, hc = heading[rows], heading[cols]
         cone = math.acos(min(max(self.c.cos_cone, -1.0), 1.0))
-        limit = -math.cos(min(2.0 * cone, math.pi)) + 1e-6
+        spread = 2.0 * cone if self.cone else cone
+        limit = -math.cos(min(spread, math.pi)) + 1e-6
         hh = hr[:, 0, None] * hc[None, :, 0]
         hh += hr[:, 1, None] * hc[None, :, 1]
         hh += hr[:, 2, None] * hc[None, :, 2]
@@ -794,20 +854,42 @@ class _Grower:
         return np.nonzero(ok)
 
     @staticmethod
-    def _aim(pi, pj, points, heading):
-        """How well branches pi and pj point at each other's start vertex: the cosines of the angles
-        between each heading and the direction to the other vertex, and the distance between them."""
+    def _aim(pi, pj, points, heading, normal):
+        """How well branches pi and pj point at each other's start vertex, seen in the surface's
+        tangent plane there (normal to the mean of the two branches' surface normals): the cosines of
+        the angles between each heading and the direction to the other vertex, all projected on
+        that plane, the distance between the vertices (in space), and how opposite the two headings
+        are (minus the cosine of the angle between them, in the plane).
+
+        On a bent surface the straight line between two vertices dips below the surface; measured in
+        space it would leave the cone of two branches that point at each other along the surface."""
         d = points[pj] - points[pi]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-        safe = np.where(dist > 1e-300, dist, 1.0)
-        return (np.einsum("ij,ij->i", heading[pi], d) / safe,
-                -np.einsum("ij,ij->i", heading[pj], d) / safe, dist)
+        n = normal[pi] + normal[pj]
+        n /= np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), 1e-300)[:, None]
 
-    def _pair_ok(self, pi, pj, points, heading, max_dist) -> np.ndarray:
-        """Branch pairs that point at each other within the cone and the distance limit."""
+        def flat(v):
+            v = v - np.einsum("ij,ij->i", v, n)[:, None] * n
+            return v / np.maximum(np.sqrt(np.einsum("ij,ij->i", v, v)), 1e-300)[:, None]
+
+        u, hi, hj = flat(d), flat(heading[pi]), flat(heading[pj])
+        return (np.einsum("ij,ij->i", hi, u), -np.einsum("ij,ij->i", hj, u), dist,
+                -np.einsum("ij,ij->i", hi, hj))
+
+    def _pair_ok(self, pi, pj, points, heading, normal, max_dist) -> np.ndarray:
+        """Branch pairs whose orientations fit (``Environment.branch_join``) within the distance limit.
+
+        ``orientation`` (the thesis, 2.5.1; journal 4.3): the dot product of the two headings is at
+        most -cos(BranchAngle), i.e. they are opposite within BranchAngle, and they face each other
+        (each heading has a positive component towards the other vertex). ``cone``: each heading
+        points at the other vertex within BranchAngle. Both are judged in the surface's tangent
+        plane (``_aim``)."""
         cos_cone = self.c.cos_cone - 1e-9
-        ci, cj, dist = self._aim(pi, pj, points, heading)
-        return (dist > 1e-12) & (dist <= max_dist) & (ci >= cos_cone) & (cj >= cos_cone)
+        ci, cj, dist, opposite = self._aim(pi, pj, points, heading, normal)
+        ok = (dist > 1e-12) & (dist <= max_dist)
+        if self.cone:
+            return ok & (ci >= cos_cone) & (cj >= cos_cone)
+        return ok & (opposite >= cos_cone) & (ci > 1e-9) & (cj > 1e-9)
 
     def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """For each half-edge leaving u, whether u already has an edge to the matching target."""
@@ -959,4 +1041,4 @@ def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int
         if capped:
             break
     surface = history[-1] if keep_steps else grower.m.surface()
-    return GrowthResult(surface, stats, capped, history)
+    return GrowthResult(surface, stats, capped, history, grower.spent)

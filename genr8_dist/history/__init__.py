@@ -9,8 +9,9 @@ from __future__ import annotations
 from genr8_dist.history import pictures, report
 from genr8_dist.history._regrow import EXPORT_FORMATS, Regrown, export, regrow, save_text
 from genr8_dist.history._regrow import picture as surface_png
-from genr8_dist.history._run import HistoryError, open_run, write_table
+from genr8_dist.history._run import HistoryError, open_run, run_directory_holding, write_table
 from genr8_dist.history._tables import (
+    QUERY_TIMEOUT,
     configs,
     events,
     individual,
@@ -23,6 +24,7 @@ from genr8_dist.history._tables import (
 
 __all__ = [
     "EXPORT_FORMATS",
+    "QUERY_TIMEOUT",
     "HistoryError",
     "Regrown",
     "configs",
@@ -37,6 +39,7 @@ __all__ = [
     "query",
     "regrow",
     "report",
+    "run_directory_holding",
     "save_text",
     "surface_png",
     "top",

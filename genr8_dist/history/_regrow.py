@@ -10,7 +10,6 @@ the one recorded when the run evaluated it: the exported surface is the one the 
 from __future__ import annotations
 
 import os
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,16 +39,12 @@ class Regrown:
 
 def config_of(store: Any, version: int) -> Any:
     """The ``RunConfig`` of configuration ``version`` of ``store``."""
-    from genr8_dist.config import RunConfig
-
-    for cv in store.configs():
-        if int(cv.version) == int(version):
-            source = f"{run_label(store)} configuration version {version}"
-            try:
-                return RunConfig.from_dict(tomllib.loads(cv.toml), source=source)
-            except ConfigError as exc:
-                raise HistoryError(str(exc)) from None
-    raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    if int(version) not in {int(cv.version) for cv in store.configs()}:
+        raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    try:
+        return store.config(int(version))
+    except ConfigError as exc:
+        raise HistoryError(str(exc)) from None
 
 
 def regrow(run: RunLike, id: str) -> Regrown:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +13,8 @@ import pyarrow.compute as pc
 import pyarrow.dataset as pads
 
 from genr8_dist.errors import HistoryError, StoreError
+from genr8_dist.evolution.individual import parse_id
+from genr8_dist.store.schema import criterion_of
 
 __all__ = [
     "HistoryError",
@@ -67,29 +68,17 @@ def run_label(store: Any) -> str:
 
 def criteria_of(schema: pa.Schema) -> list[str]:
     """The criterion names a run records, in column order (``crit_size`` -> ``size``)."""
-    return [name[5:] for name in schema.names if name.startswith("crit_")]
-
-
-def parse_id(text: str) -> tuple[int, int, int] | None:
-    """``"I-G-N"`` -> ``(island, generation, index)``; ``None`` when ``text`` is not of that form."""
-    parts = str(text).split("-")
-    if len(parts) != 3 or not all(p.isdigit() for p in parts):
-        return None
-    return int(parts[0]), int(parts[1]), int(parts[2])
+    return [c for name in schema.names if (c := criterion_of(name)) is not None]
 
 
 def targets_by_version(store: Any, criteria: list[str]) -> dict[int, dict[str, tuple[float, float]]]:
     """For every configuration version: ``{criterion: (target, unit)}``, the deviation a criterion's
     raw value is judged by (``|raw - target| / unit``, the fitness's own normalisation, unweighted)."""
-    from genr8_dist.fitness import CRITERIA, FitnessSpec
-
-    known = [name for name in criteria if name in CRITERIA]
     out: dict[int, dict[str, tuple[float, float]]] = {}
     for version in store.configs():
-        data = tomllib.loads(version.toml)
-        spec = FitnessSpec.from_dict(data.get("fitness"), source=f"configuration version {version.version}")
+        spec = store.fitness(version)
         out[int(version.version)] = {
-            name: (spec[name].target, spec[name].unit) for name in known}
+            name: (spec[name].target, spec[name].unit) for name in criteria if name in spec.names}
     return out
 
 
@@ -117,13 +106,28 @@ def as_numpy(column: pa.ChunkedArray | pa.Array, fill: float = math.nan) -> np.n
     return column.to_numpy()
 
 
+def run_directory_holding(path: str | os.PathLike) -> Path | None:
+    """The run directory ``path`` lies in (itself or a folder above it holding ``_manifest/``), or None."""
+    here = Path(os.path.realpath(path))
+    for folder in (here, *here.parents):
+        if (folder / "_manifest").is_dir():
+            return folder
+    return None
+
+
 def atomic_write(path: str | os.PathLike, write: Any) -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``: a reader never sees half
-    a file, and a failure leaves ``path`` as it was. The folder must exist."""
+    a file, and a failure leaves ``path`` as it was. The folder must exist, and must not be inside a
+    run directory: the history commands only read runs (a file written there could replace one the
+    run is made of)."""
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
     if not folder.is_dir():
         raise FileNotFoundError(2, "no such directory", str(folder))
+    inside = run_directory_holding(target)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
     tmp = folder / f".{target.name}.tmp-{os.getpid()}"
     try:
         write(str(tmp))

@@ -27,6 +27,7 @@ from genr8_dist.history._run import (
     run_label,
     targets_by_version,
 )
+from genr8_dist.store.schema import criterion_column, listed_columns
 
 __all__ = [
     "configs",
@@ -39,10 +40,6 @@ __all__ = [
     "top",
 ]
 
-# Columns shown for a ranked individual (genome never; text only when asked).
-_SUMMARY = ("id", "generation", "island", "index", "fitness")
-_AFTER = ("origin", "parents", "n_vertices", "n_edges", "n_regions", "steps_done", "capped",
-          "config_version", "surface_digest")
 
 
 def _groups(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +62,7 @@ def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
     data = dataset(store)
     crits = criteria_of(data.schema)
     columns = ["generation", "island", "index", "fitness", "valid", "config_version"]
-    columns += [f"crit_{c}" for c in crits]
+    columns += [criterion_column(c) for c in crits]
     filt = None if island is None else pc.field("island") == int(island)
     table = data.to_table(columns=columns, filter=filt)
     if table.num_rows == 0:
@@ -113,7 +110,7 @@ def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
         targets = targets_by_version(store, crits)
         versions = as_numpy(table["config_version"], -1).astype(np.int64)
         for name in crits:
-            raw = as_numpy(table[f"crit_{name}"], math.nan).astype(np.float64, copy=False)
+            raw = as_numpy(table[criterion_column(name)], math.nan).astype(np.float64, copy=False)
             dev = deviation(raw, versions, name, targets)[order]
             mins = np.minimum.reduceat(dev, starts)
             hit = np.flatnonzero(dev == np.repeat(mins, counts))
@@ -156,9 +153,9 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     closest to that criterion's target), optionally only of one ``generation`` (negative counts back
     from the last) and ``island``. Ties are broken by generation, island and index.
 
-    Columns: ``rank``, the id and position, ``fitness``, every ``crit_<name>``, how it was made and
-    its growth statistics; ``deviation`` when ranking by a criterion; ``text`` (its rewrite system)
-    when ``systems``.
+    Columns: ``rank``, then those the stored row declares for ``top`` (the id and position,
+    ``fitness``, every ``crit_<name>``, how it was made and its growth statistics); ``deviation``
+    when ranking by a criterion; ``text`` (its rewrite system) when ``systems``.
     """
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
@@ -176,7 +173,7 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         filt &= pc.field("island") == int(island)
     rank_cols = ["generation", "island", "index", "fitness", "config_version"]
     if criterion is not None:
-        rank_cols.append(f"crit_{criterion}")
+        rank_cols.append(criterion_column(criterion))
     table = data.to_table(columns=rank_cols, filter=filt)
     if table.num_rows == 0:
         where = []
@@ -191,7 +188,7 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         score = as_numpy(table["fitness"], math.inf).astype(np.float64)
     else:
         targets = targets_by_version(store, crits)
-        score = deviation(as_numpy(table[f"crit_{criterion}"], math.nan).astype(np.float64),
+        score = deviation(as_numpy(table[criterion_column(criterion)], math.nan).astype(np.float64),
                           as_numpy(table["config_version"], -1).astype(np.int64), criterion, targets)
     score = np.where(np.isnan(score), np.inf, score)
     if len(score) > k:
@@ -205,9 +202,7 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     chosen = np.lexsort((idx, isl, gen, score[candidates]))[:k]
     ids = [f"{i}-{g}-{n}" for i, g, n in zip(isl[chosen], gen[chosen], idx[chosen], strict=True)]
 
-    names = data.schema.names
-    columns = [c for c in _SUMMARY if c in names] + [f"crit_{c}" for c in crits]
-    columns += [c for c in _AFTER if c in names]
+    columns = listed_columns(crits, available=data.schema.names)
     if systems:
         columns.append("text")
     rows = _rows_by_ids(data, ids, columns)
@@ -369,29 +364,59 @@ def _one_line(message: str) -> str:
     return head + (f" ({'; '.join(rest)})" if rest else "")
 
 
-def query(run: RunLike, sql: str) -> pa.Table:
-    """The result of ``sql`` (DuckDB's dialect) over the views ``individuals``, ``events`` and
-    ``configs`` of the run. A malformed statement is a ``HistoryError`` with DuckDB's one-line reason.
-    Needs the ``sql`` extra (``pip install 'genr8-dist[sql]'``)."""
+QUERY_TIMEOUT = 60.0
+"""Seconds a ``query`` statement may run before it is interrupted (``genr8 query --timeout``)."""
+
+_SANDBOX = {
+    "enable_external_access": False,      # no files, no network: read_csv, COPY, ATTACH, INSTALL...
+    "python_enable_replacements": False,  # no Python variables as tables, only the three registered
+    "autoinstall_known_extensions": False,
+    "autoload_known_extensions": False,
+    "temp_directory": "",                 # never spill to disk: query writes nothing anywhere
+    "lock_configuration": True,           # and no SET can undo any of it
+}
+
+
+def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table:
+    """The result of ``sql`` (DuckDB's dialect) over the tables ``individuals``, ``events`` and
+    ``configs`` of the run. Read-only and confined: the tables are the run's files as the store reads
+    them (each checked against the manifest's sha256), registered in an in-memory database that can
+    reach no file, network or extension and cannot be reconfigured; nothing is written anywhere. A
+    statement running over ``timeout`` seconds is interrupted. A malformed or refused statement is a
+    ``HistoryError`` with DuckDB's one-line reason. Needs the ``sql`` extra
+    (``pip install 'genr8-dist[sql]'``)."""
+    import threading
+
     try:
         import duckdb
     except ImportError:
         raise HistoryError("query needs DuckDB: pip install 'genr8-dist[sql]'") from None
     if not str(sql).strip():
         raise HistoryError("query: the SQL statement is empty")
+    if not (isinstance(timeout, (int, float)) and 0 < timeout < 1e9):
+        raise HistoryError(f"query: the timeout must be a positive number of seconds, got {timeout!r}")
     store = open_run(run)
-    data = dataset(store)
-    con = duckdb.connect(":memory:")
+    individuals = dataset(store)
+    tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    timer = threading.Timer(float(timeout), con.interrupt)
     try:
-        con.register("individuals", data)
-        con.register("events", store.events())
-        con.register("configs", configs(store))
+        for name, table in tables.items():
+            con.register(name, table)
+        timer.start()
         try:
             relation = con.sql(sql)
             if relation is None:
                 return pa.table({})
             return relation.to_arrow_table()
+        except duckdb.InterruptException:
+            raise HistoryError(f"query: stopped after {timeout:g} s, the statement timeout "
+                               "(--timeout SECONDS allows more)") from None
+        except duckdb.PermissionException as exc:
+            raise HistoryError(f"query: refused: {_one_line(str(exc))} (query reads only the run's "
+                               "tables individuals, events and configs)") from None
         except duckdb.Error as exc:
             raise HistoryError(f"query: {_one_line(str(exc))}") from None
     finally:
+        timer.cancel()
         con.close()

@@ -8,21 +8,29 @@ from typing import Any
 
 import pyarrow as pa
 
-__all__ = ["format_table", "format_value", "lineage_text", "short_criterion"]
-
-_SHORT = {
-    "size": "size",
-    "smoothness": "smooth",
-    "undulation": "undul",
-    "subdivisions": "subdiv",
-    "symmetry": "symm",
-    "soft_boundary": "soft",
-}
-
+__all__ = ["format_table", "format_value", "heading", "lineage_text", "short_criterion", "shown_columns"]
 
 def short_criterion(name: str) -> str:
-    """A column heading for criterion ``name`` (``smoothness`` -> ``smooth``)."""
-    return _SHORT.get(name, name)
+    """A column heading for criterion ``name`` (``smoothness`` -> ``smooth``): its registered heading."""
+    from genr8_dist.fitness import criterion_heading
+
+    return criterion_heading(name)
+
+
+def heading(column: str) -> str:
+    """The heading of a stored column in a text table: a criterion's short heading, a declared
+    column's ``heading``, else the name."""
+    from genr8_dist.store.schema import column_heading
+
+    return column_heading(column)
+
+
+def shown_columns(available: Sequence[str]) -> list[str]:
+    """The columns ``genr8 top`` prints of a ``history.top`` table with these columns, in order."""
+    from genr8_dist.store.schema import criterion_of, listed_columns
+
+    crits = [c for name in available if (c := criterion_of(name)) is not None]
+    return listed_columns(crits, shown=True, available=available)
 
 
 def format_value(value: Any, width: int | None = None) -> str:

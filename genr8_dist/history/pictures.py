@@ -107,7 +107,7 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
     """The fitness-curve figure: best (solid) and median (dashed) total fitness per island over the
     generations, migrations as ticks along the bottom, interventions and resumptions as vertical lines;
     below, each criterion's value closest to its target per island, the target dashed."""
-    from genr8_dist.history._run import criteria_of, targets_by_version
+    from genr8_dist.history._run import targets_by_version
     from genr8_dist.history._tables import events as run_events
     from genr8_dist.history._tables import per_generation
 
@@ -180,8 +180,7 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
                         fontsize=8, color=colour)
     ax.legend(loc="upper right", fontsize=8, ncols=2 if len(islands) > 4 else 1, frameon=False)
 
-    targets = targets_by_version(store, criteria_of(pa.schema([(f"crit_{c}", pa.float64())
-                                                                for c in crits]))) if crits else {}
+    targets = targets_by_version(store, list(crits)) if crits else {}
     configs = {int(c.version): int(c.effective_generation) for c in store.configs()}
     for n, name in enumerate(crits):
         cax = fig.add_subplot(grid[1 + n // ncols, n % ncols])

@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import Genr8Error
-from genr8_dist.history._run import RunLike, atomic_write, open_run, run_label
+from genr8_dist.history._run import RunLike, atomic_write, criteria_of, open_run, run_label
+from genr8_dist.store.schema import criterion_column
 
 __all__ = ["report_html", "write_report"]
 
@@ -133,7 +134,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         gallery = f'<p class="note">No gallery: {html.escape(str(exc))}</p>'
     parts.append(_section(f"The best surfaces of generation {last}", gallery))
 
-    crits = [c[5:] for c in best.column_names if c.startswith("crit_")]
+    crits = criteria_of(best.schema)
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", "fitness",
                                               *[c.replace("_", " ") for c in crits],
                                               "made by", "rewrite system"])
@@ -142,7 +143,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         cells = [f'<td class="num">{r["rank"]}</td>', f"<td><code>{html.escape(r['id'])}</code></td>",
                  f'<td class="num">{r["generation"]}</td>', f'<td class="num">{r["island"]}</td>',
                  f'<td class="num"><b>{_fmt(r["fitness"])}</b></td>']
-        cells += [f'<td class="num">{_fmt(r[f"crit_{c}"])}</td>' for c in crits]
+        cells += [f'<td class="num">{_fmt(r[criterion_column(c)])}</td>' for c in crits]
         made = r["origin"] + (" of " + ", ".join(r["parents"]) if r["parents"] else "")
         cells.append(f"<td>{html.escape(made)}</td>")
         cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")

@@ -125,8 +125,26 @@ class RunFS:
         os.replace(tmp, self._local(rel))
         self._sync_dir(rel)
 
+    def write_new(self, rel: str, data: bytes | memoryview) -> None:
+        """Put ``data`` at ``rel``, a name no other writer uses (it holds a writer token); like
+        ``write_exclusive``, it never replaces a file: ``FileExistsError`` if ``rel`` exists."""
+        self._put_exclusive(rel, data)
+
     def write_exclusive(self, rel: str, data: bytes | memoryview) -> None:
-        """Put ``data`` at ``rel``, which must not exist; ``FileExistsError`` if it does."""
+        """Put ``data`` at ``rel``, which must not exist; ``FileExistsError`` if it does (the manifest
+        link: whoever links manifest N first has committed N)."""
+        self._put_exclusive(rel, data)
+
+    def mtime(self, rel: str) -> float | None:
+        """Seconds since the epoch of ``rel``'s last change, or None when unknown or missing."""
+        import pyarrow.fs as pafs
+
+        info = self.fs.get_file_info(self.full(rel))
+        if info.type != pafs.FileType.File or info.mtime is None:
+            return None
+        return info.mtime.timestamp()
+
+    def _put_exclusive(self, rel: str, data: bytes | memoryview) -> None:
         if self.local_root is None:
             if self.kind(rel) != "missing":
                 raise FileExistsError(self.show(rel))

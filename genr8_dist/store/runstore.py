@@ -3,17 +3,28 @@
 Layout of a run directory (see docs/run-store.md)::
 
     _manifest/0000000001.json   numbered manifests; the highest intact one is the run's state
-    configs/v0001.toml          configuration versions, in force from a recorded generation
-    individuals/part-<commit>.parquet          one Parquet file per commit (an epoch)
-    individuals/compact-<first>-<last>.parquet many commits merged by compact()
-    events/events-<commit>.parquet, events/compact-<first>-<last>.parquet
+    _manifest/HEAD              the newest commit's number
+    configs/v0001-<token>.toml  configuration versions, in force from a recorded generation
+    individuals/part-<commit>-<token>.parquet          one Parquet file per commit (an epoch)
+    individuals/compact-<first>-<last>-<token>.parquet many commits merged by compact()
+    events/events-<commit>-<token>.parquet, events/compact-<first>-<last>-<token>.parquet
 
-A commit writes its data files (temporary name, fsync, rename), then publishes manifest ``N+1``, a
-complete snapshot naming every committed file with its row count, size and sha256. Readers read only
-files a manifest names, so a crash at any moment leaves the whole commit or none of it; files no
-manifest names are garbage and are ignored (and removed by ``compact``, ``repair`` and
-``collect_garbage``). The last ``KEEP_MANIFESTS`` manifests are kept so that a reader holding an older
-snapshot can still read it, and so that ``repair`` can fall back to an older intact state.
+A commit writes its data files, each under a name no other writer can use (its stem, then a random
+writer token: ``part-0000000003-9f2c4e1ab07d5e36.parquet``), never replacing a file, then publishes
+manifest ``N+1``, a complete snapshot naming every committed file with its row count, size and
+sha256, by *linking* it into place: whoever links ``N+1`` first has committed, and a writer that loses
+deletes only the files it wrote. So a losing writer can never touch the winner's bytes. Readers read
+only files a manifest names and check each file's sha256 against it before trusting it (once per
+file and store), so a crash at any moment leaves the whole commit or none of it, and damage is named,
+never read as data; files no manifest names are garbage and are ignored (and removed by ``compact``,
+``repair`` and ``collect_garbage``). ``_manifest/HEAD`` holds the newest commit's number, so the loss
+of the newest manifest is seen rather than silently serving the one before. The last
+``KEEP_MANIFESTS`` manifests are kept so that a reader holding an older snapshot can still read it,
+and so that ``repair`` can replace a damaged compacted file by the files it was merged from.
+
+Any feature that stores a new kind of file does it through ``RunStore.write_file`` inside a commit
+(``commit(..., add=...)``) and lists the entries under a manifest key of its own: unique names,
+verification, repair and garbage collection then apply to it unchanged.
 
 One writer per run: the process that runs the evolution (the coordinator) or an edit. Any number of
 readers (history queries, DuckDB) may read at the same time.
@@ -21,13 +32,15 @@ readers (history queries, DuckDB) may read at the same time.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import json
 import os
 import re
+import secrets
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
@@ -35,7 +48,16 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
-from genr8_dist.store.pending import Queued, RunLock, dequeue, enqueue, lock_holder, queued
+from genr8_dist.store.pending import (
+    LOCK_NAME,
+    QUEUE_DIR,
+    Queued,
+    RunLock,
+    dequeue,
+    enqueue,
+    lock_holder,
+    queued,
+)
 from genr8_dist.store.schema import (
     SCHEMA_VERSION,
     Event,
@@ -44,6 +66,8 @@ from genr8_dist.store.schema import (
     individuals_from_table,
     individuals_schema,
     individuals_table,
+    reading_schema,
+    run_columns,
 )
 
 if TYPE_CHECKING:
@@ -51,6 +75,9 @@ if TYPE_CHECKING:
     import pyarrow.compute as pc
     import pyarrow.dataset as ds
     import pyarrow.fs as pafs
+
+    from genr8_dist.config import RunConfig
+    from genr8_dist.fitness import FitnessSpec
 
 __all__ = [
     "COMPACT_EVERY",
@@ -67,7 +94,12 @@ COMPACT_TARGET_ROWS = 100_000  # compact() merges small files into files of abou
 COMPACT_EVERY = 32           # commit() compacts when this many small individuals files have built up
 ROW_GROUP_ROWS = 32_768      # Parquet row group size: statistics let readers skip row groups
 COMPRESSION = "snappy"       # twice as fast to write as zstd here, files about 12% larger
+HEAD = f"{MANIFEST_DIR}/HEAD"   # the newest commit's number, written after its manifest is linked
+TMP_STALE_SECONDS = 3600     # a temporary file this old is a crash's leftover, whoever wrote it
 _MANIFEST_NAME = re.compile(r"^(\d{10})\.json$")
+_TMP_PID = re.compile(r"-(\d+)-[0-9a-f]{8}$")
+_REL_PATH = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._-]{0,200}(/[A-Za-z0-9_][A-Za-z0-9._-]{0,200}){1,3}$")
+_SHA256 = re.compile(r"^[0-9a-f]{64}$")
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
 _LAYOUT = {MANIFEST_DIR, "configs", "individuals", "events"}
 
@@ -117,7 +149,70 @@ def _decode_manifest(data: bytes) -> dict[str, Any] | None:
     body = {k: v for k, v in m.items() if k != "checksum"}
     if m.get("checksum") != _body_digest(body):
         return None
+    try:
+        _check_manifest(m)
+    except (ValueError, TypeError, KeyError, AttributeError):
+        return None
     return m
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check_range(value: Any) -> None:
+    if not (isinstance(value, list) and len(value) == 2 and all(_is_int(v) for v in value)
+            and value[0] <= value[1]):
+        raise ValueError(f"not a range: {value!r}")
+
+
+def file_entries(manifest: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """Every file a manifest names, as ``(kind, entry)``: the kind is the manifest key listing it
+    (``configs``, ``individuals``, ``events``, or any list a later feature adds the same way)."""
+    out = []
+    for key, value in manifest.items():
+        if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
+            out.extend((key, e) for e in value)
+    return out
+
+
+def _check_manifest(m: dict[str, Any]) -> None:
+    """Raise ``ValueError`` unless ``m`` is well formed and names only files inside the run."""
+    if not _is_int(m["version"]) or not _is_int(m["next_seq"]) or not isinstance(m["run_id"], str):
+        raise ValueError("header")
+    if not (isinstance(m["criteria"], list) and all(isinstance(c, str) for c in m["criteria"])):
+        raise ValueError("criteria")
+    for key in ("configs", "individuals", "events"):
+        if not isinstance(m[key], list):
+            raise ValueError(key)
+    for kind, e in file_entries(m):
+        path = e["path"]
+        if (not isinstance(path, str) or not _REL_PATH.match(path) or path.startswith(MANIFEST_DIR + "/")
+                or not _is_int(e["bytes"]) or e["bytes"] < 0 or not isinstance(e["sha256"], str)
+                or not _SHA256.match(e["sha256"])):
+            raise ValueError(f"{kind} entry {path!r}")
+        if kind == "configs":
+            if not (_is_int(e["version"]) and _is_int(e["effective_generation"]) and _is_int(e["commit"])
+                    and isinstance(e["created"], str)):
+                raise ValueError("config entry")
+        elif kind in ("individuals", "events"):
+            if not _is_int(e["rows"]):
+                raise ValueError("rows")
+            _check_range(e["commits"])
+            if kind == "events":
+                _check_range(e["seq"])
+            else:
+                if not isinstance(e["islands"], dict):
+                    raise ValueError("islands")
+                for island, span in e["islands"].items():
+                    int(island)
+                    _check_range(span)
+    if not isinstance(m["generations"], dict):
+        raise ValueError("generations")
+    for island, g in m["generations"].items():
+        int(island)
+        if not _is_int(g):
+            raise ValueError("generations")
 
 
 def _manifest_rel(version: int) -> str:
@@ -139,11 +234,18 @@ class RunStore:
     snapshot loaded at open or last commit; ``refresh()`` loads the newest.
     """
 
-    def __init__(self, rfs: RunFS, manifest: dict[str, Any], *, compact_every: int | None) -> None:
+    def __init__(self, rfs: RunFS, manifest: dict[str, Any], *, compact_every: int | None,
+                 stale: str | None = None) -> None:
         self._fs = rfs
         self._m = manifest
         self.compact_every = compact_every
         self._config_cache: dict[int, str] = {}
+        self._parsed: dict[tuple[int, str], RunConfig] = {}
+        # files this store checked against their sha256: (path, sha256) -> (size, mtime) seen then
+        self._verified: dict[tuple[str, str], tuple[int | None, float | None]] = {}
+        self._pending: list[str] = []                  # files written by the commit being made
+        self._stale = stale                            # the newest manifest is lost or damaged
+        self.last_repair = ""                          # what the last repair() dropped, in one line
 
     # --- building ----------------------------------------------------------------------------
     @classmethod
@@ -153,37 +255,44 @@ class RunStore:
         config_toml: str,
         *,
         run_id: str | None = None,
+        criteria: Sequence[str] | None = None,
         filesystem: pafs.FileSystem | None = None,
         compact_every: int | None = COMPACT_EVERY,
     ) -> RunStore:
         """A new run at ``path_or_uri`` whose configuration version 1 is ``config_toml`` (generation 0).
 
-        Refuses a directory that is already a run, or that holds anything else, and leaves it as it was.
-        ``run_id`` defaults to the directory's name.
+        The directory becomes a run in one step, when manifest 1 is linked into place; a creation that
+        stopped before that (a crash, a full disk) left only a half-created directory, which this
+        finishes. Refuses a directory that is already a run, or that holds anything else, and leaves it
+        as it was. ``run_id`` defaults to the directory's name; ``criteria`` (default: every
+        registered surface criterion) and the columns declared now are the run's for good (its
+        manifest keeps them).
         """
         rfs = resolve(path_or_uri, filesystem)
         kind = rfs.kind()
         if kind == "file":
             raise StoreError(f"{rfs.show()}: is a file; a run needs a directory")
         if kind == "dir":
-            existing = _latest_manifest(rfs)
-            if existing is not None:
+            state = half_created(rfs)
+            if state == "run":
+                existing, _ = _load_state(rfs)
+                assert existing is not None
                 raise StoreError(
                     f"{rfs.show()}: already holds run {existing['run_id']!r}; "
                     "choose a new directory, or resume that run"
                 )
-            foreign = [n for n in rfs.listdir() if n not in _LAYOUT]
-            if foreign:
+            if state == "foreign":
+                foreign = [n for n in rfs.listdir() if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]
                 raise StoreError(
                     f"{rfs.show()}: exists and is not empty (holds {foreign[0]!r}); "
                     "a new run needs a new or empty directory"
                 )
-            if rfs.listdir("individuals") or rfs.listdir("events"):
+            if state == "damaged":
                 raise StoreError(
                     f"{rfs.show()}: holds a damaged run (data files but no intact manifest in "
                     f"{MANIFEST_DIR}/); a new run needs a new or empty directory"
                 )
-            for folder in sorted(_LAYOUT & set(rfs.listdir())):  # a creation that crashed half-way
+            for folder in sorted(_LAYOUT & set(rfs.listdir())):  # a creation that stopped half-way
                 for name in rfs.listdir(folder):
                     rfs.delete(f"{folder}/{name}")
         _check_toml(config_toml, "configuration version 1")
@@ -198,6 +307,8 @@ class RunStore:
             )
         from genr8_dist.store.schema import criteria_names
 
+        names = list(criteria_names() if criteria is None else criteria)
+        columns = [list(c) for c in run_columns(names)]
         for folder in sorted(_LAYOUT):
             rfs.makedirs(folder)
         created = _now().isoformat()
@@ -205,7 +316,8 @@ class RunStore:
             "format": FORMAT,
             "schema_version": SCHEMA_VERSION,
             "run_id": run_id,
-            "criteria": list(criteria_names()),
+            "criteria": names,
+            "columns": columns,
             "created": created,
             "version": 0,
             "configs": [],
@@ -226,24 +338,34 @@ class RunStore:
         filesystem: pafs.FileSystem | None = None,
         compact_every: int | None = COMPACT_EVERY,
     ) -> RunStore:
-        """The run at ``path_or_uri``; ``StoreError`` naming the path if it is missing or not a run."""
+        """The run at ``path_or_uri``; ``StoreError`` naming the path if it is missing or not a run.
+
+        A run whose newest manifest is lost or damaged opens (so that ``verify`` and ``repair`` can
+        name and mend it), but its data reads raise a ``StoreError`` naming that manifest rather
+        than silently answering from the commit before."""
         rfs = resolve(path_or_uri, filesystem)
         kind = rfs.kind()
         if kind == "missing":
             raise StoreError(f"{rfs.show()}: no such run directory")
         if kind == "file":
             raise StoreError(f"{rfs.show()}: is a file, not a run directory")
-        manifest = _latest_manifest(rfs)
+        manifest, stale = _load_state(rfs)
         if manifest is None:
+            state = half_created(rfs)
+            if state == "half-created":
+                raise StoreError(
+                    f"{rfs.show()}: a run whose creation did not finish (no commit yet); start it again "
+                    f"with `genr8 run CONFIG --run-dir {rfs.show()}` (it reuses the directory) or remove it"
+                )
             raise StoreError(f"{rfs.show()}: not a run directory (no intact manifest in {MANIFEST_DIR}/)")
-        return cls(rfs, manifest, compact_every=compact_every)
+        return cls(rfs, manifest, compact_every=compact_every, stale=stale)
 
     def refresh(self) -> RunStore:
         """Load the newest committed state (another process may have committed since open)."""
-        manifest = _latest_manifest(self._fs)
+        manifest, stale = _load_state(self._fs)
         if manifest is None:
             raise StoreError(f"{self._fs.show()}: no intact manifest left in {MANIFEST_DIR}/")
-        self._m = manifest
+        self._m, self._stale = manifest, stale
         return self
 
     # --- identity ----------------------------------------------------------------------------
@@ -266,9 +388,23 @@ class RunStore:
         return tuple(self._m["criteria"])
 
     @property
+    def schema_version(self) -> int:
+        """The store schema version this run was created with (it keeps it for good)."""
+        return int(self._m["schema_version"])
+
+    @property
     def schema(self) -> pa.Schema:
-        """The individuals table's schema for this run."""
-        return individuals_schema(self.criteria)
+        """The individuals table's schema for this run: the columns its manifest records, or (a run of
+        schema version 1) the columns of that version."""
+        columns = self._m.get("columns")
+        if columns is None:
+            columns = run_columns(self.criteria, version=self.schema_version)
+        return individuals_schema(columns=columns, version=self.schema_version)
+
+    @property
+    def reading_schema(self) -> pa.Schema:
+        """What readers see: this run's schema, and every column declared since as nulls."""
+        return reading_schema(self.schema)
 
     @property
     def version(self) -> int:
@@ -279,16 +415,19 @@ class RunStore:
         return f"RunStore({self.path!r}, run_id={self.run_id!r}, version={self.version})"
 
     # --- commits -----------------------------------------------------------------------------
-    def commit(self, individuals: Sequence[Individual], events: Sequence[Event] = ()) -> int:
+    def commit(self, individuals: Sequence[Individual], events: Sequence[Event] = (),
+               *, add: AddFiles | None = None) -> int:
         """Commit ``individuals`` and ``events`` atomically: afterwards all are there, or (after a
         crash) none. Each island's generations in a commit must follow its last committed one.
+        ``add(manifest, version)`` may put more files in the same commit (see ``write_file``).
         Returns the commit number (the manifest version)."""
-        if not individuals and not events:
+        if not individuals and not events and add is None:
             return self.version
-        table = individuals_table(individuals, self.run_id, self.criteria)
-        return self.commit_table(table, events)
+        table = individuals_table(individuals, self.run_id, self.criteria, self.schema)
+        return self.commit_table(table, events, add=add)
 
-    def commit_table(self, table: pa.Table, events: Sequence[Event] = ()) -> int:
+    def commit_table(self, table: pa.Table, events: Sequence[Event] = (),
+                     *, add: AddFiles | None = None) -> int:
         """``commit`` for rows already in an Arrow table of ``self.schema`` (bulk writers)."""
         table = self._checked_rows(table)
         islands = self._island_ranges(table)
@@ -296,20 +435,58 @@ class RunStore:
         for event in events:
             if not isinstance(event, Event):
                 raise StoreError(f"events must be Event records, got {type(event).__name__}")
-        if table.num_rows == 0 and not events:
+        if table.num_rows == 0 and not events and add is None:
             return self.version
-        version = self._next_version()
-        manifest = copy.deepcopy(self._m)
-        if table.num_rows:
-            entry = self._write_parquet(f"individuals/part-{version:010d}.parquet", table)
-            entry.update(commits=[version, version], islands=islands)
-            manifest["individuals"].append(entry)
-        self._add_events(manifest, events, version)
-        manifest["generations"] = _generations(manifest["individuals"])
-        self._publish(manifest, version)
+        with self._transaction():
+            version = self._next_version()
+            manifest = copy.deepcopy(self._m)
+            if table.num_rows:
+                entry = self._write_parquet(f"individuals/part-{version:010d}", table)
+                entry.update(commits=[version, version], islands=islands)
+                manifest["individuals"].append(entry)
+            self._add_events(manifest, events, version)
+            if add is not None:
+                add(manifest, version)
+            manifest["generations"] = _generations(manifest["individuals"])
+            self._publish(manifest, version)
         if self.compact_every and self._small_files() >= self.compact_every:
             self.compact()
         return version
+
+    def write_file(self, stem: str, suffix: str, data: bytes | memoryview) -> dict[str, Any]:
+        """Write one data file of the commit being made and return its manifest entry (``path``,
+        ``bytes``, ``sha256``); add it to a list in the manifest (``add`` of ``commit``) and readers,
+        ``verify``, ``repair`` and garbage collection know it. The file is named ``stem``, a random
+        writer token, then ``suffix`` (``stem`` is ``folder/name``, e.g. ``archive/epoch-0000000007``):
+        no other writer can use that name, and nothing is ever overwritten. If the commit fails or
+        another writer commits first, the file is deleted again; nobody else's file is touched."""
+        folder = stem.rpartition("/")[0]
+        if not folder or "/" in folder or folder == MANIFEST_DIR or not _REL_PATH.match(f"{stem}{suffix}"):
+            raise StoreError(f"write_file: {stem + suffix!r} is not 'folder/name' inside the run")
+        rel = f"{stem}-{secrets.token_hex(8)}{suffix}"
+        if folder not in _LAYOUT:
+            self._fs.makedirs(folder)
+        self._pending.append(rel)
+        self._fs.write_new(rel, data)
+        digest = hashlib.sha256(data).hexdigest()
+        self._verified[(rel, digest)] = self._stamp(rel)
+        return {"path": rel, "bytes": memoryview(data).nbytes, "sha256": digest}
+
+    def read_file(self, entry: dict[str, Any]) -> bytes:
+        """The bytes of a file a manifest entry names, checked against its size and sha256 first
+        (``StoreError`` naming it when they differ)."""
+        self._require_current()
+        data = self._fs.read_bytes(entry["path"]) if self._fs.size(entry["path"]) is not None else None
+        if data is None or hashlib.sha256(data).hexdigest() != entry["sha256"]:
+            problem = self._check_entry(entry, deep=True) or f"{self._fs.show(entry['path'])}: changed"
+            raise StoreError(f"{problem}; {self._repair_hint()}")
+        self._verified[(entry["path"], entry["sha256"])] = self._stamp(entry["path"])
+        return data
+
+    @property
+    def manifest(self) -> dict[str, Any]:
+        """A copy of the manifest this store reads (the committed state)."""
+        return copy.deepcopy(self._m)
 
     def record_event(
         self, kind: str, *, generation: int, island: int | None = None, detail: dict[str, Any] | None = None
@@ -371,6 +548,7 @@ class RunStore:
         this store's snapshot was loaded (by another process) is found too: the snapshot is refreshed."""
         import pyarrow.compute as pc
 
+        self._require_current()
         key = str(island)
         entries = self._entries_holding(key, generation)
         if not entries and generation > self._m["generations"].get(key, -1) and self._refreshed():
@@ -409,8 +587,11 @@ class RunStore:
     def individuals(
         self, columns: Sequence[str] | None = None, filter: pc.Expression | None = None
     ) -> pa.Table:
-        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``."""
-        schema = self.schema
+        """Every committed individual (in commit order), or only ``columns`` and rows matching ``filter``;
+        columns declared since the run was written read as nulls.
+        Each file is checked against the manifest's sha256 before it is read (once per store)."""
+        self._require_current()
+        schema = self.reading_schema
         if columns is not None:
             for name in columns:
                 if name not in schema.names:
@@ -424,25 +605,30 @@ class RunStore:
 
     def _refreshed(self) -> bool:
         """Load the newest manifest if there is a newer one than this store's; whether there was."""
-        newest = _latest_manifest(self._fs)
+        newest, stale = _load_state(self._fs)
         if newest is None or newest["version"] <= self.version:
             return False
-        self._m = newest
+        self._m, self._stale = newest, stale
         return True
 
     def dataset(self) -> ds.Dataset:
-        """The committed individuals files as one pyarrow dataset (DuckDB can scan it)."""
+        """The committed individuals files as one pyarrow dataset (DuckDB can scan it), each file
+        checked against the manifest's sha256 first."""
         import pyarrow.dataset as ds
 
+        self._require_current()
         try:
-            return ds.dataset(self.individual_files(), schema=self.schema, format="parquet",
+            self._verify_files(self._m["individuals"])
+        except StoreError:
+            if self._refreshed():
+                return self.dataset()
+            raise
+        try:
+            return ds.dataset(self.individual_files(), schema=self.reading_schema, format="parquet",
                               filesystem=self._fs.fs)
         except OSError as exc:
             if self._refreshed():
                 return self.dataset()
-            for e in self._m["individuals"]:
-                if self._check_entry(e, deep=False) is not None:
-                    raise self._read_error(e, exc) from None
             raise StoreError(f"{self._fs.show()}: cannot read individuals: {exc}") from None
 
     def individual_files(self) -> list[str]:
@@ -452,6 +638,37 @@ class RunStore:
     def configs(self) -> list[ConfigVersion]:
         """Every configuration version, oldest first."""
         return [self._config(e) for e in self._m["configs"]]
+
+    def config(self, version: int | ConfigVersion) -> RunConfig:
+        """Configuration ``version`` (a number, or one of ``configs()``) as a ``RunConfig``, its fitness
+        over the criteria this run stores: the one place a stored configuration is parsed. A
+        configuration that no longer validates is a ``ConfigError`` naming the run and the version."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        key = (cv.version, cv.toml)
+        parsed = self._parsed.get(key)
+        if parsed is None:
+            from genr8_dist.config import RunConfig
+
+            source = f"{self.path} configuration v{cv.version}"
+            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria)
+            self._parsed[key] = parsed
+        return parsed
+
+    def fitness(self, version: int | ConfigVersion) -> FitnessSpec:
+        """The fitness specification of configuration ``version`` alone (what history queries need;
+        cheaper than ``config``: no environment or universe is built)."""
+        cv = version if isinstance(version, ConfigVersion) else self._config_version(version)
+        from genr8_dist.fitness import FitnessSpec
+
+        data = tomllib.loads(cv.toml)
+        return FitnessSpec.from_dict(data.get("fitness"), names=self.criteria,
+                                     source=f"{self.path} configuration v{cv.version}")
+
+    def _config_version(self, version: int) -> ConfigVersion:
+        for e in self._m["configs"]:
+            if int(e["version"]) == int(version):
+                return self._config(e)
+        raise StoreError(f"{self._fs.show()}: no configuration version {version}")
 
     def config_for(self, generation: int) -> ConfigVersion:
         """The configuration version in force at ``generation``."""
@@ -464,12 +681,14 @@ class RunStore:
         return self._config(chosen)
 
     def events(self) -> pa.Table:
-        """Every event, in order of ``seq``."""
+        """Every event, in order of ``seq``; each file checked against the manifest's sha256 first."""
         import pyarrow as pa
         import pyarrow.parquet as pq
 
+        self._require_current()
         tables = []
         for e in self._m["events"]:
+            self._verify_files([e])
             try:
                 tables.append(pq.read_table(self._fs.full(e["path"]), filesystem=self._fs.fs,
                                             schema=events_schema()))
@@ -481,61 +700,148 @@ class RunStore:
 
     # --- integrity ---------------------------------------------------------------------------
     def verify(self) -> list[str]:
-        """Problems with the committed files (missing, truncated, altered, unreadable), each naming
-        its file; empty when the run is intact. Reads every committed byte."""
-        return [p for _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
+        """Problems with the committed files (missing, truncated, altered, unreadable) and with the
+        manifests (the newest lost or damaged, an older one damaged), each naming its file; empty when
+        the run is intact. Reads every committed byte."""
+        return [p for _, _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
 
     def _manifest_problems(self) -> list[str]:
-        return [
-            f"{self._fs.show(_manifest_rel(version))}: manifest is torn or altered; "
-            f"the run is read from manifest {self.version}"
-            for version in _list_manifests(self._fs)
-            if version > self.version and _read_manifest(self._fs, version) is None
-        ]
+        out = [self._stale] if self._stale else []
+        head = _read_head(self._fs)
+        if head is None and self._fs.kind(HEAD) == "file":
+            out.append(f"{self._fs.show(HEAD)}: damaged (it should hold the newest commit's number)")
+        for version in _list_manifests(self._fs):
+            if version >= self.version:
+                continue  # a newer one torn or altered is the stale newest manifest, above
+            rel = _manifest_rel(version)
+            if _read_manifest(self._fs, version) is None and self._fs.size(rel) is not None:
+                out.append(f"{self._fs.show(_manifest_rel(version))}: an older manifest is torn or altered "
+                           "(a snapshot no longer in use; repair removes it)")
+        return out
 
     def repair(self) -> list[str]:
-        """Fall back to the last intact commit when ``verify`` finds problems, and record a
-        "recovery" event saying what was lost. Returns the problems repaired (empty: nothing to do)."""
+        """Mend what ``verify`` finds, keeping every intact commit: a damaged configuration file is
+        rewritten from the manifest's copy; a damaged individuals or events file is replaced by intact
+        files an older manifest names holding the same commits, or else dropped alone (later commits
+        stay); a lost or damaged newest manifest gives way to the newest intact one. What was dropped
+        is said in one line (``last_repair``) and recorded with the problems in a "recovery" event.
+        Returns the problems repaired (empty: nothing to do)."""
         cache: dict[tuple[str, str], str | None] = {}
         bad = self._bad_entries(self._m, cache)
-        problems = [p for _, p in bad] + self._manifest_problems()
+        problems = [p for _, _, p in bad] + self._manifest_problems()
         if not problems:
+            self.last_repair = ""
             return []
-        state = self._m
-        kept_to = self.version
-        if bad:
-            first_bad = min(_first_commit(e) for e, _ in bad)
-            if first_bad <= self._m["configs"][0]["commit"]:
-                raise StoreError(
-                    f"{problems[0]}; it belongs to the run's creation, so there is no intact "
-                    "state to fall back to"
-                )
-            state = _prefix(self._m, first_bad)
-            kept_to = first_bad - 1
-            for version in sorted(_list_manifests(self._fs), reverse=True):
-                if version <= kept_to:
-                    break
-                older = _read_manifest(self._fs, version)
-                if older is None or version >= self.version:
-                    continue
-                if not self._bad_entries(older, cache):
-                    state, kept_to = older, version
-                    break
-        manifest = copy.deepcopy(state)
-        manifest["next_seq"] = self._m["next_seq"]
-        manifest["generations"] = _generations(manifest["individuals"])
-        version = self._next_version()
-        last = max((int(g) for g in manifest["generations"].values()), default=0)
-        detail = {
-            "problems": problems,
-            "kept_commits_through": kept_to,
-            "lost_commits": self.version - kept_to,
-            "generations": manifest["generations"],
-        }
-        self._add_events(manifest, [Event("recovery", last, None, detail)], version)
-        self._publish(manifest, version)
+        with self._transaction():
+            manifest, dropped, restored = self._mended(bad, cache)
+            manifest["next_seq"] = self._m["next_seq"]
+            manifest["generations"] = _generations(manifest["individuals"])
+            version = self._next_version(repairing=True)
+            if self._stale:
+                dropped.append(f"commit {version - 1}'s manifest (lost or damaged; its files are no "
+                               "longer named)")
+            line = "dropped " + "; ".join(dropped) if dropped else "dropped nothing"
+            if restored:
+                line += "; restored " + "; ".join(restored)
+            last = max((int(g) for g in manifest["generations"].values()), default=0)
+            detail = {
+                "problems": problems,
+                "dropped": line,
+                "kept_commits_through": self.version,
+                "generations": manifest["generations"],
+            }
+            self._add_events(manifest, [Event("recovery", last, None, detail)], version)
+            self._publish(manifest, version)
+        self.last_repair = line
         self.collect_garbage()
         return problems
+
+    def _mended(self, bad: list[tuple[str, dict[str, Any], str]], cache: dict[tuple[str, str], str | None]
+                ) -> tuple[dict[str, Any], list[str], list[str]]:
+        """The manifest with every damaged file restored, replaced or dropped; what was dropped and
+        what was restored, each as short phrases."""
+        m = copy.deepcopy(self._m)
+        dropped: list[str] = []
+        restored: list[str] = []
+        damaged = {(e["path"], e["sha256"]) for _, e, _ in bad}
+        older = []
+        for version in sorted(_list_manifests(self._fs), reverse=True):
+            if version < self.version and (om := _read_manifest(self._fs, version)) is not None:
+                older.append(om)
+        # configurations: rewritten from the manifest's copy; a run written before copies were kept
+        # falls back to the state before the damaged version (the old rule)
+        for e in list(m["configs"]):
+            if (e["path"], e["sha256"]) not in damaged:
+                continue
+            text = e.get("toml")
+            if isinstance(text, str) and hashlib.sha256(text.encode()).hexdigest() == e["sha256"]:
+                new = self.write_file(f"configs/v{e['version']:04d}", ".toml", text.encode())
+                e["path"] = new["path"]
+                restored.append(f"configuration version {e['version']} (from the manifest's copy)")
+                continue
+            if e["commit"] <= m["configs"][0]["commit"]:
+                problem = next(p for _, b, p in bad if b["path"] == e["path"])
+                raise StoreError(f"{problem}; it belongs to the run's creation and the manifest "
+                                 "holds no copy, so it cannot be repaired")
+            cut = int(e["commit"])
+            for kind, entry in file_entries(m):
+                if _first_commit(entry) >= cut:
+                    dropped.append(_describe(kind, entry))
+            m = _prefix(m, cut)
+            break
+        for kind in [k for k, v in m.items() if isinstance(v, list) and k != "configs"]:
+            kept = []
+            for e in m[kind]:
+                if not isinstance(e, dict) or (e.get("path"), e.get("sha256")) not in damaged:
+                    kept.append(e)
+                    continue
+                pieces = self._replacement(kind, e, older, cache)
+                if pieces:
+                    kept.extend(pieces)
+                    restored.append(f"{e['path']} (from the {len(pieces)} file(s) it was compacted from)")
+                else:
+                    dropped.append(_describe(kind, e))
+                    if kind == "individuals":
+                        m.setdefault("_tails", []).append(e)
+            m[kind] = kept
+        # events of a commit whose individuals were the newest of their islands describe generations
+        # the run will make again: dropped with them, or a resumed run would record them twice
+        for e in m.pop("_tails", []):
+            newer = any(k["islands"][i][1] > span[1] for k in m["individuals"]
+                        for i, span in e["islands"].items() if i in k["islands"])
+            if newer:
+                continue
+            lo, hi = e["commits"]
+            gone = [x for x in m["events"] if lo <= x["commits"][0] and x["commits"][1] <= hi]
+            m["events"] = [x for x in m["events"] if x not in gone]
+            dropped.extend(_describe("events", x) for x in gone)
+        return m, dropped, restored
+
+    def _replacement(self, kind: str, entry: dict[str, Any], older: list[dict[str, Any]],
+                     cache: dict[tuple[str, str], str | None]) -> list[dict[str, Any]]:
+        """Intact files older manifests name that hold exactly ``entry``'s commits, or []."""
+        if "commits" not in entry or "rows" not in entry:
+            return []
+        lo, hi = entry["commits"]
+        candidates: dict[str, dict[str, Any]] = {}
+        for om in older:
+            for e in om.get(kind, []):
+                if (isinstance(e, dict) and e.get("path") != entry["path"] and "commits" in e
+                        and lo <= e["commits"][0] and e["commits"][1] <= hi):
+                    candidates.setdefault(e["path"], e)
+        chosen, end = [], lo - 1
+        for e in sorted(candidates.values(), key=lambda x: (x["commits"][0], -x["commits"][1])):
+            if e["commits"][0] <= end:
+                continue
+            k = (e["path"], e["sha256"])
+            if k not in cache:
+                cache[k] = self._check_entry(e, deep=True)
+            if cache[k] is None:
+                chosen.append(e)
+                end = e["commits"][1]
+        if not chosen or sum(e["rows"] for e in chosen) != entry["rows"]:
+            return []
+        return chosen
 
     # --- compaction and garbage --------------------------------------------------------------
     def compact(self, target_rows: int = COMPACT_TARGET_ROWS) -> int:
@@ -549,58 +855,112 @@ class RunStore:
         manifest = copy.deepcopy(self._m)
         before = len(manifest["individuals"]) + len(manifest["events"])
         version = None
-        for key, prefix in (("individuals", "individuals/compact"), ("events", "events/compact")):
-            merged: list[dict[str, Any]] = []
-            for group in _plan_compaction(manifest[key], target_rows):
-                if len(group) == 1:
-                    merged.append(group[0])
-                    continue
-                if version is None:
-                    version = self._next_version()
-                table = pa.concat_tables([self._read_whole(e) for e in group])
-                first, last = _first_commit(group[0]), group[-1]["commits"][1]
-                entry = self._write_parquet(f"{prefix}-{first:010d}-{last:010d}.parquet", table)
-                entry["commits"] = [first, last]
-                if key == "individuals":
-                    islands: dict[str, list[int]] = {}
-                    for e in group:
-                        for island, (lo, hi) in e["islands"].items():
-                            have = islands.get(island)
-                            islands[island] = [min(have[0], lo), max(have[1], hi)] if have else [lo, hi]
-                    entry["islands"] = dict(sorted(islands.items(), key=lambda kv: int(kv[0])))
-                else:
-                    entry["seq"] = [group[0]["seq"][0], group[-1]["seq"][1]]
-                merged.append(entry)
-            manifest[key] = merged
-        if version is None:
-            return 0
-        self._publish(manifest, version)
+        with self._transaction():
+            for key, prefix in (("individuals", "individuals/compact"), ("events", "events/compact")):
+                merged: list[dict[str, Any]] = []
+                for group in _plan_compaction(manifest[key], target_rows):
+                    if len(group) == 1:
+                        merged.append(group[0])
+                        continue
+                    if version is None:
+                        version = self._next_version()
+                    tables = [self._read_whole(e) for e in group]
+                    if key == "individuals":  # files written before a resume may order columns otherwise
+                        schema = self.schema
+                        tables = [t.select(schema.names).cast(schema) for t in tables]
+                    table = pa.concat_tables(tables)
+                    first, last = _first_commit(group[0]), group[-1]["commits"][1]
+                    entry = self._write_parquet(f"{prefix}-{first:010d}-{last:010d}", table)
+                    entry["commits"] = [first, last]
+                    if key == "individuals":
+                        islands: dict[str, list[int]] = {}
+                        for e in group:
+                            for island, (lo, hi) in e["islands"].items():
+                                have = islands.get(island)
+                                islands[island] = [min(have[0], lo), max(have[1], hi)] if have else [lo, hi]
+                        entry["islands"] = dict(sorted(islands.items(), key=lambda kv: int(kv[0])))
+                    else:
+                        entry["seq"] = [group[0]["seq"][0], group[-1]["seq"][1]]
+                    merged.append(entry)
+                manifest[key] = merged
+            if version is None:
+                return 0
+            self._publish(manifest, version)
         self.collect_garbage()
         return before - len(manifest["individuals"]) - len(manifest["events"])
 
     def collect_garbage(self) -> int:
-        """Delete files no kept manifest names (left by crashes, compaction and repair), torn
-        manifests and temporary files. Only the run's writer may call it. Returns how many it deleted."""
+        """Delete files no kept manifest names (left by crashes, compaction and repair), torn older
+        manifests and temporary files left by crashed writers (their process is gone, or they are
+        over an hour old). Only the run's writer may call it. Returns how many it deleted."""
         referenced: set[str] = set()
+        folders = set(_LAYOUT) - {MANIFEST_DIR}
         deleted = 0
         for version in _list_manifests(self._fs):
             m = _read_manifest(self._fs, version)
             if m is None:
-                self._fs.delete(_manifest_rel(version))
-                deleted += 1
+                if version < self.version:
+                    self._fs.delete(_manifest_rel(version))
+                    deleted += 1
                 continue
-            for key in ("configs", "individuals", "events"):
-                referenced.update(e["path"] for e in m[key])
-        for folder in ("configs", "individuals", "events", MANIFEST_DIR):
+            for _, e in file_entries(m):
+                referenced.add(e["path"])
+                folders.add(e["path"].split("/", 1)[0])
+        for _, e in file_entries(self._m):
+            referenced.add(e["path"])
+            folders.add(e["path"].split("/", 1)[0])
+        for folder in [*sorted(folders), MANIFEST_DIR]:
             for name in self._fs.listdir(folder):
                 rel = f"{folder}/{name}"
-                if name.startswith(TMP_PREFIX) or (folder != MANIFEST_DIR and rel not in referenced):
+                if name.startswith(TMP_PREFIX):
+                    if self._stale_tmp(rel, name):
+                        self._fs.delete(rel)
+                        deleted += 1
+                elif folder != MANIFEST_DIR and rel not in referenced and rel not in self._pending:
                     self._fs.delete(rel)
                     deleted += 1
         return deleted
 
+    def _stale_tmp(self, rel: str, name: str) -> bool:
+        match = _TMP_PID.search(name)
+        if match and int(match.group(1)) != os.getpid():
+            try:
+                os.kill(int(match.group(1)), 0)
+            except ProcessLookupError:
+                return True
+            except OSError:
+                pass
+        mtime = self._fs.mtime(rel)
+        return mtime is not None and _now().timestamp() - mtime > TMP_STALE_SECONDS
+
     # --- internals ---------------------------------------------------------------------------
-    def _next_version(self) -> int:
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[None]:
+        """Files written inside are this commit's: deleted again if it fails before its manifest is
+        linked (another writer won, the disk filled...). Only files this store wrote are touched."""
+        outer = self._pending
+        self._pending = []
+        try:
+            yield
+        except BaseException:
+            for rel in self._pending:
+                with contextlib.suppress(OSError):
+                    self._fs.delete(rel)
+            raise
+        finally:
+            self._pending = outer
+
+    def _require_current(self) -> None:
+        if self._stale:
+            raise StoreError(f"{self._stale}; {self._repair_hint()}")
+
+    def _repair_hint(self) -> str:
+        return (f"`genr8 repair {self._fs.show()}` mends the run (it keeps every intact commit and names "
+                "what it drops)")
+
+    def _next_version(self, *, repairing: bool = False) -> int:
+        if self._stale and not repairing:
+            raise StoreError(f"{self._stale}; repair the run before writing to it")
         listed = _list_manifests(self._fs)
         for version in sorted(listed, reverse=True):
             if version <= self.version:
@@ -610,7 +970,8 @@ class RunStore:
                     f"{self._fs.show()}: another process committed to this run (manifest {version}) "
                     "since it was opened here; only one writer may commit"
                 )
-        return max([self.version, *listed]) + 1
+        head = _read_head(self._fs) or 0
+        return max([self.version, head, *listed]) + 1
 
     def _publish(self, manifest: dict[str, Any], version: int) -> None:
         manifest["version"] = version
@@ -620,31 +981,35 @@ class RunStore:
         except FileExistsError:
             raise StoreError(
                 f"{self._fs.show()}: another process committed manifest {version} at the same time; "
-                "only one writer may commit"
+                "only one writer may commit (this commit's files were removed, nothing else)"
             ) from None
+        self._pending = []  # committed: no longer this writer's to remove
         self._m = manifest
+        self._stale = None
+        with contextlib.suppress(OSError):  # HEAD only lags (a full disk): never a false alarm
+            if (_read_head(self._fs) or 0) < version:
+                self._fs.write_atomic(HEAD, f"{version}\n".encode())
         for old in _list_manifests(self._fs):
             if old <= version - KEEP_MANIFESTS:
                 self._fs.delete(_manifest_rel(old))
 
     def _publish_config(self, toml_text: str, effective_generation: int, events: Sequence[Event]) -> int:
         number = len(self._m["configs"]) + 1
-        version = self._next_version()
-        rel = f"configs/v{number:04d}.toml"
-        data = toml_text.encode()
-        self._fs.write_atomic(rel, data)
-        manifest = copy.deepcopy(self._m)
-        manifest["configs"].append({
-            "version": number,
-            "effective_generation": effective_generation,
-            "path": rel,
-            "bytes": len(data),
-            "sha256": hashlib.sha256(data).hexdigest(),
-            "created": _now().isoformat(),
-            "commit": version,
-        })
-        self._add_events(manifest, list(events), version)
-        self._publish(manifest, version)
+        with self._transaction():
+            version = self._next_version()
+            data = toml_text.encode()
+            entry = self.write_file(f"configs/v{number:04d}", ".toml", data)
+            manifest = copy.deepcopy(self._m)
+            manifest["configs"].append({
+                "version": number,
+                "effective_generation": effective_generation,
+                **entry,
+                "created": _now().isoformat(),
+                "commit": version,
+                "toml": toml_text,  # the copy repair() restores the file from
+            })
+            self._add_events(manifest, list(events), version)
+            self._publish(manifest, version)
         self._config_cache[number] = toml_text
         return number
 
@@ -655,21 +1020,21 @@ class RunStore:
         now = _now()
         time_us = int(now.timestamp()) * 1_000_000 + now.microsecond
         table = events_table(events, self.run_id, first, time_us)
-        entry = self._write_parquet(f"events/events-{version:010d}.parquet", table)
+        entry = self._write_parquet(f"events/events-{version:010d}", table)
         entry.update(commits=[version, version], seq=[first, first + len(events) - 1])
         manifest["events"].append(entry)
         manifest["next_seq"] = first + len(events)
 
-    def _write_parquet(self, rel: str, table: pa.Table) -> dict[str, Any]:
+    def _write_parquet(self, stem: str, table: pa.Table) -> dict[str, Any]:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         buf = pa.BufferOutputStream()
         pq.write_table(table, buf, compression=COMPRESSION, row_group_size=ROW_GROUP_ROWS)
         data = buf.getvalue()
-        self._fs.write_atomic(rel, memoryview(data))
-        return {"path": rel, "rows": table.num_rows, "bytes": data.size,
-                "sha256": hashlib.sha256(memoryview(data)).hexdigest()}
+        entry = self.write_file(stem, ".parquet", memoryview(data))
+        return {"path": entry["path"], "rows": table.num_rows, "bytes": entry["bytes"],
+                "sha256": entry["sha256"]}
 
     def _checked_rows(self, table: pa.Table) -> pa.Table:
         import pyarrow as pa
@@ -737,8 +1102,9 @@ class RunStore:
         import pyarrow as pa
         import pyarrow.dataset as ds
 
+        self._verify_files(entries)
         try:
-            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.schema,
+            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
                                  format="parquet", filesystem=self._fs.fs)
             return dataset.to_table(columns=list(columns) if columns is not None else None, filter=filter)
         except (pa.ArrowException, OSError) as exc:
@@ -747,19 +1113,38 @@ class RunStore:
                     raise self._read_error(e, exc) from None
             raise StoreError(f"{self._fs.show()}: cannot read individuals: {exc}") from None
 
+    def _verify_files(self, entries: list[dict[str, Any]]) -> None:
+        """Check each file against its manifest entry (size, sha256, Parquet rows) the first time
+        this store reads it; ``StoreError`` naming the first damaged one."""
+        for e in entries:
+            key = (e["path"], e["sha256"])
+            stamp = self._stamp(e["path"])
+            if self._verified.get(key) == stamp and stamp[0] is not None:
+                continue  # checked before, and neither its size nor its time has changed since
+            problem = self._check_entry(e, deep=True)
+            if problem is not None:
+                raise StoreError(f"{problem}; {self._repair_hint()}")
+            self._verified[key] = stamp
+
+    def _stamp(self, rel: str) -> tuple[int | None, float | None]:
+        try:
+            return self._fs.size(rel), self._fs.mtime(rel)
+        except OSError:
+            return None, None
+
     def _read_whole(self, entry: dict[str, Any]) -> pa.Table:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
         problem = self._check_entry(entry, deep=True)
         if problem is not None:
-            raise StoreError(f"{problem}; run repair to fall back to the last intact commit")
+            raise StoreError(f"{problem}; {self._repair_hint()}")
         data = self._fs.read_bytes(entry["path"])
         return pq.read_table(pa.BufferReader(data))
 
     def _read_error(self, entry: dict[str, Any], exc: BaseException) -> StoreError:
         problem = self._check_entry(entry, deep=True) or f"{self._fs.show(entry['path'])}: unreadable ({exc})"
-        return StoreError(f"{problem}; run repair to fall back to the last intact commit")
+        return StoreError(f"{problem}; {self._repair_hint()}")
 
     def _check_entry(self, entry: dict[str, Any], *, deep: bool) -> str | None:
         """What is wrong with a committed file, or None. ``deep`` also checks its sha256."""
@@ -768,19 +1153,23 @@ class RunStore:
 
         rel = entry["path"]
         where = self._fs.show(rel)
-        size = self._fs.size(rel)
+        try:
+            size = self._fs.size(rel)
+        except OSError as exc:
+            return f"{where}: cannot be read ({exc})"
         if size is None:
             return f"{where}: missing (the manifest names it)"
         if size != entry["bytes"]:
             return f"{where}: truncated or altered: {size} bytes, the manifest recorded {entry['bytes']}"
-        if not deep and rel.endswith(".toml"):
+        parquet = rel.endswith(".parquet") and "rows" in entry
+        if not deep and not parquet:
             return None
         try:
             if deep:
                 data = self._fs.read_bytes(rel)
                 if hashlib.sha256(data).hexdigest() != entry["sha256"]:
                     return f"{where}: corrupt: its sha256 differs from the one the manifest recorded"
-                if rel.endswith(".toml"):
+                if not parquet:
                     return None
                 meta = pq.ParquetFile(pa.BufferReader(data)).metadata
             else:
@@ -793,15 +1182,14 @@ class RunStore:
         return None
 
     def _bad_entries(self, manifest: dict[str, Any], cache: dict[tuple[str, str], str | None]
-                     ) -> list[tuple[dict[str, Any], str]]:
+                     ) -> list[tuple[str, dict[str, Any], str]]:
         bad = []
-        for key in ("configs", "individuals", "events"):
-            for e in manifest[key]:
-                k = (e["path"], e["sha256"])
-                if k not in cache:
-                    cache[k] = self._check_entry(e, deep=True)
-                if cache[k] is not None:
-                    bad.append((e, cache[k]))
+        for kind, e in file_entries(manifest):
+            k = (e["path"], e["sha256"])
+            if k not in cache:
+                cache[k] = self._check_entry(e, deep=True)
+            if cache[k] is not None:
+                bad.append((kind, e, cache[k]))
         return bad
 
     def _config(self, entry: dict[str, Any]) -> ConfigVersion:
@@ -810,11 +1198,58 @@ class RunStore:
         if text is None:
             problem = self._check_entry(entry, deep=True)
             if problem is not None:
-                raise StoreError(f"{problem}; run repair to fall back to the last intact commit")
-            text = self._fs.read_bytes(entry["path"]).decode()
+                raise StoreError(f"{problem}; {self._repair_hint()}")
+            try:
+                text = self._fs.read_bytes(entry["path"]).decode()
+            except UnicodeDecodeError:
+                raise StoreError(f"{self._fs.show(entry['path'])}: not UTF-8 text") from None
             self._config_cache[number] = text
         return ConfigVersion(number, entry["effective_generation"], text,
                              datetime.fromisoformat(entry["created"]))
+
+
+AddFiles = Callable[[dict[str, Any], int], None]
+"""``add(manifest, version)``: writes files with ``RunStore.write_file`` and lists their entries in
+``manifest`` (a list under a key of its own), as part of commit ``version``."""
+
+_LAYOUT_STATES = ("empty", "half-created", "run", "damaged", "foreign")
+
+
+def half_created(rfs: RunFS) -> str:
+    """What a directory holds: ``"empty"``, ``"half-created"`` (a creation that stopped before its
+    first manifest: only layout folders, no data), ``"run"``, ``"damaged"`` (data files but no intact
+    manifest) or ``"foreign"`` (anything else)."""
+    names = rfs.listdir()
+    if not names:
+        return "empty"
+    manifest, _ = _load_state(rfs)
+    if manifest is not None:
+        return "run"
+    if [n for n in names if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]:
+        return "foreign"
+    data = [n for f in ("individuals", "events") for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
+    return "damaged" if data else "half-created"
+
+
+def _describe(kind: str, entry: dict[str, Any]) -> str:
+    """A dropped file in a few words: which commits, islands, generations, rows or events it held."""
+    path = entry["path"]
+    if kind == "individuals":
+        spans = entry["islands"].values()
+        lo = min(s[0] for s in spans) if spans else 0
+        hi = max(s[1] for s in spans) if spans else 0
+        isl = sorted(int(i) for i in entry["islands"])
+        islands = f"island {isl[0]}" if len(isl) == 1 else f"islands {isl[0]}-{isl[-1]}"
+        return f"{path} ({entry['rows']} individuals: {islands}, generations {lo}..{hi})"
+    if kind == "events":
+        return f"{path} ({entry['rows']} event(s), seq {entry['seq'][0]}..{entry['seq'][1]})"
+    if kind == "configs":
+        return f"{path} (configuration version {entry['version']})"
+    return f"{path} ({kind})"
+
+
+def _islands_of(entry: dict[str, Any]) -> set[int]:
+    return {int(i) for i in entry.get("islands", {})}
 
 
 def _first_commit(entry: dict[str, Any]) -> int:
@@ -824,9 +1259,9 @@ def _first_commit(entry: dict[str, Any]) -> int:
 def _prefix(manifest: dict[str, Any], first_bad: int) -> dict[str, Any]:
     """The state of ``manifest`` before commit ``first_bad`` (commits only append, so it is a prefix)."""
     out = copy.deepcopy(manifest)
-    out["configs"] = [e for e in out["configs"] if e["commit"] < first_bad]
-    out["individuals"] = [e for e in out["individuals"] if e["commits"][1] < first_bad]
-    out["events"] = [e for e in out["events"] if e["commits"][1] < first_bad]
+    for key, value in manifest.items():
+        if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
+            out[key] = [e for e in out[key] if _first_commit(e) < first_bad]
     return out
 
 
@@ -867,17 +1302,43 @@ def _read_manifest(rfs: RunFS, version: int) -> dict[str, Any] | None:
     return manifest
 
 
-def _latest_manifest(rfs: RunFS) -> dict[str, Any] | None:
-    """The highest-numbered intact manifest, or None. Refuses runs written by a newer schema."""
+def _read_head(rfs: RunFS) -> int | None:
+    """The commit number ``_manifest/HEAD`` records, or None (absent: a run written before it was
+    kept; unreadable: damaged, which ``verify`` reports)."""
+    try:
+        text = rfs.read_bytes(HEAD).decode().strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+    return int(text) if text.isdigit() and len(text) <= 10 else None
+
+
+def _load_state(rfs: RunFS) -> tuple[dict[str, Any] | None, str | None]:
+    """The highest-numbered intact manifest (None when there is none) and, when the newest manifest
+    is lost or damaged, a line saying so. Refuses runs written by a newer schema."""
+    head = _read_head(rfs)  # read before listing: a writer links its manifest before writing HEAD
+    skipped: list[int] = []
     for version in sorted(_list_manifests(rfs), reverse=True):
         manifest = _read_manifest(rfs, version)
         if manifest is None:
+            if rfs.size(_manifest_rel(version)) is not None:  # not merely pruned by a writer
+                skipped.append(version)
             continue
         found = manifest.get("schema_version")
-        if not isinstance(found, int) or found > SCHEMA_VERSION:
+        if not _is_int(found) or found > SCHEMA_VERSION:
             raise StoreError(
                 f"{rfs.show(_manifest_rel(version))}: schema version {found!r} is newer than this "
                 f"genr8_dist reads ({SCHEMA_VERSION}); upgrade genr8_dist"
             )
-        return manifest
-    return None
+        if skipped:
+            return manifest, (f"{rfs.show(_manifest_rel(max(skipped)))}: the newest manifest is torn or "
+                              f"altered; the run would read as commit {version}")
+        if head is not None and head > version:
+            return manifest, (f"{rfs.show(_manifest_rel(head))}: the newest manifest (commit {head}, "
+                              f"recorded in {HEAD}) is missing; the run would read as commit {version}")
+        return manifest, None
+    return None, None
+
+
+def _latest_manifest(rfs: RunFS) -> dict[str, Any] | None:
+    """The highest-numbered intact manifest, or None."""
+    return _load_state(rfs)[0]

@@ -10,12 +10,18 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
-from genr8_dist.evolution.individual import Individual
+from genr8_dist.evolution.individual import (
+    CRITERIA_KIND,
+    Column,
+    Individual,
+    stored_columns,
+    timing_columns,
+)
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -32,10 +38,13 @@ __all__ = [
     "individuals_from_table",
     "individuals_schema",
     "individuals_table",
+    "listed_columns",
+    "run_columns",
 ]
 
-# Bump when a column is added, removed or changes meaning; readers refuse newer versions.
-SCHEMA_VERSION = 1
+# Bump when a column is added, removed or changes meaning; readers refuse newer versions and read
+# older ones with the columns of their version. 2: the manifest records the run's columns.
+SCHEMA_VERSION = 2
 
 # What happened in a run, besides individuals (the ``kind`` column of the events table).
 EVENT_KINDS: tuple[str, ...] = (
@@ -52,75 +61,125 @@ EVENT_KINDS: tuple[str, ...] = (
 )
 
 # Measurements: excluded from determinism checks (an interrupted run differs only here).
-TIMING_COLUMNS: tuple[str, ...] = ("eval_seconds", "map_seconds", "grow_seconds", "score_seconds")
+TIMING_COLUMNS: tuple[str, ...] = timing_columns()
 
-_INT_FIELDS = ("codons_used", "wraps", "n_vertices", "n_edges", "n_regions", "steps_done")
-# Individual fields stored unchanged in a column of the same name (genome, parents and criteria are
-# converted; run_id and id are the run's and derived).
-_PLAIN_FIELDS = tuple(f.name for f in fields(Individual) if f.name not in ("genome", "parents", "criteria"))
+_CRIT = "crit_"
+_FIELDS = frozenset(Individual.__dataclass_fields__)
+
+# A stored column as the manifest records it: name, Arrow type name, nullable.
+ColumnSpec = tuple[str, str, bool]
 
 
 def criteria_names() -> tuple[str, ...]:
-    """The criteria of the fitness module (imported lazily: the store does not need it to read)."""
-    from genr8_dist.fitness import CRITERIA
+    """The registered surface criteria (imported lazily: the store does not need them to read)."""
+    from genr8_dist.fitness import criterion_names
 
-    return tuple(CRITERIA)
+    return criterion_names()
 
 
 def criterion_column(name: str) -> str:
     """The column holding criterion ``name``: ``crit_<name>``."""
-    return f"crit_{name}"
+    return f"{_CRIT}{name}"
 
 
-def _metadata(table: str) -> dict[bytes, bytes]:
-    return {b"genr8.schema_version": str(SCHEMA_VERSION).encode(), b"genr8.table": table.encode()}
+def criterion_of(column: str) -> str | None:
+    """The criterion a ``crit_<name>`` column holds, else ``None``."""
+    return column[len(_CRIT):] if column.startswith(_CRIT) else None
 
 
-@lru_cache(maxsize=8)
-def _individuals_schema(criteria: tuple[str, ...]) -> pa.Schema:
-    import pyarrow as pa
-
-    fields = [
-        pa.field("run_id", pa.string(), nullable=False),
-        pa.field("id", pa.string(), nullable=False),
-        pa.field("island", pa.int32(), nullable=False),
-        pa.field("generation", pa.int32(), nullable=False),
-        pa.field("index", pa.int32(), nullable=False),
-        pa.field("genome", pa.list_(pa.int32()), nullable=False),
-        pa.field("text", pa.string()),
-        pa.field("valid", pa.bool_(), nullable=False),
-        pa.field("stage", pa.string()),
-        pa.field("error", pa.string()),
-        pa.field("fitness", pa.float64(), nullable=False),
-    ]
-    fields += [pa.field(criterion_column(name), pa.float64()) for name in criteria]
-    fields += [
-        pa.field("origin", pa.string(), nullable=False),
-        pa.field("parents", pa.list_(pa.string()), nullable=False),
-        pa.field("config_version", pa.int32(), nullable=False),
-    ]
-    fields += [pa.field(name, pa.int32(), nullable=False) for name in _INT_FIELDS]
-    fields += [
-        pa.field("capped", pa.string()),
-        pa.field("surface_digest", pa.string()),
-    ]
-    fields += [pa.field(name, pa.float64(), nullable=False) for name in TIMING_COLUMNS]
-    return pa.schema(fields, metadata=_metadata("individuals"))
-
-
-def individuals_schema(criteria: Sequence[str] | None = None) -> pa.Schema:
-    """The schema of the individuals table, one ``crit_<name>`` column per criterion.
-
-    ``criteria`` defaults to ``genr8_dist.fitness.CRITERIA``; a run keeps the list it was created
-    with in its manifest, so old runs stay readable if criteria are added later.
-    """
-    names = tuple(criteria) if criteria is not None else criteria_names()
+def _check_criteria(names: tuple[str, ...]) -> None:
     for name in names:
         if not name.isidentifier():
             raise StoreError(f"criterion name {name!r} is not an identifier; it cannot be a column")
     if len(set(names)) != len(names):
         raise StoreError(f"criterion names repeat: {list(names)}")
-    return _individuals_schema(names)
+
+
+def run_columns(criteria: Sequence[str], *, version: int | None = None) -> list[ColumnSpec]:
+    """The columns of a run storing ``criteria``: every column declared now (``version=None``, what a
+    new run records in its manifest), or those a run of schema ``version`` has (declared by then)."""
+    names = tuple(criteria)
+    _check_criteria(names)
+    out: list[ColumnSpec] = []
+    for column in stored_columns():
+        if version is not None and not 1 <= column.since <= version:
+            continue
+        if column.arrow == CRITERIA_KIND:
+            out += [(criterion_column(name), "float64", True) for name in names]
+        else:
+            out.append((column.name, column.arrow, column.nullable))
+    return out
+
+
+def listed_columns(criteria: Sequence[str], *, shown: bool = False,
+                   available: Sequence[str] | None = None) -> list[str]:
+    """The columns ``history.top`` returns (``shown``: those ``genr8 top`` prints), in their declared
+    places, the criteria's ``crit_<name>`` columns where the ``criteria`` field stands; only those in
+    ``available`` when given."""
+    def place(column: Column) -> int:
+        return column.shown if shown else column.top
+
+    out: list[str] = []
+    for column in sorted((c for c in stored_columns() if place(c)), key=place):
+        if column.arrow == CRITERIA_KIND:
+            out += [criterion_column(name) for name in criteria]
+        else:
+            out.append(column.name)
+    return out if available is None else [name for name in out if name in set(available)]
+
+
+def column_heading(name: str) -> str:
+    """The short heading of stored column ``name`` in text tables (``generation`` -> ``gen``,
+    ``crit_smoothness`` -> ``smooth``)."""
+    crit = criterion_of(name)
+    if crit is not None:
+        from genr8_dist.fitness import criterion_heading
+
+        return criterion_heading(crit)
+    return next((c.heading for c in stored_columns() if c.name == name), name)
+
+
+def _arrow(name: str) -> pa.DataType:
+    import pyarrow as pa
+
+    if name.startswith("list<"):
+        return pa.list_(_arrow(name[5:-1]))
+    return {"bool": pa.bool_(), "int32": pa.int32(), "int64": pa.int64(), "float64": pa.float64(),
+            "string": pa.string()}[name]
+
+
+def _metadata(table: str, version: int = SCHEMA_VERSION) -> dict[bytes, bytes]:
+    return {b"genr8.schema_version": str(version).encode(), b"genr8.table": table.encode()}
+
+
+@lru_cache(maxsize=32)
+def _schema_of(columns: tuple[ColumnSpec, ...], version: int) -> pa.Schema:
+    import pyarrow as pa
+
+    return pa.schema([pa.field(name, _arrow(kind), nullable=nullable) for name, kind, nullable in columns],
+                     metadata=_metadata("individuals", version))
+
+
+def individuals_schema(criteria: Sequence[str] | None = None,
+                       columns: Sequence[Sequence[Any]] | None = None,
+                       version: int = SCHEMA_VERSION) -> pa.Schema:
+    """The schema of the individuals table: ``columns`` (a run's, as its manifest records them), or
+    every declared column with one ``crit_<name>`` column per criterion of ``criteria`` (default: the
+    registered surface criteria); ``version`` is the schema version written into its metadata."""
+    if columns is None:
+        columns = run_columns(tuple(criteria) if criteria is not None else criteria_names())
+    return _schema_of(tuple((str(n), str(k), bool(b)) for n, k, b in columns), version)
+
+
+def reading_schema(schema: pa.Schema) -> pa.Schema:
+    """``schema`` (a run's) with every column declared now that it lacks appended as nullable: what
+    readers see, so a column added since the run was written reads as nulls."""
+    import pyarrow as pa
+
+    have = set(schema.names)
+    missing = [pa.field(name, _arrow(kind), nullable=True) for name, kind, _ in run_columns(())
+               if name not in have]
+    return pa.schema([*schema, *missing], metadata=schema.metadata) if missing else schema
 
 
 @lru_cache(maxsize=1)
@@ -180,14 +239,30 @@ class Event:
             raise StoreError(f"event {self.kind!r}: detail is not JSON-serialisable: {exc}") from None
 
 
-def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: Sequence[str]) -> pa.Table:
-    """The rows of ``individuals`` as a table of ``individuals_schema(criteria)``."""
+def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: Sequence[str],
+                      schema: pa.Schema | None = None) -> pa.Table:
+    """The rows of ``individuals`` as a table of ``schema`` (default ``individuals_schema(criteria)``)."""
     import pyarrow as pa
 
-    schema = individuals_schema(criteria)
+    schema = schema if schema is not None else individuals_schema(criteria)
     crit_set = set(criteria)
+    declared = {c.name: c for c in stored_columns()}
+    stored = set(schema.names)
     cols: dict[str, list[Any]] = {f.name: [] for f in schema}
-    crit_cols = [(name, cols[criterion_column(name)]) for name in criteria]
+    getters = []
+    for f in schema:
+        crit = criterion_of(f.name)
+        if f.name == "run_id":
+            getters.append((cols[f.name], lambda ind: run_id))
+        elif f.name == "id":
+            getters.append((cols[f.name], lambda ind: ind.id))
+        elif crit is not None:
+            getters.append((cols[f.name], lambda ind, c=crit: ind.criteria.get(c)))
+        elif f.name in _FIELDS:
+            getters.append((cols[f.name], lambda ind, n=f.name: getattr(ind, n)))
+        else:
+            default = declared[f.name].default if f.name in declared else None
+            getters.append((cols[f.name], lambda ind, n=f.name, d=default: ind.extra.get(n, d)))
     for ind in individuals:
         if not isinstance(ind, Individual):
             raise StoreError(f"the store keeps Individual records, got {type(ind).__name__}")
@@ -197,14 +272,11 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
                 f"individual {ind.id}: unknown criterion {sorted(unknown)[0]!r} "
                 f"(this run stores {', '.join(criteria)})"
             )
-        cols["run_id"].append(run_id)
-        cols["id"].append(ind.id)
-        cols["genome"].append(ind.genome)
-        cols["parents"].append(ind.parents)
-        for name, col in crit_cols:
-            col.append(ind.criteria.get(name))
-        for name in _PLAIN_FIELDS:
-            cols[name].append(getattr(ind, name))
+        strange = [k for k in ind.extra if k not in stored and k not in declared]
+        if strange:
+            raise StoreError(f"individual {ind.id}: {strange[0]!r} is not a declared column")
+        for col, get in getters:
+            col.append(get(ind))
     arrays = []
     for f in schema:
         try:
@@ -215,25 +287,22 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
 
 
 def individuals_from_table(table: pa.Table) -> list[Individual]:
-    """``Individual`` records from rows of the individuals table (the inverse of ``individuals_table``)."""
+    """``Individual`` records from rows of the individuals table (the inverse of ``individuals_table``);
+    columns that are not ``Individual`` fields or criteria go to ``extra`` (nulls left out)."""
     names = table.column_names
-    criteria = [n[len("crit_"):] for n in names if n.startswith("crit_")]
     py = {name: table.column(name).to_pylist() for name in names}
+    criteria = [(name, c) for name in names if (c := criterion_of(name)) is not None]
+    plain = [n for n in names if n in _FIELDS]
+    sequences = [n for n in plain if n in ("genome", "parents")]
+    extras = [n for n in names if n not in _FIELDS and n not in ("run_id", "id") and criterion_of(n) is None]
     out = []
     for i in range(table.num_rows):
-        crit = {}
-        for name in criteria:
-            value = py[criterion_column(name)][i]
-            if value is not None:
-                crit[name] = value
-        out.append(
-            Individual(
-                genome=tuple(py["genome"][i]),
-                parents=tuple(py["parents"][i]),
-                criteria=crit,
-                **{name: py[name][i] for name in _PLAIN_FIELDS},
-            )
-        )
+        kwargs = {name: py[name][i] for name in plain}
+        for name in sequences:
+            kwargs[name] = tuple(kwargs[name])
+        kwargs["criteria"] = {c: v for name, c in criteria if (v := py[name][i]) is not None}
+        kwargs["extra"] = {n: v for n in extras if (v := py[n][i]) is not None}
+        out.append(Individual(**kwargs))
     return out
 
 

@@ -8,9 +8,10 @@ every epoch) but nothing is grown: the surfaces cannot be regrown from them. Sam
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
+from genr8_dist.evolution.individual import stored_columns
 from genr8_dist.rng import stream
 from genr8_dist.store.runstore import RunStore
 from genr8_dist.store.schema import Event, criterion_column
@@ -51,10 +52,11 @@ def write_synthetic_run(
         raise StoreError(
             f"write_synthetic_run: genome_length must be (lo, hi) with 1 <= lo <= hi, got {genome_length}"
         )
-    config = (
+    config = (   # a run configuration (readers such as the studio parse it) of the history's shape
         "# synthetic history written by genr8_dist.store.synthetic; its surfaces cannot be regrown\n"
-        f"[run]\nseed = {seed}\nislands = {n_islands}\ngenerations = {n_generations}\n"
-        f"population = {pop}\nmigration_interval = {generations_per_commit}\n"
+        f'universe = "default"\nseed = {seed}\n\n[ea]\npopulation = {pop}\n'
+        f"generations = {n_generations - 1}\n\n[islands]\ncount = {n_islands}\n"
+        f"migration_interval = {generations_per_commit}\nmigrants = {min(2, pop - 1)}\n"
     )
     store = RunStore.create(path, config, filesystem=filesystem)
     texts = _text_pool(seed)
@@ -132,7 +134,7 @@ def synthetic_epoch(
                                            "growth produced no regions"))
 
     decay = 1.0 + 9.0 * np.exp(-generation / max(1.0, (first + n_gen + 30) / 3.0))
-    columns: dict[str, pa.Array] = {}
+    columns: dict[str, Any] = {}
     crit_sum = np.zeros(n)
     for name in store.criteria:
         value = rng.gamma(2.0, 0.25, size=n) * decay
@@ -154,7 +156,7 @@ def synthetic_epoch(
     ids = pc.binary_join_element_wise(
         *(pc.cast(pa.array(a), pa.string()) for a in (island, generation, index)), "-"
     )
-    data = {
+    data: dict[str, Any] = {
         "run_id": pa.array(np.full(n, store.run_id, dtype=object), pa.string()),
         "id": ids,
         "island": island,
@@ -183,9 +185,22 @@ def synthetic_epoch(
         "grow_seconds": timing[1] + timing[2],
         "score_seconds": timing[3],
     }
-    schema = store.schema
-    return pa.Table.from_arrays([pa.array(data[f.name], f.type) if not isinstance(data[f.name], pa.Array)
-                                 else data[f.name].cast(f.type) for f in schema], schema=schema)
+    return _as_table(data, store.schema, n)
+
+
+def _as_table(data: dict[str, Any], schema: pa.Schema, n: int) -> pa.Table:
+    """The columns of ``schema`` from ``data``; a column it has no values for (one registered by a
+    plugin) holds the column's declared default in every row."""
+    import pyarrow as pa
+
+    defaults = {c.name: c.default for c in stored_columns()}
+    arrays = []
+    for f in schema:
+        values = data.get(f.name)
+        if values is None:
+            values = [defaults.get(f.name)] * n
+        arrays.append(values.cast(f.type) if isinstance(values, pa.Array) else pa.array(values, f.type))
+    return pa.Table.from_arrays(arrays, schema=schema)
 
 
 def _provenance(

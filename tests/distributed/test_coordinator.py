@@ -149,9 +149,9 @@ def test_truncated_parquet_is_named_and_the_run_resumes_from_the_last_intact_gen
     assert rows(run_dir) == rows(reference[0])
 
 
-def test_a_damaged_configuration_version_is_repaired_not_raised(reference, pool, tmp_path):
-    """A corrupt configs/v0002.toml (an edit's) is reported and dropped on resume; the run then
-    completes as if the edit had never been made."""
+def test_a_damaged_configuration_version_is_restored_not_dropped(reference, pool, tmp_path):
+    """A corrupt configs/v0002-*.toml (an edit's) is reported and rewritten from the manifest's copy on
+    resume: the edit is kept, and the run completes under it."""
     from genr8_dist.distributed.intervene import Edit, apply_edit
     from genr8_dist.store import RunStore
 
@@ -159,13 +159,17 @@ def test_a_damaged_configuration_version_is_repaired_not_raised(reference, pool,
     new_run(run_dir, tiny_toml())
     drive_to_end(run_dir, pool, on_generation=stop_at(2))
     apply_edit(str(run_dir), Edit(assignments=["fitness.size.weight=5"]))
+    edited = RunStore.open(run_dir).configs()[1].toml
     (version2,) = [p for p in (run_dir / "configs").iterdir() if p.name.startswith("v0002")]
     version2.write_text("[ea\npopulation = ")
     summary, log = drive_to_end_after_repair(run_dir, pool)
     assert "damaged:" in log and version2.name in log
+    assert "restored configuration version 2" in log
     assert summary.status == "complete"
-    assert [c.version for c in RunStore.open(run_dir).configs()] == [1]
-    assert rows(run_dir) == rows(reference[0])
+    store = RunStore.open(run_dir)
+    assert [c.version for c in store.configs()] == [1, 2]
+    assert store.configs()[1].toml == edited
+    assert store.verify() == []
 
 
 def drive_to_end_after_repair(run_dir, pool):

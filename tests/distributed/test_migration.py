@@ -94,3 +94,26 @@ def test_epochs_end_where_migrants_leave():
     assert epoch_end(7, 5, 20) == 10        # resumed mid-epoch: on to the next migration
     assert epoch_end(15, 5, 18) == 18       # the last epoch ends with the run
     assert epoch_end(-1, 5, 0) == 0
+
+
+def _shaped(island: int, rows: list[tuple[float, str, float]]) -> list[Individual]:
+    """Individuals with (fitness, surface digest, undulation)."""
+    return [Individual(island=island, generation=5, index=i, genome=(island, i), origin="random",
+                       fitness=f, valid=True, surface_digest=d, criteria={"undulation": u})
+            for i, (f, d, u) in enumerate(rows)]
+
+
+def test_novel_emigrants_are_fit_surfaces_the_destination_lacks():
+    from genr8_dist.distributed.migration import select_novel
+
+    source = _shaped(0, [(0.1, "a", 0.0), (0.2, "b", 0.1), (0.3, "c", 5.0), (0.4, "d", 4.0),
+                         (8.0, "e", 9.0), (9.0, "f", 9.0), (9.5, "g", 9.0)])
+    destination = _shaped(1, [(0.1, "a", 0.0), (0.5, "x", 0.2)])
+    chosen = select_novel(source, destination, 2)
+    # "a" is already there; e, f, g are in the worse half; of b, c, d the two farthest from the
+    # destination
+    assert sorted(ind.surface_digest for ind in chosen) == ["c", "d"]
+    plan = plan_migration({0: source, 1: destination}, "ring", 2, seed=0, generation=5, emigrants="novel")
+    assert sorted(ind.surface_digest for ind in plan[1]) == ["c", "d"]
+    with pytest.raises(ConfigError, match="emigrants"):
+        plan_migration({0: source, 1: destination}, "ring", 2, seed=0, generation=5, emigrants="far")

@@ -298,3 +298,17 @@ def test_mesh_boundaries_are_never_crossed(crate, behaviour, gravity, scale, sta
         assert np.all(b.violation(p) <= 0)
         assert np.array_equal(p[stopped], before[stopped])
         stopped = new
+
+
+def test_a_behaviour_is_one_registry_entry(monkeypatch):
+    """A new behaviour needs only its entry: here one that keeps a violating vertex where it was."""
+    from genr8_dist.environment import BEHAVIOURS, Behaviour
+
+    assert {name: (b.hard, b.stops) for name, b in BEHAVIOURS.items()} == {
+        "slide": (True, False), "cut-off": (True, True), "reflect": (True, False), "soft": (False, False)}
+    monkeypatch.setitem(BEHAVIOURS, "hold", Behaviour("hold", hard=True, resolve=lambda b, p, q, e: p))
+    env = Environment(scale=1.0, gravity=(0.0, 0.0, -1.5), start_position=(0, 0, 1),
+                      boundaries=(PlaneBoundary(behaviour="hold"),))
+    out, stopped = step_once(env, np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 3.0]]))
+    np.testing.assert_allclose(out, [[0.0, 0.0, 1.0], [2.0, 0.0, 1.5]])
+    assert not stopped.any() and env.count_soft_violations(out) == 0

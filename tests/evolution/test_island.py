@@ -4,6 +4,7 @@ selection that improves fitness."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 import statistics
 
@@ -143,6 +144,7 @@ def test_genomes_evaluated_elsewhere_complete_the_generation_step_builds(history
     from genr8_dist.evolution import Evaluator
 
     config, hist = history
+    config = config.replace(ea={"unique_retries": 0})   # every evaluation is then one of ``pending``
     donor = hist[2][3]
     kwargs = {"migrants": hist[2][:2], "injected": [list(donor.genome)] * 3}
     alone = Island(config, 1).step(hist[2], 3, **kwargs)
@@ -198,3 +200,108 @@ def test_selection_improves_a_fitness_that_rewards_subdivisions():
     # Measured (seeds 0-4): the median improves for all five, the best for four (seed 0's generation 0
     # already held a good one); allow one more miss of the best, which elitism keeps from getting worse.
     assert best_better >= 3 and median_better >= 4, (best_better, median_better)
+
+
+def test_founders_are_redrawn_until_they_are_not_trivial_nor_repeated():
+    from genr8_dist.evolution.island import is_trivial
+
+    config = small_config(ea={"population": 30}, environment={"steps": 3})
+    alive = Island(config, 0)
+    founders = alive.initial()
+    bare = Island(config.replace(ea={"founder_retries": 0}), 0).initial()
+    assert sum(is_trivial(i) for i in founders) < sum(is_trivial(i) for i in bare)
+    assert sum(is_trivial(i) for i in founders) <= alive.stats.unresolved
+    digests = [i.surface_digest for i in founders if i.valid]
+    assert len(set(digests)) == len(digests)
+    assert alive.stats.founders_redrawn > 0
+    assert [untimed(i) for i in founders] == [untimed(i) for i in Island(config, 0).initial()]
+
+
+def test_ramped_founders_are_seeded_and_alive():
+    config = small_config(ea={"population": 16, "init": "ramped"})
+    a, b = Island(config, 0).initial(), Island(config, 0).initial()
+    assert [untimed(i) for i in a] == [untimed(i) for i in b]
+    assert {i.origin for i in a} == {"random"}
+
+
+def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_bound():
+    config = small_config(ea={"population": 16, "mutation_rate": 0.0, "crossover_rate": 0.5})
+    copies = config.replace(ea={"unique_retries": 0})
+    hist = Island(config, 0).run(2)
+
+    def repeats(gen, previous):
+        parents = {p.id: p for p in previous}
+        seen, count = set(), 0
+        for ind in gen:
+            if ind.origin in ("crossover", "mutation", "crossover+mutation") and ind.valid and (
+                    ind.surface_digest in seen
+                    or any(parents[p].surface_digest == ind.surface_digest for p in ind.parents)):
+                count += 1
+            if ind.valid:
+                seen.add(ind.surface_digest)
+        return count
+
+    unique = Island(config, 0)
+    gen = unique.step(hist[2], 3)
+    wasteful = Island(copies, 0)
+    gen_copies = wasteful.step(hist[2], 3)
+    assert repeats(gen, hist[2]) <= unique.stats.unresolved
+    assert repeats(gen_copies, hist[2]) > repeats(gen, hist[2])
+    assert unique.stats.revaried_surface + unique.stats.revaried_text > 0
+    assert wasteful.stats.revaried_surface == wasteful.stats.revaried_text == 0
+    # bounded: never more re-variations than retries per offspring
+    offspring = sum(i.origin != "elite" for i in gen)
+    assert unique.stats.revaried_surface <= offspring * config.ea.unique_retries
+    assert unique.stats.revaried_text <= offspring * config.ea.unique_retries
+    one = config.replace(ea={"unique_retries": 1})
+    bounded = Island(one, 0)
+    bounded.step(hist[2], 3)
+    assert bounded.stats.revaried_surface <= offspring and bounded.stats.revaried_text <= offspring
+
+
+def test_no_individual_is_mated_with_itself_when_others_differ():
+    config = small_config(ea={"population": 16, "crossover_rate": 1.0, "tournament": 1})
+    hist = Island(config, 0).run(1)
+    gen = Island(config, 0).step(hist[1], 2)
+    texts = {i.id: i.text for i in hist[1]}
+    crossed = [i for i in gen if i.origin.startswith("crossover")]
+    assert crossed
+    for child in crossed:
+        a, b = child.parents
+        assert a != b and (texts[a] != texts[b] or texts[a] is None)
+
+
+def test_map_elites_carries_the_best_of_every_cell_into_the_next_generation():
+    from genr8_dist.evolution.archive import Grid
+
+    config = small_config(ea={"population": 16}, search={"mode": "map-elites", "descriptors": ["n_regions"],
+                                                         "ranges": [[1, 17]], "bins": [8], "offspring": 0.5})
+    hist = Island(config, 0).run(3)
+    grid = Grid.from_settings(config.search)
+    for previous, gen in itertools.pairwise(hist):
+        archive = grid.archive(previous)
+        kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
+        best = sorted(archive.values(), key=lambda ind: (ind.fitness, ind.index))[:8]
+        assert kept == {ind.id for ind in best}
+        # a cell's elite is never worse than before: the archive only improves
+        after = grid.archive(gen)
+        kept_cells = {grid.cell(i) for i in best}
+        assert all(after[c].fitness <= archive[c].fitness for c in kept_cells)
+        assert sum(ind.origin != "elite" for ind in gen) >= 8
+
+
+def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
+    from genr8_dist.evolution.island import pareto_objectives
+    from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+
+    config = small_config(ea={"population": 16}, search={"mode": "pareto"},
+                          fitness={"size": {"target": 6.0}, "subdivisions": {"target": 0.5}})
+    hist = Island(config, 0).run(2)
+    names = pareto_objectives(config)
+    assert set(names) == {"size", "smoothness", "undulation", "subdivisions", "symmetry", "soft_boundary"}
+    previous, gen = hist[1], hist[2]
+    ranks = non_dominated_ranks(objectives_of([p.criteria for p in previous], [p.valid for p in previous],
+                                              config.fitness, names))
+    front = {p.id for p, r in zip(previous, ranks, strict=True) if r == 0 and p.valid}
+    kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
+    assert kept <= front and len(kept) == min(len(front), 8)

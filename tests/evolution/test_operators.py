@@ -89,3 +89,23 @@ def test_elites_are_the_best_finite_ones():
 def test_operators_check_their_inputs(bad):
     with pytest.raises((ValueError, TypeError)):
         bad()
+
+
+@given(genomes, genomes, st.integers(1, 70), st.integers(0, 2**32))
+def test_crossover_within_used_cuts_only_inside_the_used_codons(a, b, used, seed):
+    c1, c2 = one_point_crossover(stream(seed, "x"), a, b, within=used)
+    shortest = min(len(a), len(b), used)
+    if shortest < 2:
+        assert (c1, c2) == (tuple(a), tuple(b))
+        return
+    # the cut p is where c1 stops following a: always inside 1..used-1
+    p = next((i for i in range(1, len(c1)) if c1[i:] == tuple(b)[i:] and c1[:i] == tuple(a)[:i]), None)
+    assert p is not None and 1 <= p < shortest
+
+
+@given(genomes, st.integers(1, 70), st.integers(0, 2**32))
+def test_mutation_within_used_never_flips_outside_the_used_codons(genome, used, seed):
+    child, n = int_flip_mutation(stream(seed, "m"), genome, 0.5, 255, at_least_one=True, within=used)
+    span = max(1, min(len(genome), used))
+    assert child[span:] == tuple(genome)[span:]
+    assert n >= 1

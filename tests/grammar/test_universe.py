@@ -6,6 +6,8 @@ straight from DESIGN.md's rules, which also measures the derivation's depth.
 
 from __future__ import annotations
 
+import re
+
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -14,7 +16,7 @@ from genr8_dist.grammar import load_universe
 from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
 from genr8_dist.grammar.mapper import eligible
 
-BUILT_INS = ["default", "reversible", "symmetric", "probabilistic"]
+BUILT_INS = ["default", "reversible", "symmetric", "symmetric_thesis", "probabilistic"]
 genomes = st.lists(st.integers(0, 65535), min_size=1, max_size=300)
 
 
@@ -252,3 +254,51 @@ def test_compiled_mapper_matches_the_reference_on_synthetic_grammars(text, genom
     expected, used = ref.run()
     assert (result.text, result.codons_used) == (expected, used)
     assert ref.deepest <= max(max_depth, u.grammar.min_depth["start"])
+
+
+@given(genome=genomes)
+def test_symmetric_successors_are_mirror_palindromes(genome):
+    from genr8_dist.hemls import Branch, parse
+
+    result = load_universe("symmetric").map(genome)
+    if not result.valid:
+        return
+    system = parse(result.text)
+    assert all(r.left is None and r.right is None and not r.chain for r in system.rules)
+    for rule in system.rules:
+        for successor in rule.successors:
+            units: list[str] = []  # '~ Edge3' is one unit: a reversed edge
+            for symbol in map(str, successor.symbols):
+                units.append(units.pop() + " " + symbol if units and units[-1] == "~" else symbol)
+            assert units == units[::-1], str(successor)
+            # a branch pair only at the middle vertex, perpendicular both ways
+            branches = [str(s) for s in successor.symbols if isinstance(s, Branch)]
+            assert len(branches) <= 1
+            assert all(re.fullmatch(r"\[ \[ \+ \+ (Edge\d+) \] - - \1 \]", b) for b in branches)
+
+
+def _mirror_share(name: str, genomes_: int) -> tuple[int, int]:
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, parse
+    from genr8_dist.rng import stream
+
+    universe = load_universe(name)
+    rng = stream(0, "test", "mirror", name)
+    env = Environment(max_edges=20_000, max_seconds=10.0)
+    grown = mirrored = 0
+    for _ in range(genomes_):
+        result = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
+        growth = grow(parse(result.text), env) if result.valid else None
+        if growth is None or growth.capped:
+            continue
+        grown += 1
+        mirrored += growth.surface.mirror_line() is not None
+    return grown, mirrored
+
+
+def test_symmetric_surfaces_have_a_mirror_line_far_more_often_than_the_thesis_bnf():
+    grown, mirrored = _mirror_share("symmetric", 40)
+    thesis_grown, thesis_mirrored = _mirror_share("symmetric_thesis", 40)
+    assert grown >= 30 and thesis_grown >= 30
+    assert mirrored / grown >= 0.6
+    assert mirrored / grown >= thesis_mirrored / thesis_grown + 0.2

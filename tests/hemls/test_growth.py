@@ -238,6 +238,32 @@ def test_edge_cap_stops_growth_and_says_so():
     assert len(result.steps) < 6
 
 
+def test_work_cap_stops_growth_at_a_count_and_says_so():
+    system = load_system("four_sided_tiles")
+    free = grow(system, Environment(max_work=0), steps=6)
+    assert free.capped is None and free.work > 5000
+    env = Environment(max_work=5000)
+    result = grow(system, env, steps=6)
+    assert result.capped == "work"
+    assert result.work > 5000 and result.work < free.work
+    assert result.surface.validate() == []
+    assert result.surface.n_edges < free.surface.n_edges
+    again = grow(system, env, steps=6)   # a count, not a clock: the same cut every time
+    assert (again.work, again.surface.digest()) == (result.work, result.surface.digest())
+    below = grow(system, Environment(max_work=free.work), steps=6)
+    assert below.capped is None and below.surface.digest() == free.surface.digest()
+
+
+def test_joins_count_as_work():
+    """A system whose branches meet in big regions spends work on the pairs it tests."""
+    system = parse("Edge0 + Edge0 + Edge0 + Edge0\n"
+                   "Edge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0 [ [ + Edge1 ] - Edge1 ] Edge0\n"
+                   "Angle 90\nSync\n")
+    result = grow(system, Environment(max_work=0), steps=3)
+    edge_steps = sum(s.n_edges for s in result.steps)
+    assert result.work > edge_steps
+
+
 def test_time_cap_stops_growth_and_says_so():
     env = Environment(max_seconds=1e-6)
     result = grow(load_system("four_sided_tiles"), env, steps=8)
@@ -283,13 +309,14 @@ def test_four_sided_tiles_seven_steps_is_fast():
     system = load_system("four_sided_tiles")
     grow(system, steps=2)
     t0 = time.perf_counter()
-    result = grow(system, steps=7)
+    result = grow(system, Environment(max_work=0), steps=7)
     assert time.perf_counter() - t0 < 2.0
     assert result.steps[-1].n_regions == 16384
 
 
+@pytest.mark.parametrize("mode", ["orientation", "cone"])
 @pytest.mark.parametrize("cone", [0.0, 15.0, 30.0, 60.0, 90.0])
-def test_large_region_prefilter_never_drops_a_joinable_pair(cone):
+def test_large_region_prefilter_never_drops_a_joinable_pair(cone, mode):
     from genr8_dist.hemls.growth import _Grower
 
     class _Compiled:
@@ -297,20 +324,22 @@ def test_large_region_prefilter_never_drops_a_joinable_pair(cone):
 
     grower = _Grower.__new__(_Grower)
     grower.c = _Compiled()
+    grower.cone = mode == "cone"
     rng = np.random.default_rng(int(cone))
     n = 300
     points = rng.normal(size=(n, 3))
     points[: n // 2, 2] = 0.0  # half of them flat, as most surfaces are
     heading = rng.normal(size=(n, 3))
-    heading[: n // 2, 2] = 0.0
+    heading[:, 2] = 0.0  # headings as joining sees them: in the plane of their region
     heading /= np.linalg.norm(heading, axis=1)[:, None]
+    plane = np.tile([0.0, 0.0, 1.0], (n, 1))
     # plant exact partners so that every cone has joinable pairs
-    heading[1] = (points[0] - points[1]) / np.linalg.norm(points[0] - points[1])
+    heading[1] = (points[0] - points[1]) * [1, 1, 0] / np.linalg.norm((points[0] - points[1])[:2])
     heading[0] = -heading[1]
     idx = np.arange(n)
     pi, pj = np.triu_indices(n, 1)
-    exact = set(zip(pi[grower._pair_ok(pi, pj, points, heading, math.inf)].tolist(),
-                    pj[grower._pair_ok(pi, pj, points, heading, math.inf)].tolist(), strict=True))
+    ok = grower._pair_ok(pi, pj, points, heading, plane, math.inf)
+    exact = set(zip(pi[ok].tolist(), pj[ok].tolist(), strict=True))
     ri, cj = grower._prefilter(idx, idx, points, heading, math.inf)
     assert exact and exact <= set(zip(ri.tolist(), cj.tolist(), strict=True))
 
@@ -323,3 +352,42 @@ def test_noisy_environment_regrows_bit_identically_from_its_seed():
     assert a.digest() == b.digest() and np.array_equal(a.labels, b.labels)
     assert grow(system, env, steps=4, seed=12).surface.digest() != a.digest()
     assert a.validate() == []
+
+
+def test_the_drape_keeps_every_join_at_the_default_branch_angle():
+    """Thesis 2.5.1: branches join when their orientations are opposite within BranchAngle; a square
+    split into four each step keeps all 4**5 regions draped over a sphere (the cone rule, where each
+    branch must point at the other's vertex, loses joins in the drape's skewed cells)."""
+    import dataclasses
+    from pathlib import Path
+
+    from genr8_dist.environment import load_environment
+
+    drape = Path(__file__).resolve().parents[2] / "examples" / "environments" / "drape_sphere.toml"
+    env = dataclasses.replace(load_environment(drape), steps=5)
+    tiles = load_system("four_sided_tiles")
+    assert tiles.branch_angle is None and tiles.cone_angle == 30
+    assert grow(tiles, env).surface.n_regions == 1024
+    assert grow(tiles, dataclasses.replace(env, branch_join="cone")).surface.n_regions == 712
+    flat = grow(tiles, Environment(steps=5)).surface
+    assert flat.n_regions == grow(tiles, Environment(steps=5, branch_join="cone")).surface.n_regions == 1024
+
+
+def test_branches_join_when_opposite_within_branch_angle_and_facing_each_other():
+    from genr8_dist.hemls.growth import _Grower
+
+    class _Compiled:
+        cos_cone = math.cos(math.radians(30))
+
+    grower = _Grower.__new__(_Grower)
+    grower.c = _Compiled()
+    points = np.array([[0.0, 0, 0], [0, 1, 0], [0, 0, 0], [0, 1, 0], [0, 0, 0], [2, 1, 0]])
+    tilt = math.radians(25)  # 25 degrees off the line between them, still opposite
+    heading = np.array([[0.0, 1, 0], [0, -1, 0], [0, -1, 0], [0, 1, 0],
+                        [math.sin(tilt), math.cos(tilt), 0], [-math.sin(tilt), -math.cos(tilt), 0]])
+    plane = np.tile([0.0, 0.0, 1.0], (6, 1))
+    pi, pj = np.array([0, 2, 4]), np.array([1, 3, 5])
+    for mode, expected in (("orientation", [True, False, True]), ("cone", [True, False, False])):
+        grower.cone = mode == "cone"
+        # facing each other; opposite but facing away; opposite, facing, but aimed past each other
+        assert grower._pair_ok(pi, pj, points, heading, plane, math.inf).tolist() == expected

@@ -218,11 +218,14 @@ def test_rules_that_can_never_fire_are_named_with_the_rule_that_shadows_them():
 def _universe_texts(per_universe: int) -> list[str]:
     from genr8_dist.evolution.operators import random_genome
     from genr8_dist.grammar import list_universes, load_universe
+    from genr8_dist.phenotype import SURFACES, phenotype_of
     from genr8_dist.rng import stream
 
     texts = []
     for info in list_universes():
         universe = load_universe(info.name)
+        if phenotype_of(universe) is not SURFACES:
+            continue  # its texts are not HEMLS
         rng = stream(0, "test", "direct reader", info.name)
         for _ in range(per_universe):
             mapped = universe.map(random_genome(rng, 100, 255))

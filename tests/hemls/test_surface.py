@@ -79,3 +79,21 @@ def test_arrays_are_read_only_and_digest_tracks_vertex_bytes():
     moved = Surface(surface.vertices + 1e-12, surface.edges, surface.labels, surface.ages,
                     surface.region_offsets, surface.region_vertices, surface.perimeter())
     assert moved.digest() != surface.digest()
+
+
+def test_mirror_line_finds_a_line_of_symmetry_and_only_a_true_one():
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import parse
+
+    tiles = grow(load_system("four_sided_tiles"), Environment(steps=3)).surface
+    u = tiles.mirror_line()
+    assert u is not None and np.isclose(np.linalg.norm(u), 1.0)
+    # a bend that turns one way only has no mirror line
+    bent = grow(parse("A + A + A + A\nA -> A + A - A\nAngle 30\n"), Environment(steps=2)).surface
+    assert bent.mirror_line() is None
+    # the same vertices with one edge moved: vertices match, edges do not
+    moved = tiles.edges.copy()
+    moved[0] = (moved[0, 0], next(v for v in range(tiles.n_vertices) if v not in moved[0]))
+    other = Surface(tiles.vertices, moved, tiles.labels, tiles.ages, tiles.region_offsets,
+                    tiles.region_vertices, tiles.perimeter())
+    assert other.mirror_line() is None

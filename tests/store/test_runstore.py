@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -49,6 +50,12 @@ def generation(island: int, gen: int, pop: int = 5) -> list[Individual]:
 
 def epoch(gens: range, islands: int = 2, pop: int = 5) -> list[Individual]:
     return [ind for i in range(islands) for g in gens for ind in generation(i, g, pop)]
+
+
+def named(folder: Path, stem: str) -> Path:
+    """The one file of ``folder`` whose name is ``stem`` followed by its writer token."""
+    (found,) = [p for p in folder.iterdir() if re.fullmatch(re.escape(stem) + r"-[0-9a-f]{16}\.\w+", p.name)]
+    return found
 
 
 def tree(path: Path) -> dict[str, bytes]:
@@ -174,7 +181,8 @@ def test_an_old_snapshot_still_reads_after_its_files_were_compacted_away(tmp_pat
     for g in range(4, 4 + KEEP_MANIFESTS):
         store.commit(epoch(range(g, g + 1)))
     store.collect_garbage()
-    assert not (Path(store.path) / "individuals" / "part-0000000002.parquet").exists()
+    names = [p.name for p in (Path(store.path) / "individuals").iterdir()]
+    assert not [n for n in names if n.startswith("part-0000000002")]
     assert reader.load_generation(0, 1) == generation(0, 1)
     assert reader.individuals().num_rows == (4 + KEEP_MANIFESTS) * 10
 
@@ -251,7 +259,7 @@ def test_config_versions_and_the_one_in_force(store: RunStore) -> None:
         store.add_config(CONFIG, 7)
     with pytest.raises(ConfigError, match="configuration version 4: not valid TOML"):
         store.add_config("= 1", 12)
-    assert (Path(store.path) / "configs" / "v0003.toml").read_text().endswith("mutation = 0.3\n")
+    assert named(Path(store.path) / "configs", "v0003").read_text().endswith("mutation = 0.3\n")
 
 
 def test_events_are_numbered_in_order_with_their_details(store: RunStore) -> None:
@@ -284,15 +292,19 @@ def test_a_crash_between_data_and_manifest_leaves_nothing(
         store.commit(epoch(range(2, 4)), [Event("migration", 3)])
     monkeypatch.undo()
     data_files = os.listdir(Path(store.path) / "individuals")
-    assert len(data_files) == 2  # the orphan is on disk ...
+    assert len(data_files) == 1  # the failed commit removed the files it wrote, and only those
+    assert os.listdir(Path(store.path) / "events") == []
+    # a crash (no chance to clean) leaves its files: not part of the run, removed by the next writer
+    (Path(store.path) / "events" / "events-0000000003-0123456789abcdef.parquet").write_bytes(b"half")
+    (Path(store.path) / "events" / ".tmp-events-0000000003-999999999-01234567").write_bytes(b"half")
     reopened = RunStore.open(store.path)
-    assert reopened.committed_generations() == {0: 1, 1: 1}  # ... but not in the run
+    assert reopened.committed_generations() == {0: 1, 1: 1}
     assert reopened.individuals().num_rows == 20
     assert reopened.events().num_rows == 0
     assert reopened.verify() == []
     reopened.commit(epoch(range(2, 4)))
     assert reopened.individuals().num_rows == 40
-    assert reopened.collect_garbage() >= 1  # the orphaned events file
+    assert reopened.collect_garbage() == 2  # the orphaned events file and the dead writer's temporary
     assert len(os.listdir(Path(store.path) / "events")) == 0
 
 
@@ -346,34 +358,67 @@ def test_sigkill_at_any_moment_leaves_whole_commits(tmp_path: Path) -> None:
 
 # --- faults: detection and repair --------------------------------------------------------------
 
-def test_a_truncated_file_is_named_and_repair_falls_back_to_the_last_intact_commit(store: RunStore) -> None:
+def test_a_truncated_file_is_named_and_repair_keeps_every_later_commit(store: RunStore) -> None:
     store.commit(epoch(range(3)), [Event("migration", 2)])
     store.commit(epoch(range(3, 6)), [Event("migration", 5)])
     store.commit(epoch(range(6, 9)), [Event("migration", 8)])
-    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    victim = named(Path(store.path) / "individuals", "part-0000000003")
     victim.write_bytes(victim.read_bytes()[:-100])
     reopened = RunStore.open(store.path)
     problems = reopened.verify()
-    assert len(problems) == 1 and "part-0000000003.parquet: truncated" in problems[0]
-    with pytest.raises(StoreError, match=r"part-0000000003.parquet"):
-        reopened.individuals()
+    assert len(problems) == 1 and f"{victim.name}: truncated" in problems[0]
+    for read in (reopened.individuals, reopened.dataset, lambda: reopened.load_generation(0, 4)):
+        with pytest.raises(StoreError, match=re.escape(victim.name)):
+            read()
     assert reopened.repair() == problems
+    assert reopened.last_repair == (
+        f"dropped individuals/{victim.name} (30 individuals: islands 0-1, generations 3..5)")
     assert reopened.verify() == []
-    assert reopened.committed_generations() == {0: 2, 1: 2}
-    assert reopened.individuals().num_rows == 30
+    assert reopened.committed_generations() == {0: 8, 1: 8}  # commit 4 (generations 6..8) is kept
+    gens = sorted(set(reopened.individuals(columns=["generation"]).column(0).to_pylist()))
+    assert gens == [0, 1, 2, 6, 7, 8]
     events = reopened.events()
-    assert events.column("kind").to_pylist() == ["migration", "recovery"]
-    assert "part-0000000003.parquet" in events.column("detail")[1].as_py()
-    # the run goes on from the last intact generation
-    reopened.commit(epoch(range(3, 4)))
-    assert RunStore.open(store.path).committed_generations() == {0: 3, 1: 3}
-    assert reopened.load_generation(0, 3) == generation(0, 3)
+    assert events.column("kind").to_pylist() == ["migration", "migration", "migration", "recovery"]
+    assert victim.name in events.column("detail")[3].as_py()
+    assert "dropped individuals/" in events.column("detail")[3].as_py()
+    # the run goes on after its last generation
+    reopened.commit(epoch(range(9, 10)))
+    assert RunStore.open(store.path).committed_generations() == {0: 9, 1: 9}
+    assert reopened.load_generation(0, 9) == generation(0, 9)
+
+
+def test_repair_of_the_newest_commit_drops_it_with_its_events(store: RunStore) -> None:
+    store.commit(epoch(range(3)), [Event("migration", 2)])
+    store.commit(epoch(range(3, 6)), [Event("migration", 5)])
+    store.add_config(CONFIG + "x = 1\n", 6, events=[Event("intervention", 6)])
+    named(Path(store.path) / "individuals", "part-0000000003").unlink()
+    assert store.repair()
+    assert store.committed_generations() == {0: 2, 1: 2}
+    assert [c.version for c in store.configs()] == [1, 2]  # the later edit is kept
+    assert store.events().column("kind").to_pylist() == ["migration", "intervention", "recovery"]
+    assert "events-0000000003" in store.last_repair
+
+
+def test_a_damaged_configuration_is_restored_from_the_manifest(store: RunStore) -> None:
+    store.commit(epoch(range(3)))
+    store.add_config(CONFIG + "mutation = 0.2\n", 3)
+    store.commit(epoch(range(3, 5)))
+    for version in ("v0001", "v0002"):
+        named(Path(store.path) / "configs", version).write_text("[run]\nseed = 999\n")
+    reopened = RunStore.open(store.path)
+    with pytest.raises(StoreError, match=r"v0002-[0-9a-f]+\.toml: truncated or altered"):
+        reopened.config_for(4)
+    assert len(reopened.repair()) == 2
+    assert reopened.last_repair.startswith("dropped nothing; restored configuration version 1")
+    assert reopened.committed_generations() == {0: 4, 1: 4}
+    assert reopened.config_for(4).toml == CONFIG + "mutation = 0.2\n"
+    assert RunStore.open(store.path).verify() == []
 
 
 def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
-    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    victim = named(Path(store.path) / "individuals", "part-0000000003")
     data = bytearray(victim.read_bytes())
     data[len(data) // 2] ^= 0xFF
     victim.write_bytes(bytes(data))
@@ -384,23 +429,25 @@ def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
 def test_a_missing_individuals_file_is_named_by_every_reader(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
-    victim = Path(store.path) / "individuals" / "part-0000000003.parquet"
+    victim = named(Path(store.path) / "individuals", "part-0000000003")
     victim.unlink()
     for read in (store.dataset, store.individuals, lambda: store.load_generation(1, 3)):
-        with pytest.raises(StoreError, match=r"part-0000000003\.parquet: missing \(the manifest names it\)"):
+        with pytest.raises(StoreError, match=r"part-0000000003-[0-9a-f]+\.parquet: missing \(the manifest"):
             read()
     assert store.load_generation(1, 1) == generation(1, 1)  # the intact commit still reads
 
 
-def test_a_missing_events_file_is_repaired_too(store: RunStore) -> None:
+def test_a_missing_events_file_is_dropped_alone(store: RunStore) -> None:
+    store.record_event("start", generation=0)
     store.commit(epoch(range(2)), [Event("migration", 1)])
     store.commit(epoch(range(2, 4)), [Event("migration", 3)])
-    (Path(store.path) / "events" / "events-0000000003.parquet").unlink()
-    with pytest.raises(StoreError, match=r"events-0000000003.parquet: missing"):
+    named(Path(store.path) / "events", "events-0000000002").unlink()
+    with pytest.raises(StoreError, match=r"events-0000000002-[0-9a-f]+.parquet: missing"):
         store.events()
     store.repair()
-    assert store.committed_generations() == {0: 1, 1: 1}
-    assert store.events().column("kind").to_pylist() == ["migration", "recovery"]
+    assert store.committed_generations() == {0: 3, 1: 3}
+    assert store.events().column("kind").to_pylist() == ["migration", "migration", "recovery"]
+    assert "1 event(s), seq 0..0" in store.last_repair
 
 
 def test_repair_of_a_corrupt_compacted_file_uses_the_files_before_compaction(store: RunStore) -> None:
@@ -415,18 +462,66 @@ def test_repair_of_a_corrupt_compacted_file_uses_the_files_before_compaction(sto
     assert store.verify() == []
 
 
-def test_a_torn_manifest_is_skipped_and_reported(store: RunStore) -> None:
+def test_a_torn_newest_manifest_is_named_by_readers_and_repaired(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     torn = Path(store.path) / "_manifest" / "0000000003.json"
     torn.write_text('{"format": "genr8-run", "vers')
     reopened = RunStore.open(store.path)
     assert reopened.version == 2
-    assert reopened.verify() == [f"{torn}: manifest is torn or altered; the run is read from manifest 2"]
+    expected = f"{torn}: the newest manifest is torn or altered; the run would read as commit 2"
+    assert reopened.verify() == [expected]
+    with pytest.raises(StoreError, match="newest manifest is torn"):
+        reopened.individuals()
+    with pytest.raises(StoreError, match="repair the run before writing"):
+        reopened.commit(epoch(range(2, 3)))
     reopened.repair()
     assert not torn.exists()
     assert reopened.verify() == []
     reopened.commit(epoch(range(2, 3)))
     assert reopened.committed_generations() == {0: 2, 1: 2}
+
+
+def test_the_loss_of_the_newest_manifest_is_seen(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    store.commit(epoch(range(2, 4)))
+    (Path(store.path) / "_manifest" / "0000000003.json").unlink()
+    reopened = RunStore.open(store.path)
+    (problem,) = reopened.verify()
+    assert "0000000003.json: the newest manifest (commit 3, recorded in _manifest/HEAD) is missing" in problem
+    with pytest.raises(StoreError, match=r"newest manifest .* is missing"):
+        reopened.events()
+    reopened.repair()
+    assert "commit 3's manifest" in reopened.last_repair
+    assert reopened.committed_generations() == {0: 1, 1: 1}
+    assert RunStore.open(store.path).verify() == []
+
+
+def test_damage_to_an_older_manifest_is_reported(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    store.commit(epoch(range(2, 4)))
+    older = Path(store.path) / "_manifest" / "0000000002.json"
+    older.write_text("{}")
+    (problem,) = RunStore.open(store.path).verify()
+    assert problem.startswith(f"{older}: an older manifest is torn or altered")
+    assert RunStore.open(store.path).individuals().num_rows == 40  # the run itself is intact
+
+
+def test_a_manifest_naming_a_file_outside_the_run_is_not_followed(store: RunStore, tmp_path: Path) -> None:
+    import json
+
+    from genr8_dist.store.runstore import _encode_manifest
+
+    store.commit(epoch(range(2)))
+    outside = tmp_path / "secret.parquet"
+    outside.write_bytes(b"x")
+    path = Path(store.path) / "_manifest" / "0000000002.json"
+    for evil in ("../secret.parquet", str(outside), "individuals/../../secret.parquet"):
+        manifest = json.loads(path.read_text())
+        manifest["individuals"][0]["path"] = evil
+        newest = Path(store.path) / "_manifest" / "0000000003.json"
+        newest.write_bytes(_encode_manifest(dict(manifest, version=3)))
+        with pytest.raises(StoreError, match=r"0000000003\.json: the newest manifest is torn or altered"):
+            RunStore.open(store.path).individuals()
 
 
 def test_two_writers_cannot_both_commit(store: RunStore) -> None:
@@ -461,7 +556,7 @@ def test_commits_compact_by_themselves_and_old_files_go(tmp_path: Path) -> None:
     for g in range(3 * KEEP_MANIFESTS):
         store.commit(epoch(range(g, g + 1)))
     assert len(store.individual_files()) < 4
-    assert len(os.listdir(Path(store.path) / "_manifest")) <= KEEP_MANIFESTS
+    assert len(os.listdir(Path(store.path) / "_manifest")) <= KEEP_MANIFESTS + 1  # and HEAD
     on_disk = len(os.listdir(Path(store.path) / "individuals"))
     assert on_disk <= len(store.individual_files()) + 4 * 4
     assert store.individuals().num_rows == 3 * KEEP_MANIFESTS * 10

@@ -1,0 +1,89 @@
+"""The MAP-Elites archive (Mouret and Clune 2015): a grid over behaviour descriptors, one elite per cell.
+
+A *descriptor* is a stored per-surface value (a criterion's raw value, or ``n_vertices``, ``n_edges``,
+``n_regions``); the designer gives each a range and a number of bins, and a surface falls in the cell
+of its binned descriptors (values outside a range go to its edge bins). A cell keeps the lowest-fitness
+valid individual that fell in it, ties to the earlier one.
+
+The archive of an island is carried in its population: each generation starts with the previous
+generation's archive (its cells' elites, origin ``elite``), so the archive after generation g is a
+pure function of generation g's stored rows (``Grid.archive``). It is committed with every epoch as
+rows, resumes with them and is equal after a kill and a resume, with no state outside the run store.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = ["DESCRIPTOR_COUNTS", "Grid", "descriptor_value"]
+
+# The per-surface counts a descriptor may name besides the criteria.
+DESCRIPTOR_COUNTS: tuple[str, ...] = ("n_vertices", "n_edges", "n_regions")
+
+
+def descriptor_value(individual: Any, name: str) -> float:
+    """The value of descriptor ``name`` of an individual (a count, or a criterion's raw value)."""
+    if name in DESCRIPTOR_COUNTS:
+        return float(getattr(individual, name))
+    return float(individual.criteria.get(name, math.nan))
+
+
+@dataclass(frozen=True, slots=True)
+class Grid:
+    """The cells of the archive: per descriptor its name, its range ``[lo, hi]`` and its bins."""
+
+    descriptors: tuple[str, ...]
+    ranges: tuple[tuple[float, float], ...]
+    bins: tuple[int, ...]
+
+    @classmethod
+    def from_settings(cls, search: Any) -> Grid:
+        """The grid of a ``[search]`` section (``SearchSettings``)."""
+        return cls(tuple(search.descriptors), tuple(tuple(r) for r in search.ranges), tuple(search.bins))
+
+    @property
+    def size(self) -> int:
+        """How many cells the grid has."""
+        return math.prod(self.bins)
+
+    def cell(self, individual: Any) -> int | None:
+        """The cell index of a valid individual (row-major over the descriptors), ``None`` for an
+        invalid one or one whose descriptor is not finite."""
+        if not individual.valid:
+            return None
+        index = 0
+        for name, (lo, hi), n in zip(self.descriptors, self.ranges, self.bins, strict=True):
+            value = descriptor_value(individual, name)
+            if not math.isfinite(value):
+                return None
+            k = int((value - lo) / (hi - lo) * n) if hi > lo else 0
+            index = index * n + min(n - 1, max(0, k))
+        return index
+
+    def archive(self, individuals: Iterable[Any]) -> dict[int, Any]:
+        """Cell -> its elite among ``individuals`` (lowest fitness, ties to the earlier one)."""
+        cells: dict[int, Any] = {}
+        for ind in individuals:
+            c = self.cell(ind)
+            if c is None or not math.isfinite(ind.fitness):
+                continue
+            held = cells.get(c)
+            if held is None or ind.fitness < held.fitness:
+                cells[c] = ind
+        return cells
+
+    def coordinates(self, cell: int) -> tuple[int, ...]:
+        """The bin of each descriptor of ``cell``."""
+        out = []
+        for n in reversed(self.bins):
+            out.append(cell % n)
+            cell //= n
+        return tuple(reversed(out))
+
+    def elites(self, individuals: Sequence[Any], room: int) -> list[Any]:
+        """The archive's elites, best first, at most ``room`` of them (the best cells kept)."""
+        held = sorted(self.archive(individuals).values(), key=lambda ind: (ind.fitness, ind.index))
+        return held[:room]

@@ -1,0 +1,86 @@
+"""Multi-objective ranking (NSGA-II, Deb et al. 2002): non-dominated fronts and crowding distance.
+
+The objectives of an individual are the weighted deviations of chosen criteria from their targets
+(``FitnessSpec.deviations``), each minimised; an invalid individual has every objective ``inf`` and
+lands in the last front. ``rank 0`` is the non-dominated front. Plain numpy, no state: the ranks of
+a generation are a pure function of its rows.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+__all__ = ["crowding_distance", "non_dominated_ranks", "objectives_of", "pareto_order"]
+
+
+def objectives_of(criteria: Sequence[Mapping[str, float]], valid: Sequence[bool], spec,
+                  names: Sequence[str]) -> np.ndarray:
+    """The (N, k) matrix of the weighted deviations of ``names`` under ``spec`` (a ``FitnessSpec``);
+    a row of ``inf`` for an invalid individual."""
+    out = np.full((len(criteria), len(names)), np.inf)
+    for i, (raw, ok) in enumerate(zip(criteria, valid, strict=True)):
+        if ok:
+            out[i] = [spec[name].deviation(raw.get(name, np.nan)) for name in names]
+    return out
+
+
+def non_dominated_ranks(objectives: np.ndarray) -> np.ndarray:
+    """The front of each row of ``objectives`` (N, k), all minimised: 0 for the non-dominated rows,
+    1 for those dominated only by front 0, and so on. NaN counts as ``inf``."""
+    f = np.nan_to_num(np.asarray(objectives, dtype=np.float64), nan=np.inf)
+    n = len(f)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    if f.ndim != 2:
+        raise ValueError(f"objectives must be an (N, k) array, got shape {f.shape}")
+    # dominates[i, j]: row i dominates row j (no worse in every objective, better in one)
+    le = (f[:, None, :] <= f[None, :, :]).all(axis=2)
+    lt = (f[:, None, :] < f[None, :, :]).any(axis=2)
+    dominates = le & lt
+    count = dominates.sum(axis=0)             # how many rows dominate each row
+    ranks = np.full(n, -1, dtype=np.int64)
+    front = np.flatnonzero(count == 0)
+    rank = 0
+    while front.size:
+        ranks[front] = rank
+        count = count - dominates[front].sum(axis=0)
+        count[ranks >= 0] = -1
+        front = np.flatnonzero(count == 0)
+        rank += 1
+    return ranks
+
+
+def crowding_distance(objectives: np.ndarray, ranks: np.ndarray) -> np.ndarray:
+    """NSGA-II's crowding distance of each row within its front: the sum over objectives of the gap
+    between its neighbours, normalised by the front's range; ``inf`` for each front's extremes (and
+    for fronts of one or two)."""
+    f = np.nan_to_num(np.asarray(objectives, dtype=np.float64), nan=np.inf)
+    out = np.zeros(len(f))
+    for rank in np.unique(ranks):
+        members = np.flatnonzero(ranks == rank)
+        if members.size <= 2:
+            out[members] = np.inf
+            continue
+        for m in range(f.shape[1]):
+            values = f[members, m]
+            order = members[np.argsort(values, kind="stable")]
+            sorted_values = f[order, m]
+            out[order[0]] = out[order[-1]] = np.inf
+            span = sorted_values[-1] - sorted_values[0]
+            if not np.isfinite(span) or span <= 0:
+                continue
+            out[order[1:-1]] += (sorted_values[2:] - sorted_values[:-2]) / span
+    return out
+
+
+def pareto_order(objectives: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(ranks, position)``: each row's front, and its place in NSGA-II's order (front first, then
+    the larger crowding distance, then the lower index): position 0 is the best."""
+    ranks = non_dominated_ranks(objectives)
+    crowd = crowding_distance(objectives, ranks)
+    order = sorted(range(len(ranks)), key=lambda i: (int(ranks[i]), -float(crowd[i]), i))
+    position = np.empty(len(ranks), dtype=np.int64)
+    position[order] = np.arange(len(ranks))
+    return ranks, position

@@ -1,0 +1,464 @@
+"""What the studio shows, read from the run directory: progress, curves, a generation, one design, its
+surface as GLB, the environment's forces and boundaries.
+
+Everything comes from the run store (``RunStore``, ``genr8_dist.history``). A surface is grown again
+from the rewrite system the run recorded, in the environment of the configuration version that scored
+it: no universe is loaded, so no plugin code runs to show a design. Curves are computed once and then
+only for the generations committed since (``per_generation(since=...)``), so a live run of a million
+individuals updates in a fraction of a second.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import threading
+import time
+from collections import OrderedDict
+from typing import Any
+
+from genr8_dist.errors import StoreError
+
+__all__ = ["MAX_FACES", "RunView"]
+
+MAX_FACES = 20_000          # a surface with more triangles is decimated before it is sent
+MAX_EDGES = 30_000          # scaffold edges sent with a surface (every k-th one past this)
+GLB_CACHE = 256             # surfaces kept in memory
+LINEAGE_DEPTH = 12          # generations of the main line shown for a design
+
+
+def _finite(value: Any) -> float | None:
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+class RunView:
+    """A run directory as the studio reads it; thread-safe (the server answers requests in threads)."""
+
+    def __init__(self, run_dir: str) -> None:
+        self.run_dir = run_dir
+        self._store: Any = None
+        self._lock = threading.RLock()
+        self._curves: dict[str, Any] | None = None
+        self._curves_version = -1
+        self._surfaces: OrderedDict[str, bytes] = OrderedDict()
+        self._configs: dict[int, Any] = {}
+        self._seen: tuple[float, int] | None = None   # (time, individuals) when the newest commit was seen
+
+    # -- the store ----------------------------------------------------------------------------------
+    def store(self) -> Any:
+        """The run's store at its newest commit (``StoreError`` until the run directory is a run)."""
+        from genr8_dist.store import RunStore
+
+        with self._lock:
+            if self._store is None:
+                self._store = RunStore.open(self.run_dir)
+            else:
+                self._store.refresh()
+            return self._store
+
+    def config(self, version: int | None = None) -> Any:
+        """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
+        from genr8_dist.history._regrow import config_of
+
+        store = self.store()
+        if version is None:
+            version = int(store.configs()[-1].version)
+        with self._lock:
+            found = self._configs.get(version)
+            if found is None:
+                found = self._configs[version] = config_of(store, version)
+            return found
+
+    # -- progress -----------------------------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        """Progress and status: generation, individuals/s, time left, islands, queue, interventions."""
+        store = self.store()
+        config = self.config()
+        committed = store.committed_generations()
+        n = int(config.islands.count)
+        low = min((committed.get(i, -1) for i in range(n)), default=-1)
+        last = int(config.ea.generations)
+        events = self._events(store)
+        holder = store.running()
+        kinds = [e["kind"] for e in events]
+        paused = False
+        for e in events:
+            if e["kind"] == "pause":
+                paused = True
+            elif e["kind"] in ("continue", "resume", "start"):
+                paused = False
+        if holder is not None and holder.get("role") == "run":
+            status = "paused" if paused else "running"
+        elif low >= last and "complete" in kinds:
+            status = "complete"
+        else:
+            status = "stopped"
+        population = int(config.ea.population)
+        rate, left = self._rate(events, low, n * population, last, status)
+        curves = self.curves()
+        islands = []
+        for i in range(n):
+            best = curves["islands"].get(str(i), {}).get("best", [])
+            islands.append({"island": i, "generation": committed.get(i, -1),
+                            "best": best[-1] if best else None})
+        return {
+            "run_id": store.run_id, "path": str(store.path), "version": store.version, "status": status,
+            "generation": low, "last_generation": last, "islands": islands, "population": population,
+            "individuals_per_second": rate, "seconds_left": left,
+            "criteria": self._criteria(config),
+            "queued": [{"number": q.number, "kind": q.request.get("kind"),
+                        "label": _request_label(q.request)} for q in store.queued()],
+            "interventions": self._interventions(events),
+            "environment": self._environment_values(config),
+            "injectable": _builtin_universe(str(config.universe)),
+            "has": self._extras(store),
+        }
+
+    def _events(self, store: Any) -> list[dict[str, Any]]:
+        table = store.events()
+        out = []
+        for row in table.select(["kind", "generation", "island", "detail", "time"]).to_pylist():
+            row["detail"] = json.loads(row["detail"] or "{}")
+            row["time"] = row["time"].timestamp() if row["time"] is not None else None
+            out.append(row)
+        return out
+
+    def _rate(self, events: list[dict[str, Any]], low: int, per_generation: int, last: int,
+              status: str) -> tuple[float | None, float | None]:
+        """Individuals per second since the run last started or resumed, and seconds left."""
+        starts = [e for e in events if e["kind"] in ("start", "resume") and e["time"] is not None]
+        if not starts or low < 0:
+            return None, None
+        since = starts[-1]
+        first = since["generation"] if since["kind"] == "resume" else 0
+        done = max(0, low - first + 1) * per_generation
+        now = time.time()
+        if status != "running":
+            ends = [e["time"] for e in events if e["kind"] in ("complete", "interrupt", "pause")
+                    and e["time"] is not None and e["time"] >= since["time"]]
+            now = ends[-1] if ends else now
+        elapsed = now - since["time"]
+        if done <= 0 or elapsed <= 0:
+            return None, None
+        rate = done / elapsed
+        return rate, max(0, last - low) * per_generation / rate
+
+    def _criteria(self, config: Any) -> list[dict[str, Any]]:
+        spec = config.fitness
+        out = []
+        for name in self.store().criteria:
+            try:
+                term = spec[name]
+            except KeyError:
+                out.append({"name": name, "target": None, "weight": None})
+                continue
+            out.append({"name": name, "target": _finite(term.target), "weight": _finite(term.weight)})
+        return out
+
+    @staticmethod
+    def _environment_values(config: Any) -> dict[str, Any]:
+        env = config.environment
+        return {"steps": int(env.steps), "scale": [float(v) for v in env.scale],
+                "gravity": [float(v) for v in env.gravity],
+                "attractors": len(env.attractors), "repellers": len(env.repellers),
+                "boundaries": len(env.boundaries)}
+
+    @staticmethod
+    def _interventions(events: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        out = []
+        for e in events:
+            if e["kind"] not in ("intervention", "pause", "continue", "refused"):
+                continue
+            d = e["detail"]
+            parts: list[str] = []
+            if e["kind"] == "intervention":
+                parts += [f"{k} = {v}" for k, v in (d.get("changes") or {}).items()]
+                for item in d.get("injected") or ():
+                    parts.append(str(item.get("source")))
+                for item in d.get("hand_fitness") or ():
+                    parts.append(f"hand fitness {item['id']} = {item['fitness']:.4g}")
+                label = f"v{d.get('config_version')}"
+            elif e["kind"] == "refused":
+                parts.append(str(d.get("reason")))
+                label = "refused"
+            else:
+                label = e["kind"]
+            out.append({"kind": e["kind"], "generation": e["generation"], "label": label,
+                        "what": parts, "source": d.get("source", "edit")})
+        return out
+
+    @staticmethod
+    def _extras(store: Any) -> dict[str, bool]:
+        """Which of the search's results (clusters, Pareto front, MAP-Elites) the run holds."""
+        names = set(store.schema.names)
+        return {"pareto": "pareto_rank" in names, "clusters": "cluster" in names,
+                "map_elites": "niche" in names}
+
+    # -- curves -------------------------------------------------------------------------------------
+    def curves(self) -> dict[str, Any]:
+        """Per generation: the best and mean fitness over all islands, each island's best, and the
+        raw criteria of the generation's best design; plus the configuration versions' first
+        generations. Only the generations committed since the last call are read."""
+        store = self.store()
+        with self._lock:
+            if self._curves is not None and self._curves_version == store.version:
+                return self._curves
+            curves = self._curves or {"generation": [], "best": [], "mean": [], "best_id": [],
+                                      "islands": {}, "criteria": {}, "last": -1}
+            _add_generations(curves, store)
+            curves["versions"] = [{"version": int(c.version), "generation": int(c.effective_generation)}
+                                  for c in store.configs()]
+            self._curves, self._curves_version = curves, store.version
+            return curves
+
+    # -- generations and designs --------------------------------------------------------------------
+    def generation(self, generation: int | None = None) -> dict[str, Any]:
+        """The individuals of ``generation`` (default: the newest every island committed), best first."""
+        import pyarrow.compute as pc
+
+        store = self.store()
+        committed = store.committed_generations()
+        if not committed:
+            return {"generation": -1, "individuals": []}
+        newest = min(committed.values())
+        g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
+                   "config_version"]
+        table = store.individuals(columns=columns, filter=pc.field("generation") == g)
+        rows = table.to_pylist()
+        rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
+                                 r["island"], r["index"]))
+        for r in rows:
+            r["fitness"] = _finite(r["fitness"])
+        return {"generation": g, "newest": newest, "individuals": rows}
+
+    def individual(self, id: str) -> dict[str, Any]:
+        """One design: its row (criteria, rewrite system, provenance), its main line of ancestors, the
+        hand fitness a designer gave it, and the targets and weights it was scored under."""
+        from genr8_dist.history import individual, lineage
+
+        store = self.store()
+        row = individual(store, id).to_pylist()[0]
+        config = self.config(int(row["config_version"]))
+        crits = []
+        for c in self._criteria(config):
+            c["value"] = _finite(row.get(f"crit_{c['name']}"))
+            crits.append(c)
+        line = lineage(store, id, depth=LINEAGE_DEPTH).to_pylist()
+        main = [{"id": r["id"], "generation": r["generation"], "origin": r["origin"],
+                 "fitness": _finite(r["fitness"])} for r in line if r.get("main_line")]
+        hand = [h for e in self._events(store) if e["kind"] == "intervention"
+                for h in e["detail"].get("hand_fitness") or () if h["id"] == id]
+        return {
+            "id": row["id"], "island": row["island"], "generation": row["generation"], "index": row["index"],
+            "fitness": _finite(row["fitness"]), "valid": row["valid"], "stage": row["stage"],
+            "error": row["error"], "origin": row["origin"], "parents": row["parents"],
+            "config_version": row["config_version"], "text": row["text"], "genome_length": len(row["genome"]),
+            "counts": {"vertices": row["n_vertices"], "edges": row["n_edges"], "regions": row["n_regions"],
+                       "steps": row["steps_done"]},
+            "criteria": crits, "lineage": main, "hand_fitness": hand,
+        }
+
+    # -- surfaces -----------------------------------------------------------------------------------
+    def _grow(self, id: str) -> tuple[Any, Any]:
+        """The recorded rewrite system of ``id`` grown again in its configuration's environment."""
+        from genr8_dist.hemls import grow, parse
+        from genr8_dist.history import individual
+
+        row = individual(self.store(), id, ["text", "config_version", "surface_digest"]).to_pylist()[0]
+        if not row["text"] or row["surface_digest"] is None:
+            raise StoreError(f"{id} has no surface: it failed before growing one")
+        config = self.config(int(row["config_version"]))
+        return grow(parse(row["text"]), config.environment).surface, config
+
+    def surface_glb(self, id: str) -> bytes:
+        """``id``'s surface as GLB: its regions (decimated past ``MAX_FACES`` triangles) and its map's
+        edges as lines; cached."""
+        with self._lock:
+            found = self._surfaces.get(id)
+            if found is not None:
+                self._surfaces.move_to_end(id)
+                return found
+        surface, _ = self._grow(id)
+        data = _glb(surface)
+        with self._lock:
+            self._surfaces[id] = data
+            while len(self._surfaces) > GLB_CACHE:
+                self._surfaces.popitem(last=False)
+        return data
+
+    def download(self, id: str, kind: str) -> tuple[bytes, str]:
+        """``id``'s full surface as an ``obj``, ``glb`` or ``3dm`` file (bytes, media type)."""
+        from genr8_dist.export import mesh_of
+
+        surface, _ = self._grow(id)
+        if kind == "obj":
+            data = mesh_of(surface).export(file_type="obj", include_normals=False, include_texture=False,
+                                           digits=17, header="genr8_dist")
+            return (data.encode() if isinstance(data, str) else data), "text/plain"
+        if kind == "glb":
+            return mesh_of(surface).export(file_type="glb"), "model/gltf-binary"
+        if kind == "3dm":
+            return _rhino(surface, id), "application/octet-stream"
+        raise StoreError(f"unknown download format {kind!r}: obj, glb or 3dm")
+
+    def environment(self, version: int | None = None) -> dict[str, Any]:
+        """The environment of configuration ``version`` to draw: attractors, repellers, boundaries."""
+        from genr8_dist.environment import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
+
+        env = self.config(version).environment
+        boundaries: list[dict[str, Any]] = []
+        for b in env.boundaries:
+            if isinstance(b, SphereBoundary):
+                boundaries.append({"kind": "sphere", "centre": list(map(float, b.centre)),
+                                   "radius": float(b.radius)})
+            elif isinstance(b, BoxBoundary):
+                boundaries.append({"kind": "box", "min": list(map(float, b.min)),
+                                   "max": list(map(float, b.max))})
+            elif isinstance(b, PlaneBoundary):
+                boundaries.append({"kind": "plane", "point": list(map(float, b.point)),
+                                   "normal": list(map(float, b.normal))})
+            elif isinstance(b, MeshBoundary):
+                tri = b.triangles
+                step = max(1, math.ceil(len(tri) / 4000))
+                boundaries.append({"kind": "mesh", "triangles": tri[::step].round(4).tolist()})
+        return {
+            "attractors": [{"position": list(map(float, a.position)), "constant": float(a.constant)}
+                           for a in env.attractors],
+            "repellers": [{"position": list(map(float, r.position)), "constant": float(r.constant)}
+                          for r in env.repellers],
+            "boundaries": boundaries, "gravity": [float(v) for v in env.gravity],
+        }
+
+
+def _add_generations(curves: dict[str, Any], store: Any) -> None:
+    """Extend ``curves`` with the generations every island committed after ``curves["last"]``: one
+    read of five columns and Arrow's hash aggregation (a million rows in well under a second)."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    committed = store.committed_generations()
+    if not committed:
+        return
+    done = min(committed.values())
+    since = int(curves["last"])
+    if done <= since:
+        return
+    crits = [f"crit_{c}" for c in store.criteria]
+    span = (pc.field("generation") > since) & (pc.field("generation") <= done)
+    table = store.individuals(columns=["generation", "island", "index", "fitness", *crits],
+                              filter=span if since >= 0 or done < max(committed.values()) else None)
+    if table.num_rows == 0:
+        return
+    fitness = pc.if_else(pc.is_finite(table["fitness"]), table["fitness"], pa.scalar(None, pa.float64()))
+    table = table.set_column(table.schema.get_field_index("fitness"), "fitness", fitness)
+    per_island = table.group_by(["generation", "island"]).aggregate([("fitness", "min")])
+    per_gen = table.group_by("generation").aggregate([("fitness", "min"), ("fitness", "mean")])
+    per_gen = per_gen.sort_by("generation")
+    best_rows = table.join(per_gen.select(["generation", "fitness_min"]), keys=["generation", "fitness"],
+                           right_keys=["generation", "fitness_min"], join_type="inner")
+    best_rows = best_rows.sort_by([("generation", "ascending"), ("island", "ascending"),
+                                   ("index", "ascending")])
+    first: dict[int, dict[str, Any]] = {}
+    for row in best_rows.to_pylist():
+        first.setdefault(int(row["generation"]), row)
+    gens = np.asarray(per_gen["generation"].to_numpy(zero_copy_only=False), dtype=np.int64)
+    bests = per_gen["fitness_min"].to_pylist()
+    means = per_gen["fitness_mean"].to_pylist()
+    for g, best, mean in zip(gens.tolist(), bests, means, strict=True):
+        row = first.get(g)
+        curves["generation"].append(g)
+        curves["best"].append(_finite(best))
+        curves["mean"].append(_finite(mean))
+        curves["best_id"].append(f"{row['island']}-{g}-{row['index']}" if row else None)
+        for name in store.criteria:
+            curves["criteria"].setdefault(name, []).append(_finite(row[f"crit_{name}"]) if row else None)
+    island_rows = per_island.sort_by([("island", "ascending"), ("generation", "ascending")]).to_pylist()
+    for row in island_rows:
+        isl = curves["islands"].setdefault(str(row["island"]), {"generation": [], "best": []})
+        isl["generation"].append(int(row["generation"]))
+        isl["best"].append(_finite(row["fitness_min"]))
+    curves["last"] = done
+
+
+def _glb(surface: Any) -> bytes:
+    import numpy as np
+    import trimesh
+
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    scene = trimesh.Scene()
+    if len(faces):
+        mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
+        if len(faces) > MAX_FACES:
+            mesh = _decimate(mesh, MAX_FACES)
+        scene.add_geometry(mesh, geom_name="surface")
+    if len(edges):
+        if len(edges) > MAX_EDGES:
+            edges = edges[:: math.ceil(len(edges) / MAX_EDGES)]
+        path = trimesh.load_path(vertices[edges])
+        scene.add_geometry(path, geom_name="edges")
+    return scene.export(file_type="glb")
+
+
+def _decimate(mesh: Any, faces: int) -> Any:
+    """Vertex clustering: snap vertices to a grid coarse enough to leave about ``faces`` triangles."""
+    import numpy as np
+    import trimesh
+
+    extent = float(np.max(mesh.extents)) or 1.0
+    cells = max(8, int(math.sqrt(faces / 2)))
+    out = mesh
+    for _ in range(6):
+        size = extent / cells
+        snapped = np.round(mesh.vertices / size) * size
+        keys, inverse = np.unique(snapped, axis=0, return_inverse=True)
+        f = inverse.reshape(-1)[mesh.faces]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        f = np.unique(np.sort(f, axis=1), axis=0) if len(f) else f
+        out = trimesh.Trimesh(vertices=keys, faces=f, process=False, validate=False)
+        if len(f) <= faces:
+            return out
+        cells = int(cells * 0.7)
+    return out
+
+
+def _rhino(surface: Any, name: str) -> bytes:
+    import os
+    import tempfile
+    from pathlib import Path
+
+    from genr8_dist.history._regrow import _export_3dm
+
+    with tempfile.TemporaryDirectory(prefix="genr8-studio-") as tmp:
+        path = Path(tmp) / f"{name}.3dm"
+        _export_3dm(surface, path, name=name)
+        data = path.read_bytes()
+        os.unlink(path)
+        return data
+
+
+def _request_label(request: dict[str, Any]) -> str:
+    kind = request.get("kind")
+    if kind != "edit":
+        return str(kind)
+    edit = request.get("edit") or {}
+    parts = [str(a) for a in edit.get("assignments") or ()]
+    parts += [f"favour {i}" for i in edit.get("favour") or ()]
+    parts += [f"hand fitness {i} = {f:.4g}" for i, f in edit.get("hand_fitness") or ()]
+    parts += [f"inject {label}" for label, _ in edit.get("inject_systems") or ()]
+    if edit.get("generations"):
+        parts.append(f"{edit['generations']} more generations")
+    return ", ".join(parts) or "edit"
+
+
+def _builtin_universe(name: str) -> bool:
+    """Whether ``name`` is a universe shipped with genr8_dist (loading it runs no plugin code)."""
+    from genr8_dist.resources import grammars_dir
+
+    return name.isidentifier() and (grammars_dir() / f"{name}.lark").is_file()

@@ -1,0 +1,490 @@
+// genr8 studio: the page. Polls /api/state once a second; redraws curves when a commit lands; shows
+// the viewed generation's best designs in 3D (GLB grown by the server from the recorded rewrite
+// systems); every action is a POST to /api/act, recorded as `genr8 edit` records an intervention.
+import * as THREE from "three";
+import { OrbitControls } from "three/addons/controls/OrbitControls.js";
+import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
+
+const $ = (id) => document.getElementById(id);
+const ISLAND_COLOURS = ["#f2a541", "#59c3c3", "#e0662f", "#9b8cf2", "#7bd389", "#ef6f6c", "#f7d774",
+  "#4f9de0", "#d77fb8", "#a3c76c", "#c9925a", "#6fd0b0", "#b3a4ff", "#ff9e7a", "#8fb8de", "#e6c07b"];
+const islandColour = (i) => ISLAND_COLOURS[i % ISLAND_COLOURS.length];
+const fmt = (v, d = 4) => (v === null || v === undefined || !isFinite(v)) ? "–" :
+  Math.abs(v) < 1e-9 ? "0" : Number(v).toPrecision(d).replace(/\.?0+(e|$)/, "$1");
+const fmtTime = (s) => {
+  if (s === null || s === undefined || !isFinite(s)) return "–";
+  s = Math.round(s);
+  if (s >= 3600) return `${Math.floor(s / 3600)}h${String(Math.floor(s % 3600 / 60)).padStart(2, "0")}m`;
+  if (s >= 60) return `${Math.floor(s / 60)}m${String(s % 60).padStart(2, "0")}s`;
+  return `${s}s`;
+};
+
+const ui = { state: null, version: -1, viewGen: -1, follow: true, selected: null, generation: null,
+  designs: new Map(), loadingToken: 0, envVersion: null, env: null };
+window.studio = ui;   // read by the browser test
+
+// ---------------------------------------------------------------------------------------------- api
+async function getJSON(url) {
+  const r = await fetch(url, { credentials: "same-origin" });
+  const body = await r.json();
+  if (!r.ok) throw new Error(body.error || r.statusText);
+  return body;
+}
+async function act(body) {
+  try {
+    const r = await fetch("/api/act", { method: "POST", credentials: "same-origin",
+      headers: { "Content-Type": "application/json", "X-Genr8-Studio": "1" }, body: JSON.stringify(body) });
+    const answer = await r.json();
+    if (!r.ok) throw new Error(answer.error || r.statusText);
+    toast(answer.message);
+    poll();
+    return answer;
+  } catch (e) { toast(e.message, true); return null; }
+}
+let toastTimer = null;
+function toast(text, error = false) {
+  const t = $("toast");
+  t.textContent = text; t.className = "toast" + (error ? " error" : "");
+  clearTimeout(toastTimer); toastTimer = setTimeout(() => t.classList.add("hidden"), error ? 7000 : 4000);
+}
+
+// ------------------------------------------------------------------------------------------- header
+function showState(s) {
+  $("run-id").textContent = s.run_id;
+  const pill = $("status"); pill.textContent = s.status; pill.className = "pill " + s.status;
+  const g = Math.max(s.generation, 0);
+  $("gen-label").innerHTML = `generation <b>${s.generation}</b> of ${s.last_generation}` +
+    ` · ${s.islands.length} island${s.islands.length > 1 ? "s" : ""} × ${s.population}`;
+  $("gen-bar").style.width = `${Math.min(100, 100 * (s.generation + 1) / (s.last_generation + 1))}%`;
+  $("rate").textContent = s.individuals_per_second ? s.individuals_per_second.toFixed(1) : "–";
+  $("left").textContent = s.status === "complete" ? "done" : fmtTime(s.seconds_left);
+  const bests = s.islands.map((i) => i.best).filter((b) => b !== null);
+  $("best").textContent = bests.length ? fmt(Math.min(...bests)) : "–";
+  const pause = $("pause");
+  pause.disabled = !(s.status === "running" || s.status === "paused");
+  pause.textContent = s.status === "paused" ? "Continue" : "Pause";
+  $("islands").innerHTML = s.islands.map((i) =>
+    `<div class="chip"><i style="background:${islandColour(i.island)}"></i>i${i.island} · g${i.generation} · ${fmt(i.best, 3)}</div>`).join("");
+  const filter = $("island-filter");
+  if (filter.options.length !== s.islands.length + 1) {
+    filter.innerHTML = `<option value="">all</option>` + s.islands.map((i) => `<option value="${i.island}">${i.island}</option>`).join("");
+  }
+  $("interventions").innerHTML = s.interventions.length ? s.interventions.slice().reverse().map((e) =>
+    `<li class="${e.kind}"><b>gen ${e.generation}</b> · ${e.label} <small class="muted">(${e.source})</small>` +
+    `<span>${e.what.map(escapeHTML).join("<br>") || ""}</span></li>`).join("") :
+    `<li class="pause"><span>none yet — favour a design, set a fitness or change a weight</span></li>`;
+  $("queue").innerHTML = s.queued.map((q) => `<div>queued #${q.number}: ${escapeHTML(q.label)} — at the next epoch</div>`).join("");
+  fillSteer(s);
+}
+const escapeHTML = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
+
+// ------------------------------------------------------------------------------------------- charts
+const SVG = "http://www.w3.org/2000/svg";
+function el(name, attrs, parent) {
+  const e = document.createElementNS(SVG, name);
+  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
+  if (parent) parent.appendChild(e);
+  return e;
+}
+function extent(values) {
+  let lo = Infinity, hi = -Infinity;
+  for (const v of values) if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (lo === Infinity) return [0, 1];
+  if (hi - lo < 1e-12) { const p = Math.abs(lo) * 0.05 || 0.5; return [lo - p, hi + p]; }
+  return [lo, hi];
+}
+function path(xs, ys, sx, sy) {
+  let d = "", pen = false;
+  for (let i = 0; i < xs.length; i++) {
+    const y = ys[i];
+    if (y === null || !isFinite(y)) { pen = false; continue; }
+    d += `${pen ? "L" : "M"}${sx(xs[i]).toFixed(1)},${sy(y).toFixed(1)}`; pen = true;
+  }
+  return d;
+}
+function lineChart(svg, xs, series, opts = {}) {
+  svg.innerHTML = "";
+  const W = opts.width || 340, H = opts.height || 190, L = opts.left ?? 40, R = 8, T = opts.top ?? 20, B = opts.bottom ?? 18;
+  svg.setAttribute("viewBox", `0 0 ${W} ${H}`);
+  const [x0, x1] = xs.length ? [xs[0], Math.max(xs[xs.length - 1], xs[0] + 1)] : [0, 1];
+  let [y0, y1] = opts.yRange || extent(series.flatMap((s) => s.scale === false ? [] : s.ys).concat(opts.extraY || []));
+  const pad = (y1 - y0) * 0.06; y0 -= pad; y1 += pad;
+  const sx = (x) => L + (x - x0) / (x1 - x0) * (W - L - R);
+  const sy = (y) => T + (1 - (Math.min(Math.max(y, y0), y1) - y0) / (y1 - y0)) * (H - T - B);
+  if (opts.axes !== false) {
+    for (let k = 0; k <= 3; k++) {
+      const y = y0 + (y1 - y0) * k / 3;
+      el("line", { x1: L, x2: W - R, y1: sy(y), y2: sy(y), stroke: "#262e39", "stroke-width": 1 }, svg);
+      el("text", { x: L - 4, y: sy(y) + 3, "text-anchor": "end", class: "axis" }, svg).textContent = fmt(y, 3);
+    }
+    el("text", { x: L, y: H - 4, class: "axis" }, svg).textContent = x0;
+    el("text", { x: W - R, y: H - 4, "text-anchor": "end", class: "axis" }, svg).textContent = xs.length ? xs[xs.length - 1] : "";
+  }
+  // intervention markers with labels that never overlap: each goes to the first free row
+  const rows = [];
+  for (const m of opts.markers || []) {
+    const x = sx(m.x);
+    el("line", { x1: x, x2: x, y1: T - 2, y2: H - B, stroke: "#f2a541", "stroke-dasharray": "3 3", "stroke-opacity": 0.7 }, svg);
+    if (!opts.labels) continue;
+    const width = m.label.length * 5.2 + 6;
+    let row = rows.findIndex((right) => x - width / 2 > right + 3);
+    if (row < 0 && rows.length < 3) { row = rows.length; rows.push(-Infinity); }
+    if (row < 0) continue;
+    rows[row] = x + width / 2;
+    el("text", { x, y: 9 + row * 10, "text-anchor": "middle", class: "marker-label" }, svg).textContent = m.label;
+  }
+  for (const t of opts.targets || []) {
+    el("line", { x1: L, x2: W - R, y1: sy(t), y2: sy(t), stroke: "#8a94a3", "stroke-dasharray": "4 3", "stroke-width": 1 }, svg);
+  }
+  for (const s of series) {
+    el("path", { d: path(xs, s.ys, sx, sy), fill: "none", stroke: s.colour, "stroke-width": s.width || 1.5,
+      "stroke-opacity": s.opacity ?? 1, "stroke-linejoin": "round" }, svg);
+  }
+  if (opts.cursor !== undefined && opts.cursor >= x0) {
+    const x = sx(opts.cursor);
+    el("line", { x1: x, x2: x, y1: T - 2, y2: H - B, stroke: "#59c3c3", "stroke-opacity": 0.5 }, svg);
+  }
+}
+function markers(s) {
+  // one label per generation: interventions taking effect at the same generation are merged
+  const byGen = new Map();
+  for (const e of s.interventions) {
+    if (e.kind === "continue") continue;
+    const list = byGen.get(e.generation) || [];
+    list.push(e.label); byGen.set(e.generation, list);
+  }
+  return [...byGen].map(([g, labels]) => ({ x: g, label: labels.join("+") }));
+}
+let curves = null;
+function drawCurves() {
+  if (!curves || !ui.state) return;
+  const xs = curves.generation, s = ui.state;
+  const islands = Object.entries(curves.islands);
+  const series = [];
+  if (islands.length > 1) {
+    for (const [i, c] of islands) {
+      const ys = xs.map((g) => { const k = c.generation.indexOf(g); return k < 0 ? null : c.best[k]; });
+      series.push({ ys, colour: islandColour(Number(i)), width: 1, opacity: 0.45, scale: false });
+    }
+  }
+  series.push({ ys: curves.mean, colour: "#59c3c3", width: 1.5, opacity: 0.9 });
+  series.push({ ys: curves.best, colour: "#f2a541", width: 2.4 });
+  lineChart($("fitness-chart"), xs, series, { markers: markers(s), labels: true, cursor: ui.viewGen });
+  $("fitness-legend").innerHTML = `<span style="--c:#f2a541">best</span><span style="--c:#59c3c3">mean of the valid</span>` +
+    (islands.length > 1 ? `<span style="--c:#9b8cf2">each island's best (island colours)</span>` : "");
+  const box = $("criteria-charts");
+  if (box.children.length !== s.criteria.length) {
+    box.innerHTML = s.criteria.map((c) => `<figure><figcaption>${c.name.replace("_", " ")} <b id="cv-${c.name}"></b></figcaption>` +
+      `<svg id="cc-${c.name}" viewBox="0 0 160 62" preserveAspectRatio="none"></svg></figure>`).join("");
+  }
+  for (const c of s.criteria) {
+    const ys = curves.criteria[c.name] || [];
+    const targets = c.target !== null && c.weight ? [c.target] : [];
+    lineChart($(`cc-${c.name}`), xs, [{ ys, colour: c.weight ? "#59c3c3" : "#5f6977", width: 1.6 }],
+      { width: 160, height: 62, left: 4, top: 4, bottom: 4, axes: false, targets, extraY: targets,
+        markers: markers(s), labels: false });
+    const last = ys.length ? ys[ys.length - 1] : null;
+    $(`cv-${c.name}`).textContent = `${fmt(last, 3)}${targets.length ? " → " + fmt(c.target, 3) : ""}`;
+  }
+  document.body.dataset.curvePoints = String(xs.length);
+}
+
+// ---------------------------------------------------------------------------------------- 3D scene
+const viewport = $("viewport");
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true, alpha: true });
+renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+renderer.setClearColor(0x000000, 0);
+viewport.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+const camera = new THREE.PerspectiveCamera(40, 1, 0.01, 5000);
+camera.up.set(0, 0, 1);
+camera.position.set(12, -16, 11);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.enableDamping = true;
+scene.add(new THREE.HemisphereLight(0xdfe8ff, 0x2a2118, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 2.2); sun.position.set(8, -6, 14); scene.add(sun);
+const rim = new THREE.DirectionalLight(0x88aaff, 0.8); rim.position.set(-10, 12, 4); scene.add(rim);
+const world = new THREE.Group(); scene.add(world);
+const floor = new THREE.GridHelper(10, 10, 0x2b3440, 0x1c232c);
+floor.rotation.x = Math.PI / 2; scene.add(floor);
+const loader = new GLTFLoader();
+
+function resize() {
+  const w = viewport.clientWidth, h = viewport.clientHeight;
+  renderer.setSize(w, h, false); renderer.domElement.style.width = w + "px"; renderer.domElement.style.height = h + "px";
+  camera.aspect = w / Math.max(h, 1); camera.updateProjectionMatrix();
+}
+new ResizeObserver(resize).observe(viewport);
+resize();
+(function loop() { requestAnimationFrame(loop); controls.update(); renderer.render(scene, camera); })();
+
+const rankColour = (t) => new THREE.Color().lerpColors(new THREE.Color("#f2a541"), new THREE.Color("#4f9de0"), t);
+
+function labelSprite(text, colour) {
+  const c = document.createElement("canvas"); c.width = 512; c.height = 96;
+  const g = c.getContext("2d");
+  g.fillStyle = "rgba(14,17,22,0.78)"; g.beginPath(); g.roundRect(4, 12, 504, 72, 18); g.fill();
+  g.fillStyle = colour; g.fillRect(22, 38, 20, 20);
+  g.font = "500 38px ui-monospace, monospace"; g.fillStyle = "#e6e9ee"; g.textBaseline = "middle";
+  g.fillText(text, 56, 49);
+  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: new THREE.CanvasTexture(c), depthTest: false, transparent: true }));
+  sprite.renderOrder = 10;
+  return sprite;
+}
+
+function environmentGroup(env, size) {
+  const g = new THREE.Group();
+  const r = Math.max(size * 0.028, 0.05);
+  const ball = (p, colour) => {
+    const m = new THREE.Mesh(new THREE.SphereGeometry(r, 20, 14), new THREE.MeshStandardMaterial({ color: colour, emissive: colour, emissiveIntensity: 0.45 }));
+    m.position.set(...p); g.add(m);
+    const stem = new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(p[0], p[1], 0), new THREE.Vector3(...p)]);
+    g.add(new THREE.Line(stem, new THREE.LineDashedMaterial({ color: colour, dashSize: r, gapSize: r, transparent: true, opacity: 0.5 })).computeLineDistances());
+  };
+  env.attractors.forEach((a) => ball(a.position, "#7bd389"));
+  env.repellers.forEach((a) => ball(a.position, "#ef6f6c"));
+  const lineMat = new THREE.LineBasicMaterial({ color: 0x8a94a3, transparent: true, opacity: 0.28 });
+  for (const b of env.boundaries) {
+    if (b.kind === "sphere") {
+      const w = new THREE.LineSegments(new THREE.WireframeGeometry(new THREE.SphereGeometry(b.radius, 18, 12)), lineMat);
+      w.position.set(...b.centre); g.add(w);
+    } else if (b.kind === "box") {
+      g.add(new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max)), 0x8a94a3));
+    } else if (b.kind === "plane") {
+      const grid = new THREE.GridHelper(size, 8, 0x8a94a3, 0x59636f);
+      grid.material.transparent = true; grid.material.opacity = 0.35;
+      grid.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), new THREE.Vector3(...b.normal).normalize());
+      grid.position.set(...b.point); g.add(grid);
+    } else if (b.kind === "mesh") {
+      const pts = [];
+      for (const [a, bb, c] of b.triangles) { pts.push(a, bb, bb, c, c, a); }
+      const geo = new THREE.BufferGeometry().setFromPoints(pts.map((p) => new THREE.Vector3(...p)));
+      g.add(new THREE.LineSegments(geo, lineMat));
+    }
+  }
+  return g;
+}
+
+function layout() {
+  const items = [...ui.designs.values()].filter((d) => d.object);
+  if (!items.length) return;
+  let size = 1;
+  for (const d of items) size = Math.max(size, d.size);
+  const cell = size * 1.35, cols = Math.ceil(Math.sqrt(ui.order.length));
+  ui.order.forEach((id, k) => {
+    const d = ui.designs.get(id); if (!d || !d.object) return;
+    const col = k % cols, row = Math.floor(k / cols);
+    d.holder.position.set((col - (cols - 1) / 2) * cell, -(row - (Math.ceil(ui.order.length / cols) - 1) / 2) * cell, 0);
+    d.label.position.set(d.centre.x, d.centre.y - size * 0.66, 0.02);
+    d.label.scale.set(size * 0.9, size * 0.169, 1);
+  });
+  ui.cell = cell;
+  const rows = Math.ceil(ui.order.length / cols);
+  floor.scale.set(cols * cell / 10, 1, rows * cell / 10);
+}
+
+function frame(box) {
+  const c = box.getCenter(new THREE.Vector3()), s = box.getSize(new THREE.Vector3()).length() || 1;
+  controls.target.copy(c);
+  const distance = (s / 2) / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2)) * (camera.aspect < 1 ? 1.5 : 1.05);
+  camera.position.copy(c).add(new THREE.Vector3(0.45, -0.75, 0.75).normalize().multiplyScalar(distance));
+  camera.near = s / 500; camera.far = s * 50; camera.updateProjectionMatrix();
+}
+function frameAll() { const b = new THREE.Box3().setFromObject(world); if (!b.isEmpty()) frame(b); }
+
+async function showDesigns(ids, generationRows) {
+  const token = ++ui.loadingToken;
+  for (const d of ui.designs.values()) world.remove(d.holder);
+  ui.designs.clear(); ui.order = ids;
+  document.body.dataset.surfaces = "0";
+  if (!ids.length) return;
+  $("loading").classList.remove("hidden");
+  const rows = new Map(generationRows.map((r) => [r.id, r]));
+  let loaded = 0, first = true;
+  const queue = ids.slice();
+  const work = async () => {
+    while (queue.length) {
+      const id = queue.shift();
+      const rank = ids.indexOf(id);
+      try {
+        const gltf = await loader.loadAsync(`/api/surface?id=${id}`);
+        if (token !== ui.loadingToken) return;
+        const holder = new THREE.Group(), object = gltf.scene;
+        const colour = rankColour(ids.length > 1 ? rank / (ids.length - 1) : 0);
+        object.traverse((o) => {
+          if (o.isMesh) {
+            o.geometry.computeVertexNormals();
+            o.material = new THREE.MeshStandardMaterial({ color: colour, roughness: 0.55, metalness: 0.05, side: THREE.DoubleSide,
+              polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 });
+            o.userData.id = id;
+          } else if (o.isLine || o.isLineSegments) {
+            o.material = new THREE.LineBasicMaterial({ color: 0x0e1116, transparent: true, opacity: 0.45 });
+          }
+        });
+        const box = new THREE.Box3().setFromObject(object);
+        const row = rows.get(id) || {};
+        const label = labelSprite(`${id}  ${fmt(row.fitness, 3)}`, islandColour(row.island ?? 0));
+        holder.add(object, label);
+        if (ui.env && $("show-env").checked) holder.add(environmentGroup(ui.env, box.getSize(new THREE.Vector3()).length()));
+        world.add(holder);
+        const size = Math.max(box.getSize(new THREE.Vector3()).x, box.getSize(new THREE.Vector3()).y, 1e-3);
+        ui.designs.set(id, { id, holder, object, label, colour, size, centre: box.getCenter(new THREE.Vector3()) });
+        loaded++;
+        document.body.dataset.surfaces = String(loaded);
+        layout();
+        if (first) { first = false; frameAll(); } else if (loaded === ids.length) frameAll();
+        if (ui.selected === id) highlight();
+      } catch (e) {
+        // a design without a surface (failed before growth) is left out of the view
+      }
+    }
+  };
+  await Promise.all([work(), work(), work()]);
+  if (token === ui.loadingToken) { $("loading").classList.add("hidden"); layout(); frameAll(); highlight(); }
+}
+
+let outline = null;
+function highlight() {
+  if (outline) { world.remove(outline); outline = null; }
+  for (const d of ui.designs.values()) d.object.traverse((o) => { if (o.isMesh) o.material.emissive?.set(0x000000); });
+  const d = ui.designs.get(ui.selected);
+  if (!d) return;
+  d.object.traverse((o) => { if (o.isMesh) { o.material.emissive.set(0x5a3a08); } });
+  d.holder.updateMatrixWorld(true);
+  outline = new THREE.Box3Helper(new THREE.Box3().setFromObject(d.object), 0xf2a541);
+  world.add(outline);
+}
+
+// click to select (a press that did not drag)
+const ray = new THREE.Raycaster(); let pressed = null;
+renderer.domElement.addEventListener("pointerdown", (e) => { pressed = [e.clientX, e.clientY]; });
+renderer.domElement.addEventListener("pointerup", (e) => {
+  if (!pressed || Math.hypot(e.clientX - pressed[0], e.clientY - pressed[1]) > 4) return;
+  const r = renderer.domElement.getBoundingClientRect();
+  ray.setFromCamera(new THREE.Vector2((e.clientX - r.left) / r.width * 2 - 1, -(e.clientY - r.top) / r.height * 2 + 1), camera);
+  const hit = ray.intersectObjects(world.children, true).find((h) => h.object.userData.id);
+  if (hit) select(hit.object.userData.id);
+});
+
+// ------------------------------------------------------------------------------------ generations
+async function loadGeneration(g) {
+  const data = await getJSON(`/api/generation?g=${g}`);
+  ui.generation = data; ui.viewGen = data.generation;
+  $("gen-view").textContent = `generation ${data.generation}`;
+  document.body.dataset.generation = String(data.generation);
+  const island = $("island-filter").value;
+  const rows = data.individuals.filter((r) => island === "" || String(r.island) === island);
+  $("gen-list").innerHTML = rows.slice(0, 80).map((r) =>
+    `<div data-id="${r.id}" class="${r.valid ? "" : "invalid"}${r.id === ui.selected ? " selected" : ""}">` +
+    `<b><i style="color:${islandColour(r.island)}">■</i> ${r.id}</b><span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
+  const version = rows.length ? rows[0].config_version : null;
+  if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
+  const count = Number($("count").value);
+  showDesigns(rows.filter((r) => r.valid).slice(0, count).map((r) => r.id), rows);
+  drawCurves();
+}
+$("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
+$("gen-prev").onclick = () => { $("follow").checked = ui.follow = false; if (ui.viewGen > 0) loadGeneration(ui.viewGen - 1); };
+$("gen-next").onclick = () => { if (ui.state && ui.viewGen < ui.state.generation) loadGeneration(ui.viewGen + 1); };
+$("follow").onchange = (e) => { ui.follow = e.target.checked; if (ui.follow && ui.state) loadGeneration(ui.state.generation); };
+$("count").onchange = () => loadGeneration(ui.viewGen);
+$("island-filter").onchange = () => loadGeneration(ui.viewGen);
+$("show-env").onchange = () => loadGeneration(ui.viewGen);
+$("focus").onclick = () => { const d = ui.designs.get(ui.selected); if (d) { d.holder.updateMatrixWorld(true); frame(new THREE.Box3().setFromObject(d.object)); } };
+$("overview").onclick = frameAll;
+
+// ------------------------------------------------------------------------------------------ design
+async function select(id) {
+  ui.selected = id;
+  document.querySelectorAll("#gen-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
+  highlight();
+  let d;
+  try { d = await getJSON(`/api/individual?id=${id}`); } catch (e) { toast(e.message, true); return; }
+  if (ui.selected !== id) return;
+  $("design-empty").classList.add("hidden"); $("design").classList.remove("hidden");
+  $("d-id").textContent = d.id;
+  $("d-fitness").textContent = fmt(d.fitness, 4);
+  const parents = d.parents.length ? ` of ${d.parents.join(" × ")}` : "";
+  $("d-origin").textContent = `island ${d.island} · generation ${d.generation} · ${d.origin}${parents} · config v${d.config_version}` +
+    (d.hand_fitness.length ? ` · hand fitness ${d.hand_fitness.map((h) => fmt(h.fitness, 3)).join(", ")}` : "");
+  $("hand-value").value = d.fitness !== null ? Number(d.fitness).toPrecision(4) : "";
+  const maxDev = Math.max(1e-9, ...d.criteria.map((c) => c.weight && c.value !== null && c.target !== null ? c.weight * Math.abs(c.value - c.target) : 0));
+  $("d-criteria").innerHTML = `<tr><th>criterion</th><th style="text-align:right">value</th><th style="text-align:right">target</th><th style="text-align:right">weight</th><th></th></tr>` +
+    d.criteria.map((c) => {
+      const dev = c.weight && c.value !== null && c.target !== null ? c.weight * Math.abs(c.value - c.target) : 0;
+      return `<tr><th>${c.name.replace("_", " ")}</th><td>${fmt(c.value, 3)}</td><td>${fmt(c.target, 3)}</td><td>${fmt(c.weight, 3)}</td>` +
+        `<td class="dev"><div class="devbar" style="width:${(100 * dev / maxDev).toFixed(0)}%"></div></td></tr>`;
+    }).join("");
+  for (const kind of ["obj", "glb", "3dm"]) { const a = $(`dl-${kind}`); a.href = `/api/download?id=${d.id}&format=${kind}`; }
+  $("d-lineage").innerHTML = d.lineage.map((r) => `<li data-id="${r.id}">${r.id}<span>${r.origin}</span>${fmt(r.fitness, 3)}</li>`).join("");
+  $("d-text").textContent = d.text || `(no rewrite system: failed at ${d.stage}: ${d.error})`;
+  document.body.dataset.selected = id;
+}
+$("d-lineage").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
+$("favour").onclick = () => ui.selected && act({ action: "favour", ids: [ui.selected] });
+$("hand-set").onclick = () => {
+  const v = Number($("hand-value").value);
+  if (!ui.selected || $("hand-value").value === "" || !isFinite(v)) { toast("type a fitness (a number >= 0, lower is better)", true); return; }
+  act({ action: "hand_fitness", id: ui.selected, fitness: v });
+};
+
+// ------------------------------------------------------------------------------------------- steer
+let steerFilled = false;
+function fillSteer(s) {
+  if (steerFilled) return;
+  steerFilled = true;
+  $("weights").innerHTML = `<thead><tr><th>criterion</th><th>target</th><th>weight</th></tr></thead>` + s.criteria.map((c) =>
+    `<tr><th>${c.name.replace("_", " ")}</th><td><input data-key="fitness.${c.name}.target" value="${c.target ?? ""}"></td>` +
+    `<td><input data-key="fitness.${c.name}.weight" value="${c.weight ?? ""}"></td></tr>`).join("");
+  $("weights").querySelectorAll("input").forEach((i) => { i.dataset.was = i.value; });
+  $("env-gravity").value = JSON.stringify(s.environment.gravity);
+  $("env-scale").value = JSON.stringify(s.environment.scale);
+  $("env-gravity").dataset.was = $("env-gravity").value; $("env-scale").dataset.was = $("env-scale").value;
+  $("inject").disabled = !s.injectable;
+  if (!s.injectable) $("inject").title = "the run's universe is a plugin: the studio runs no plugin code";
+}
+$("apply-weights").onclick = async () => {
+  const changed = [...$("weights").querySelectorAll("input")].filter((i) => i.value !== i.dataset.was && i.value !== "");
+  if (!changed.length) { toast("change a target or a weight first", true); return; }
+  if (await act({ action: "set", assignments: changed.map((i) => `${i.dataset.key}=${i.value}`) })) changed.forEach((i) => { i.dataset.was = i.value; });
+};
+$("apply-env").onclick = () => {
+  const a = [];
+  for (const [id, key] of [["env-gravity", "environment.gravity"], ["env-scale", "environment.scale"]]) {
+    const i = $(id); if (i.value && i.value !== i.dataset.was) a.push(`${key}=${i.value}`);
+  }
+  if ($("env-other").value.trim()) a.push($("env-other").value.trim());
+  if (!a.length) { toast("change the environment first", true); return; }
+  act({ action: "set", assignments: a });
+};
+$("inject").onclick = () => act({ action: "inject", text: $("inject-text").value, island: $("inject-island").value });
+$("add-generations").onclick = () => act({ action: "generations", generations: Number($("more").value) });
+$("pause").onclick = () => act({ action: ui.state && ui.state.status === "paused" ? "continue" : "pause" });
+document.querySelectorAll(".tabs button").forEach((b) => b.onclick = () => {
+  document.querySelectorAll(".tabs button").forEach((x) => x.classList.toggle("active", x === b));
+  $("tab-design").classList.toggle("hidden", b.dataset.tab !== "design");
+  $("tab-steer").classList.toggle("hidden", b.dataset.tab !== "steer");
+});
+
+// -------------------------------------------------------------------------------------------- poll
+let polling = false;
+async function poll() {
+  if (polling) return;
+  polling = true;
+  try {
+    const s = await getJSON("/api/state");
+    ui.state = s;
+    showState(s);
+    if (s.version !== ui.version) {
+      ui.version = s.version;
+      curves = await getJSON("/api/curves");
+      drawCurves();
+      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) await loadGeneration(s.generation);
+    }
+  } catch (e) {
+    $("status").textContent = e.message.includes("not a run") || e.message.includes("no such run") ? "starting" : "waiting";
+    $("status").className = "pill stopped";
+  } finally { polling = false; }
+}
+poll();
+setInterval(poll, 1000);

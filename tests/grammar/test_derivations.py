@@ -1,0 +1,47 @@
+"""Sensible initialisation: sampled derivations are read by the mapper exactly as they were drawn."""
+
+from __future__ import annotations
+
+import pytest
+
+from genr8_dist.grammar import list_universes, load_universe
+from genr8_dist.grammar.derivations import ramped_genomes, sample_derivation
+from genr8_dist.rng import stream
+
+UNIVERSES = [info.name for info in list_universes()]
+
+
+@pytest.mark.parametrize("name", UNIVERSES)
+def test_the_mapper_reads_the_derivation_that_was_drawn(name):
+    universe = load_universe(name)
+    mapper = universe.mapper(5)
+    rng = stream(3, "derivations", name)
+    for i in range(60):
+        sample = sample_derivation(universe, rng, max_depth=5, limit=2 + i % 4,
+                                   method=("grow", "full")[i % 2], codon_max=255)
+        assert all(0 <= c <= 255 for c in sample.codons)
+        codons = iter(sample.codons + [0] * 10_000)
+        out: list[str] = []
+        mapper.derive(codons.__next__, out, set().add)
+        assert out == sample.tokens
+        assert sample.height <= 5
+
+
+def test_full_trees_are_deeper_than_grown_ones():
+    universe = load_universe("default")
+    rng = stream(4, "depth")
+    heights = {m: [sample_derivation(universe, rng, max_depth=6, limit=6, method=m, codon_max=255).height
+                   for _ in range(40)] for m in ("grow", "full")}
+    assert min(heights["full"]) == 6
+    assert sum(heights["full"]) > sum(heights["grow"])
+
+
+def test_ramped_genomes_are_seeded_valid_and_at_least_as_long_as_asked():
+    universe = load_universe("default")
+    a = ramped_genomes(universe, stream(5, "r"), 12, length=60, codon_max=255, max_depth=5)
+    b = ramped_genomes(universe, stream(5, "r"), 12, length=60, codon_max=255, max_depth=5)
+    assert a == b and len(a) == 12
+    assert all(len(g) >= 60 for g in a)
+    assert all(universe.map(g, max_depth=5, max_wraps=2).valid for g in a)
+    with pytest.raises(ValueError, match="method"):
+        sample_derivation(universe, stream(1), max_depth=5, limit=5, method="half", codon_max=255)

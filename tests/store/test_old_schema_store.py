@@ -1,0 +1,67 @@
+"""Runs keep their own schema: the checked-in run written by store schema version 1
+(tests/data/run-schema-v1) opens, answers history queries and takes commits in its own schema."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from genr8_dist import history
+from genr8_dist.cli import main
+from genr8_dist.store import SCHEMA_VERSION, RunStore
+
+FIXTURE = Path(__file__).resolve().parents[1] / "data" / "run-schema-v1"
+V1_COLUMNS = ["run_id", "id", "island", "generation", "index", "genome", "text", "valid", "stage", "error",
+              "fitness", "crit_size", "crit_smoothness", "crit_undulation", "crit_subdivisions",
+              "crit_symmetry", "crit_soft_boundary", "origin", "parents", "config_version", "codons_used",
+              "wraps", "n_vertices", "n_edges", "n_regions", "steps_done", "capped", "surface_digest",
+              "eval_seconds", "map_seconds", "grow_seconds", "score_seconds"]
+
+
+@pytest.fixture
+def old_run(tmp_path):
+    """A writable copy of the version-1 run."""
+    return Path(shutil.copytree(FIXTURE, tmp_path / "run"))
+
+
+def test_an_old_run_is_read_with_the_schema_it_was_written_with():
+    store = RunStore.open(FIXTURE)
+    assert store.schema_version == 1 < SCHEMA_VERSION
+    assert sorted(store.schema.names) == sorted(V1_COLUMNS)
+    assert store.verify() == []
+    assert store.committed_generations() == {0: 1, 1: 2}
+    table = store.individuals()
+    assert table.num_rows == 6 * (2 + 3)
+    assert store.config(1).ea.generations == 4
+
+
+def test_an_old_run_answers_history_queries(capsys):
+    per_gen = history.per_generation(FIXTURE)
+    assert [(r["generation"], r["island"]) for r in per_gen.to_pylist()] == [
+        (0, 0), (0, 1), (1, 0), (1, 1), (2, 1)]
+    best = history.top(FIXTURE, 3)
+    assert best.num_rows == 3 and best["rank"].to_pylist() == [1, 2, 3]
+    tree = history.lineage(FIXTURE, best["id"][0].as_py())
+    assert tree.num_rows >= 1
+    counted = history.query(FIXTURE, "select count(*) as n from individuals")
+    assert counted["n"].to_pylist() == [30]
+    assert main(["top", str(FIXTURE), "-k", "2"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[:5] == ["rank", "id", "gen", "isl", "fitness"] and len(out) == 3
+
+
+def test_an_old_run_takes_commits_in_its_own_schema_and_compacts(old_run):
+    store = RunStore.open(old_run)
+    more = store.load_generation(0, 1)
+    from dataclasses import replace
+
+    store.commit([replace(ind, generation=2) for ind in more])
+    store.compact(target_rows=10_000)
+    again = RunStore.open(old_run)
+    assert again.schema_version == 1 and again.verify() == []
+    assert len(again.individual_files()) == 1  # the old file and the new one merged
+    assert again.committed_generations() == {0: 2, 1: 2}
+    assert [i.genome for i in again.load_generation(0, 2)] == [i.genome for i in more]
+    assert sorted(again.individuals().column_names) == sorted(V1_COLUMNS)

@@ -1,0 +1,216 @@
+"""The studio in a real browser (headless Chromium through Selenium): a short run started with
+``--studio``, its curves and surfaces drawn, a design favoured and another given a hand fitness
+through the page while the run is paused, both recorded at the generation the run went on from, and
+the steered run replayed with ``genr8 edit`` and ``genr8 resume`` equal to it row for row.
+
+Screenshots of the start, middle and end go to ``$GENR8_STUDIO_SHOTS`` when set (else the test's
+temporary folder)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+CHROMIUM = shutil.which("chromium")
+DRIVER = shutil.which("chromedriver")
+
+CONFIG = """\
+universe = "default"
+seed = 11
+
+[genome]
+length = 40
+max_depth = 5
+
+[ea]
+population = 10
+generations = {generations}
+elites = 1
+tournament = 2
+
+[environment]
+steps = 3
+scale = 1.5
+
+[[environment.attractors]]
+position = [0.0, 0.0, 2.5]
+constant = 1.5
+
+[islands]
+count = 2
+migration_interval = 2
+migrants = 1
+"""
+
+
+def _rows(run_dir):
+    from genr8_dist.store import TIMING_COLUMNS, RunStore
+
+    table = RunStore.open(run_dir).individuals().drop_columns([*TIMING_COLUMNS, "run_id"])
+    table = table.sort_by([("island", "ascending"), ("generation", "ascending"), ("index", "ascending")])
+    return [{k: ("nan" if isinstance(v, float) and v != v else v) for k, v in r.items()}
+            for r in table.to_pylist()]
+
+
+def _genr8(*args, timeout=300):
+    proc = subprocess.run([sys.executable, "-m", "genr8_dist.cli", *args], capture_output=True, text=True,
+                          timeout=timeout)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def _browser():
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1600,1000",
+                "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--disable-background-networking"):
+        options.add_argument(arg)
+    options.binary_location = CHROMIUM
+    return webdriver.Chrome(service=Service(DRIVER), options=options)
+
+
+def _wait(what, check, timeout):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = check()
+        if value:
+            return value
+        time.sleep(0.25)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def _canvas_is_drawn(driver, shot: Path) -> int:
+    """Save a screenshot; the number of distinct colours inside the 3D canvas (a blank one has 1-2)."""
+    from PIL import Image
+
+    driver.save_screenshot(str(shot))
+    rect = driver.execute_script(
+        "const r = document.querySelector('#viewport canvas').getBoundingClientRect();"
+        "return [r.left, r.top, r.right, r.bottom, window.devicePixelRatio];")
+    left, top, right, bottom, ratio = rect
+    image = Image.open(shot).convert("RGB")
+    box = tuple(int(v * ratio) for v in (left, top, right, bottom))
+    return len(image.crop(box).getcolors(maxcolors=1 << 20) or [])
+
+
+@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
+                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
+def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path):
+    pytest.importorskip("selenium")
+    pytest.importorskip("PIL")
+    from selenium.webdriver.common.by import By
+
+    from genr8_dist.store import RunStore
+
+    shots = Path(os.environ.get("GENR8_STUDIO_SHOTS") or tmp_path)
+    shots.mkdir(parents=True, exist_ok=True)
+    last = 40
+    config = tmp_path / "run.toml"
+    config.write_text(CONFIG.format(generations=last))
+    live = tmp_path / "live"
+    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(config),
+                             "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
+    reader.start()
+    driver = None
+    try:
+        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
+                                                    if ln.startswith("studio: http")), None), 120)
+        driver = _browser()
+        driver.get(url)
+        body = driver.find_element(By.TAG_NAME, "body")
+
+        def data(name):
+            return body.get_attribute(f"data-{name}")
+
+        _wait("curves and a surface", lambda: int(data("curve-points") or 0) >= 1
+              and int(data("surfaces") or 0) >= 1, 180)
+        time.sleep(1.5)
+        assert _canvas_is_drawn(driver, shots / "studio-start.png") > 50
+
+        # pause the run between epochs, then steer it through the page
+        driver.find_element(By.ID, "pause").click()
+        _wait("the run to pause", lambda: driver.find_element(By.ID, "status").text.lower() == "paused", 120)
+        paused_at = RunStore.open(live).committed_generations()
+        assert min(paused_at.values()) < last, "the run ended before it could be paused"
+        _wait("the paused generation's surfaces", lambda: data("generation") == str(min(paused_at.values()))
+              and int(data("surfaces") or 0) >= 1, 60)
+        rows = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+        favoured, scored = rows[0].get_attribute("data-id"), rows[-1].get_attribute("data-id")
+        rows[0].click()
+        _wait("the favoured design's panel", lambda: driver.find_element(By.ID, "d-id").text == favoured, 30)
+        driver.find_element(By.ID, "favour").click()
+        _wait("the favour to be recorded",
+              lambda: "v2" in driver.find_element(By.ID, "interventions").text, 60)
+        driver.find_element(By.CSS_SELECTOR, f'#gen-list [data-id="{scored}"]').click()
+        _wait("the scored design's panel", lambda: driver.find_element(By.ID, "d-id").text == scored, 30)
+        field = driver.find_element(By.ID, "hand-value")
+        field.clear()
+        field.send_keys("0")
+        driver.find_element(By.ID, "hand-set").click()
+        _wait("the hand fitness to be recorded",
+              lambda: "hand fitness" in driver.find_element(By.ID, "interventions").text, 60)
+        time.sleep(1.0)
+        assert _canvas_is_drawn(driver, shots / "studio-middle.png") > 50
+
+        driver.find_element(By.ID, "pause").click()            # now "Continue"
+        _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
+              300)
+        _wait("the last generation in view", lambda: data("generation") == str(last)
+              and int(data("surfaces") or 0) >= 1, 120)
+        time.sleep(1.5)
+        assert _canvas_is_drawn(driver, shots / "studio-end.png") > 50
+    finally:
+        if driver is not None:
+            driver.quit()
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        rc = proc.wait(60)
+    assert rc == 0, "".join(lines[-20:])
+
+    # both interventions are recorded, as genr8 edit records them, at the generation after the pause
+    store = RunStore.open(live)
+    events = store.events().to_pylist()
+    kinds = [e["kind"] for e in events]
+    assert kinds.count("pause") == 1 and kinds.count("continue") == 1 and kinds[-1] == "complete"
+    interventions = [(e["generation"], json.loads(e["detail"]))
+                     for e in events if e["kind"] == "intervention"]
+    assert len(interventions) == 2
+    (g1, favour), (g2, hand) = interventions
+    at = min(paused_at.values()) + 1
+    assert g1 == g2 == at
+    assert favour["source"] == hand["source"] == "studio"
+    assert favour["injected"][0]["copy_of"] == favoured and favour["injected"][0]["favoured"]
+    assert hand["hand_fitness"][0]["id"] == scored and hand["hand_fitness"][0]["fitness"] == 0.0
+    got = _rows(live)
+    assert {r["config_version"] for r in got if r["generation"] == at} == {3}
+    assert {r["config_version"] for r in got if r["generation"] == at - 1} == {1}
+    assert [r["parents"] for r in got if r["origin"] == "injected"] == [[favoured]]
+    scored_island = int(scored.split("-")[0])
+    assert [scored] in [r["parents"] for r in got if r["generation"] == at and r["island"] == scored_island
+                        and r["origin"] == "elite"]
+
+    # replayed: a run stopped at the same generation, edited from the CLI and resumed, equals it
+    config_b = tmp_path / "b.toml"
+    config_b.write_text(CONFIG.format(generations=at - 1))
+    replay = tmp_path / "replay"
+    _genr8("run", str(config_b), "--run-dir", str(replay), "--cpus", "2", "--quiet")
+    _genr8("edit", str(replay), "--generations", str(last - at + 1), "--favour", favoured)
+    _genr8("edit", str(replay), "--hand-fitness", f"{scored}=0")
+    _genr8("resume", str(replay), "--cpus", "2", "--quiet")
+    assert _rows(replay) == got
