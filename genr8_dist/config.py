@@ -273,6 +273,15 @@ def _check_universe(name: Any) -> str:
     return name
 
 
+def phenotype_kind(universe: str) -> str:
+    """The name of the phenotype universe ``universe`` develops into (``surface`` for HEMLS), under
+    which its criteria are registered."""
+    from genr8_dist.grammar import load_universe
+    from genr8_dist.phenotype import phenotype_of
+
+    return phenotype_of(load_universe(universe)).name
+
+
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     """Everything a run needs: universe, genome, EA, fitness, environment, islands and seed."""
@@ -281,7 +290,7 @@ class RunConfig:
     seed: int = 0
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
-    fitness: FitnessSpec = field(default_factory=FitnessSpec)
+    fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
     environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
     islands: IslandSettings = field(default_factory=IslandSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
@@ -291,8 +300,11 @@ class RunConfig:
         _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
-        if isinstance(self.fitness, Mapping):
-            _set(self, "fitness", FitnessSpec.from_dict(self.fitness))
+        if self.fitness is None:
+            _set(self, "fitness", FitnessSpec(phenotype=phenotype_kind(self.universe)))
+        elif isinstance(self.fitness, Mapping):
+            kind = phenotype_kind(self.universe)
+            _set(self, "fitness", FitnessSpec.from_dict(self.fitness, phenotype=kind))
         elif not isinstance(self.fitness, FitnessSpec):
             raise _fail("fitness", f"must be a table, got {self.fitness!r}")
         if self.environment is None:
@@ -353,7 +365,8 @@ class RunConfig:
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
         if "fitness" in data or criteria is not None:
-            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
+            kind = phenotype_kind(_check_universe(data.get("universe", "default")))
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria, phenotype=kind)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)

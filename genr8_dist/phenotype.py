@@ -51,22 +51,29 @@ class Developed:
 class Phenotype:
     """The interface a universe's phenotype implements (subclass it, or write the same attributes).
 
-    ``name``: shown by ``genr8 universes``; ``criteria``: the names of the raw values ``measure``
-    returns, in display order (they are the run's ``crit_<name>`` columns); ``headings``: short column
-    headings for ``genr8 top``; ``direction``: ``"minimise"`` when ``fitness`` is the paper's own
-    measure, ``"maximise"`` when it is the negated score of a paper that maximises; ``capped_is_invalid``:
-    whether a development that hit a cap fails the individual; ``export_formats``: suffixes ``export``
-    writes; ``stage``: the name of the failing stage when ``develop`` raises.
+    ``name``: the phenotype kind; its criteria are those registered under it
+    (``genr8_dist.fitness.register_criterion(CriterionInfo(..., phenotype=name))``: name, heading,
+    description, default target and weight), and ``measure`` returns a raw value for each criterion
+    of the run (``config.fitness.names``, the run's ``crit_<name>`` columns). ``direction``:
+    ``"minimise"`` when ``fitness`` is the paper's own measure, ``"maximise"`` when it is the negated
+    score of a paper that maximises; ``noun``: what one is called in titles; ``capped_is_invalid``:
+    whether a development that hit a cap fails the individual; ``export_formats``: suffixes
+    ``export`` writes; ``stage``: the name of the failing stage when ``develop`` raises.
     """
 
     name: str = "phenotype"
-    criteria: tuple[str, ...] = ()
-    headings: Mapping[str, str] = {}
-    descriptions: Mapping[str, str] = {}
+    noun: str = "phenotype"  # what one is called in titles: "surface", "table"
     direction: str = "minimise"
     capped_is_invalid: bool = True
     export_formats: tuple[str, ...] = ()
     stage: str = "grow"
+
+    @property
+    def criteria(self) -> tuple[str, ...]:
+        """The criteria registered for this phenotype, in registration order."""
+        from genr8_dist.fitness import criterion_names
+
+        return criterion_names(self.name)
 
     def develop(self, text: str, config: Any) -> Developed:
         raise NotImplementedError
@@ -76,6 +83,11 @@ class Phenotype:
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         raise NotImplementedError
+
+    def describe(self, developed: Developed) -> str:
+        """One line saying what was developed (``genr8 show``): its counts, else its kind."""
+        parts = [f"{n} {k.removeprefix('n_')}" for k, n in developed.counts.items()]
+        return ", ".join(parts) if parts else f"a {self.name} phenotype"
 
     def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
         """Why a measured phenotype cannot be scored (``None``: it can); by default, raw values that
@@ -97,15 +109,10 @@ class SurfacePhenotype(Phenotype):
     """The built-in phenotype: HEMLS rewrite systems grown into surfaces (thesis ch. 2, 4.3)."""
 
     name = "surface"
+    noun = "surface"
     direction = "minimise"
     capped_is_invalid = True
     stage = "grow"
-
-    @property
-    def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
-        from genr8_dist.fitness import SURFACE, criterion_names
-
-        return criterion_names(SURFACE)
 
     def develop(self, text: str, config: Any) -> Developed:
         from genr8_dist.hemls import grow, parse
