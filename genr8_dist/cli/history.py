@@ -151,11 +151,11 @@ def _history(args: argparse.Namespace) -> int:
         history.write_table(table, args.csv)
         _print(f"wrote {table.num_rows} rows to {args.csv}")
     else:
-        crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
+        crits = [c[len("closest_"):] for c in table.column_names if c.startswith("closest_")]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
-        headings.update({f"best_{c}": _text.heading(criterion_column(c)) for c in crits})
+        headings.update({f"closest_{c}": "closest_" + _text.heading(criterion_column(c)) for c in crits})
         columns = ["generation", "island", "n", "n_valid", "best", "median", "worst", "best_id"]
-        _print(_text.format_table(table, columns + [f"best_{c}" for c in crits], headings=headings))
+        _print(_text.format_table(table, columns + [f"closest_{c}" for c in crits], headings=headings))
     if args.png:
         from genr8_dist.history import pictures
 
@@ -226,7 +226,7 @@ def _show(args: argparse.Namespace) -> int:
     _print("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
         _print(f"    {statement}")
-    if row["text"] and not result.text_matches:
+    if row["text"] and result.text_matches is False:
         _print("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
     if result.developed is not None:

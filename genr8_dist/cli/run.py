@@ -21,6 +21,14 @@ def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cpus", type=int, default=None, metavar="N",
                         help="CPUs of the local Ray (default: all of this machine's); ignored with --address")
     parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
+    _trust_option(parser)
+
+
+def _trust_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--trust-hooks", action="store_true",
+                        help="run the Python code (hooks.py) of the universe the run directory carries; "
+                             "needed once per code digest on a machine that has not trusted it "
+                             "(docs/run-store.md: the trust rule)")
 
 
 def _options(args: argparse.Namespace):
@@ -29,7 +37,8 @@ def _options(args: argparse.Namespace):
 
     if args.cpus is not None and args.cpus < 1:
         raise ConfigError(f"--cpus {args.cpus}: must be >= 1")
-    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet)
+    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet,
+                      trust_hooks=bool(getattr(args, "trust_hooks", False)))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -90,7 +99,7 @@ def _edit(args: argparse.Namespace) -> int:
     edit = Edit(assignments=args.set or (), inject_copy=args.inject_copy or (),
                 inject_text=args.inject_text or (), inject_from=args.inject_from or (),
                 island=args.island, generations=args.generations, favour=args.favour or (),
-                hand_fitness=hand)
+                hand_fitness=hand, trust_hooks=args.trust_hooks)
     result = apply_edit(args.run_dir, edit)
     what = [f"{k} = {v!r}" for k, v in result.changes.items()]
     what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
@@ -170,4 +179,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="the island injected individuals go to (default: a copy's own island, else 0)")
     p.add_argument("--generations", type=int, default=None, metavar="N",
                    help="go on for N more generations after the last committed one")
+    _trust_option(p)
     p.set_defaults(handler=_edit)

@@ -87,12 +87,13 @@ def _universes(args: argparse.Namespace) -> int:
     infos = list_universes()
     if args.json:
         print(json.dumps([{"name": i.name, "origin": i.origin, "path": str(i.path),
-                           "description": i.description} for i in infos], indent=2))
+                           "description": i.description, "error": i.error} for i in infos], indent=2))
         return 0
     width = max((len(i.name) for i in infos), default=4)
     owidth = max((len(i.origin) for i in infos), default=6)
     for info in infos:
-        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {info.description or info.path}")
+        about = f"BROKEN: {info.error}" if info.error else info.description or info.path
+        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {about}")
     return 0
 
 

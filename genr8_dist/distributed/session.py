@@ -13,21 +13,24 @@ as it is and left running.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import sys
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
-from genr8_dist.distributed.interrupts import stop_on_signals
-from genr8_dist.distributed.progress import ProgressDisplay, format_duration
-from genr8_dist.errors import RunError, StoreError
+from genr8_dist.errors import Genr8Error, RunError, StoreError
 
-__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run"]
+if TYPE_CHECKING:
+    from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
+
+__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
+           "stored_universes"]
 
 CONNECT_TIMEOUT = 5.0
 
@@ -41,6 +44,7 @@ class RunOptions:
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
+    trust_hooks: bool = False             # run the Python code a run directory carries (resume)
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -91,9 +95,38 @@ def _token_auth_like_ray_start() -> None:
         os.environ["RAY_AUTH_MODE"] = "token"
 
 
+def _preload() -> None:
+    """Import what a run needs once Ray is up: the coordinator, the hosts, the store and pyarrow."""
+    import pyarrow.compute
+    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s)
+
+    import genr8_dist.distributed.coordinator
+    import genr8_dist.distributed.hosts
+    import genr8_dist.evolution
+    import genr8_dist.store  # noqa: F401
+
+
+def _meanwhile(work: Callable[[], None] | None) -> threading.Thread | None:
+    """``work`` in a thread of its own (its errors are left for the main thread to meet again)."""
+    if work is None:
+        return None
+
+    def run() -> None:
+        with contextlib.suppress(Exception):   # what failed here fails again where it is needed
+            work()
+
+    thread = threading.Thread(target=run, name="genr8-meanwhile", daemon=True)
+    thread.start()
+    return thread
+
+
 @contextmanager
-def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iterator[Any]:
-    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected."""
+def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
+                meanwhile: Callable[[], None] | None = None) -> Iterator[Any]:
+    """Ray, connected as described in the module docstring; disconnects on leaving only if it connected.
+
+    ``meanwhile`` runs in a thread while Ray starts or connects (``ray.init`` mostly waits for Ray's
+    processes): a run's own start-up work (imports) then costs no time of its own."""
     import logging
 
     if "ray" not in sys.modules and (address is not None or os.environ.get("RAY_ADDRESS")):
@@ -112,6 +145,7 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
         if address is not None and address != "auto" and "://" not in address:
             _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
+    helper = _meanwhile(meanwhile)
     try:
         if address is None:
             # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file)
@@ -121,6 +155,9 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None) -> Iter
     except (ConnectionError, TimeoutError, RuntimeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+    finally:
+        if helper is not None:
+            helper.join()
     try:
         yield ray
     finally:
@@ -152,6 +189,24 @@ def _check_new_run_dir(run_dir: str) -> None:
                          "--run-dir")
     if state == "foreign":
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
+
+
+def stored_universes(store: Any) -> list[Any]:
+    """The universe of every configuration version of the run that can be read (a damaged version is
+    left to ``repair``), without running any of their code."""
+    sources: list[Any] = []
+    try:
+        versions = store.configs()
+    except StoreError:  # a damaged version: the one the run was created with, until repair
+        versions = [store.config_for(0)]
+    for version in versions:
+        try:
+            config = store.config(version)
+        except Genr8Error:  # a damaged version: verify() reports it, repair() drops it
+            continue
+        if config.universe_source not in sources:
+            sources.append(config.universe_source)
+    return sources
 
 
 def latest_config(store: Any) -> Any:
@@ -192,10 +247,11 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
           stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
     """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
-    import pyarrow.compute
-    import pyarrow.parquet  # noqa: F401  (the store imports them at its first commit: 0.1-0.2 s, done here)
-
+    _preload()
+    from genr8_dist.distributed.coordinator import Coordinator, StopRequest
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.distributed.interrupts import stop_on_signals
+    from genr8_dist.distributed.progress import ProgressDisplay
 
     out = out if out is not None else sys.stdout
     own_hosts = hosts is None
@@ -217,6 +273,8 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
 
 
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
+    from genr8_dist.distributed.progress import format_duration
+
     committed = summary.committed
     low = min(committed.values()) if committed else -1
     rate = summary.individuals / summary.wall_seconds if summary.wall_seconds > 0 else 0.0
@@ -257,12 +315,16 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     """``genr8 run``: a new run of the configuration in ``config_path`` in the new ``run_dir``."""
     from genr8_dist.config import load_config
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.trust import consent_for_new_run
+    from genr8_dist.grammar.universe import build_universe
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
     config = load_config(config_path)
     _check_new_run_dir(run_dir)
-    with connect_ray(options.address, options.num_cpus), ExitStack() as stack:
+    consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
+    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
@@ -288,11 +350,14 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation (on
     ``hosts``, a ``HostPool`` of an earlier run, rebound to this one, when given)."""
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.trust import consent_for_stored
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
     store = RunStore.open(run_dir)
     problems = store.verify()
+    consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                       command=f"resume {run_dir}")
     # A damaged run is repaired once Ray and the hosts are up (nothing is written before); until then
     # its newest configuration may be the damaged file, so read the one the run was created with
     # (islands.count cannot change during a run). Damage to that one leaves nothing to fall back to,
@@ -304,9 +369,11 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     if not problems and committed and min(committed.get(i, -1) for i in range(n)) >= last:
         print(f"{run_dir}: the run is complete (generation {last}); nothing to resume. "
               f"`genr8 edit {run_dir} --generations N` adds N generations.", file=out)
+        from genr8_dist.distributed.coordinator import RunSummary
+
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus), hold_run_lock(store):
+    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
@@ -319,6 +386,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
                 print(f"repaired: {store.last_repair}", file=out, flush=True)
+                consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                                   command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()

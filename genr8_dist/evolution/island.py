@@ -35,7 +35,10 @@ choice of elites and parents of generation g; a marked individual not of generat
 
 Individuals of generation g-1 evaluated under another ``config_version`` (the fitness, the environment
 or the universe changed: an intervention) are re-evaluated before selection, so they compete under the
-configuration now in force. Identical genomes are evaluated once (``Evaluator``'s cache).
+configuration now in force. When only the fitness changed (the island's ``config_of`` gives their
+version, with the same universe, genome settings and ``development_key``), they are judged again
+from their stored raw criteria (``evaluate.rescore``) instead of being grown again: the same result.
+Identical genomes are evaluated once (``Evaluator``'s cache).
 
 A generation is built in two parts: ``breed`` draws every genome with its origin and parents (cheap,
 sequential, seeded), then ``complete`` evaluates the genomes not yet evaluated and makes the
@@ -52,7 +55,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.evolution.evaluate import Evaluation, Evaluator
+from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
@@ -131,7 +134,8 @@ class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
     def __init__(self, config: Any, island_index: int, config_version: int = 1, *,
-                 evaluator: Evaluator | None = None) -> None:
+                 evaluator: Evaluator | None = None,
+                 config_of: Callable[[int], Any] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:
             raise ConfigError(f"island index must be a non-negative integer, got {island_index!r}")
         if island_index >= config.islands.count:
@@ -143,6 +147,7 @@ class Island:
         self.config_version = int(config_version)
         self.evaluator = evaluator if evaluator is not None and evaluator.config is config \
             else Evaluator(config)
+        self.config_of = config_of   # configuration version -> its configuration (None: unknown)
         self.stats = IslandStats()
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
@@ -189,11 +194,32 @@ class Island:
                           config_version=self.config_version, **evaluation.as_fields())
 
     def _kept(self, individual: Individual) -> Evaluation:
-        """The evaluation of an individual carried over: kept when made under this configuration."""
+        """The evaluation of an individual carried over: kept when made under this configuration,
+        judged again from its raw criteria when only the fitness changed since, else evaluated."""
+        fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
         if individual.config_version == self.config_version:
-            fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
             return Evaluation(**fields).untimed()
+        if self._only_fitness_changed(individual.config_version) and individual.stage != "map":
+            judged = rescore(Evaluation(**fields), self.config)
+            if judged is not None:
+                return judged.untimed()
         return self.evaluate(individual.genome)
+
+    def _only_fitness_changed(self, version: int) -> bool:
+        """Whether configuration ``version`` maps genomes to the texts this island's does and grows
+        and measures them as it does (it may differ in fitness, EA or islands)."""
+        earlier = self.config_of(version) if self.config_of is not None else None
+        if earlier is None:
+            return False
+        return (earlier.universe == self.config.universe and earlier.genome == self.config.genome
+                and development_key(earlier) == self.evaluator.development_key)
+
+    def _now(self, individual: Individual) -> Individual:
+        """``individual`` as it competes under this island's configuration."""
+        if individual.config_version == self.config_version:
+            return individual
+        return self._make(individual.generation, individual.index, individual.genome, individual.origin,
+                          individual.parents, self._kept(individual))
 
     def _finish(self, generation: int, population: list[Individual], before: tuple[int, int, int]
                 ) -> list[Individual]:
@@ -271,18 +297,14 @@ class Island:
             births.append(Birth(genome, "injected", parents))
 
         # Generation g-1 as it competes now: re-evaluated where its configuration was another one.
-        pool = [p if p.config_version == self.config_version
-                else self._make(p.generation, p.index, p.genome, p.origin, p.parents, self.evaluate(p.genome))
-                for p in previous]
+        pool = [self._now(p) for p in previous]
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
         for marked, fitness in hand:
             if marked.id in parent_ids:
                 fitnesses[parent_ids.index(marked.id)] = float(fitness)
                 continue
-            pool.append(marked if marked.config_version == self.config_version
-                        else self._make(marked.generation, marked.index, marked.genome, marked.origin,
-                                        marked.parents, self.evaluate(marked.genome)))
+            pool.append(self._now(marked))
             parent_ids.append(marked.id)
             fitnesses.append(float(fitness))
 

@@ -36,7 +36,7 @@ class Regrown:
     developed: Any
     steps: int
     digest: str | None
-    text_matches: bool
+    text_matches: bool | None    # None: not checked (the universe's hooks are code history never runs)
 
     @property
     def surface(self) -> Any:
@@ -68,12 +68,22 @@ def regrow(run: RunLike, id: str) -> Regrown:
     store = open_run(run)
     row = individual(store, id).to_pylist()[0]
     config = config_of(store, row["config_version"])
+<<<<<<< HEAD
     universe = universe_for(config.universe)
     phenotype = phenotype_of(universe)
     mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
                           max_wraps=config.genome.max_wraps)
+=======
+    from genr8_dist.grammar.trust import may_run
+
+>>>>>>> main
     text = row["text"]
-    text_matches = bool(mapped.valid) and mapped.text == text
+    text_matches: bool | None = None
+    if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
+        universe = universe_for(config)
+        mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
+                              max_wraps=config.genome.max_wraps)
+        text_matches = bool(mapped.valid) and mapped.text == text
     if text is None or row["surface_digest"] is None:
         return Regrown(row, config, phenotype, None, 0, None, text_matches)
     developed = phenotype.develop(text, config)

@@ -63,7 +63,10 @@ class RunView:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
         from genr8_dist.history._regrow import config_of
 
-        store = self.store()
+        with self._lock:
+            if version is not None and version in self._configs:
+                return self._configs[version]
+        store = self.store() if version is None or self._store is None else self._store
         if version is None:
             version = int(store.configs()[-1].version)
         with self._lock:
@@ -225,15 +228,58 @@ class RunView:
             return {"generation": -1, "individuals": []}
         newest = min(committed.values())
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        crits = [f"crit_{c}" for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
-                   "config_version"]
-        table = store.individuals(columns=columns, filter=pc.field("generation") == g)
+                   "config_version", *crits]
+        table = store.dataset().to_table(columns=columns, filter=pc.field("generation") == g)
+        front = self._pareto(table, store.criteria)
+        table = table.drop_columns(crits)
         rows = table.to_pylist()
+        for r, on in zip(rows, front, strict=True):
+            r["pareto"] = bool(on)
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
                                  r["island"], r["index"]))
         for r in rows:
             r["fitness"] = _finite(r["fitness"])
         return {"generation": g, "newest": newest, "individuals": rows}
+
+    def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
+        """Which rows are on the Pareto front of their generation: valid, and no other valid row is at
+        least as close to every weighted criterion's target (``|raw - target| / unit``, under the
+        configuration version that scored it) and closer to one."""
+        import numpy as np
+
+        n = table.num_rows
+        valid = np.asarray(table["valid"].to_pylist(), dtype=bool)
+        versions = table["config_version"].to_pylist()
+        columns = []
+        specs = {v: self.config(int(v)).fitness for v in set(versions)}
+        for name in criteria:
+            raw = np.asarray(table[f"crit_{name}"].to_pylist(), dtype=object)
+            dev = np.full(n, np.inf)
+            used = False
+            for version, spec in specs.items():
+                term = spec[name] if name in getattr(spec, "names", ()) else None
+                if term is None or term.weight == 0.0:
+                    continue
+                used = True
+                rows = np.asarray([v == version for v in versions])
+                values = np.asarray([np.nan if x is None else float(x) for x in raw[rows]])
+                with np.errstate(invalid="ignore"):
+                    dev[rows] = np.abs(values - term.target) / term.unit
+            if used:
+                columns.append(np.where(np.isfinite(dev), dev, np.inf))
+        if not columns:
+            return [False] * n
+        points = np.stack(columns, axis=1)
+        candidates = np.flatnonzero(valid & np.isfinite(points).all(axis=1))
+        front = np.zeros(n, dtype=bool)
+        p = points[candidates]
+        for k, i in enumerate(candidates):
+            no_worse = (p <= p[k]).all(axis=1)
+            better = (p < p[k]).any(axis=1)
+            front[i] = not (no_worse & better).any()
+        return front.tolist()
 
     def individual(self, id: str) -> dict[str, Any]:
         """One design: its row (criteria, rewrite system, provenance), its main line of ancestors, the
@@ -350,8 +396,8 @@ def _add_generations(curves: dict[str, Any], store: Any) -> None:
         return
     crits = [f"crit_{c}" for c in store.criteria]
     span = (pc.field("generation") > since) & (pc.field("generation") <= done)
-    table = store.individuals(columns=["generation", "island", "index", "fitness", *crits],
-                              filter=span if since >= 0 or done < max(committed.values()) else None)
+    table = store.dataset().to_table(columns=["generation", "island", "index", "fitness", *crits],
+                                     filter=span if since >= 0 or done < max(committed.values()) else None)
     if table.num_rows == 0:
         return
     fitness = pc.if_else(pc.is_finite(table["fitness"]), table["fitness"], pa.scalar(None, pa.float64()))

@@ -204,3 +204,29 @@ def test_genr8_studio_refuses_what_is_not_a_run(tmp_path, capsys):
     assert main(["studio", str(tmp_path / "nowhere")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("genr8: error:") and "nowhere" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_pareto_front_is_the_non_dominated_valid_designs(run_dir):
+    """Each generation's designs are marked on or off the Pareto front of the weighted criteria's
+    deviations from their targets; checked against a plain pairwise comparison."""
+    from genr8_dist.studio import RunView
+
+    view = RunView(str(run_dir))
+    gen = view.generation(1)
+    store = RunStore.open(run_dir)
+    spec = store.fitness(store.configs()[0])
+    weighted = [c for c in spec.criteria if c.weight]
+    rows = {ind.id: ind for i in range(2) for ind in store.load_generation(i, 1)}
+
+    def point(ident):
+        return [abs(rows[ident].criteria[c.name] - c.target) / c.unit for c in weighted]
+
+    valid = [r["id"] for r in gen["individuals"] if r["valid"]]
+    points = {i: point(i) for i in valid}
+
+    def dominated(i):
+        return any(all(a <= b for a, b in zip(points[j], points[i], strict=True)) and points[j] != points[i]
+                   for j in valid)
+
+    marked = {r["id"] for r in gen["individuals"] if r["pareto"]}
+    assert marked and marked == {i for i in valid if not dominated(i)}
