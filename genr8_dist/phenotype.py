@@ -9,7 +9,7 @@ the report only ever talk to a phenotype through this interface:
 
 ``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
-``problem(developed, raw) -> str | None``  why it cannot be scored (degenerate), else ``None``
+``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
                                            returns its negation and says so in ``direction``)
@@ -91,9 +91,10 @@ class Phenotype:
         parts = [f"{n} {k.removeprefix('n_')}" for k, n in developed.counts.items()]
         return ", ".join(parts) if parts else f"a {self.name} phenotype"
 
-    def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
-        """Why a measured phenotype cannot be scored (``None``: it can); by default, raw values that
-        are not finite."""
+    def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
+        """Why a measured phenotype cannot be scored (``None``: it can), from its stored ``counts``
+        (``n_vertices``, ``n_edges``, ``n_regions``, ``steps_done``) and raw values; by default, raw
+        values that are not finite."""
         bad = [name for name, value in raw.items() if not math.isfinite(value)]
         return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
 
@@ -148,10 +149,10 @@ class SurfacePhenotype(Phenotype):
 
         return score_surface(developed.value, config.environment, config.fitness.names)
 
-    def problem(self, developed: Developed, raw: Mapping[str, float]) -> str | None:
-        if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
+    def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
+        if not counts.get("n_vertices") or not counts.get("n_edges"):
             return "degenerate surface: no vertices or no edges"
-        return super().problem(developed, raw)
+        return super().problem(counts, raw)
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)

@@ -130,7 +130,7 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
     criteria's and the fitness's."""
     from genr8_dist.phenotype import phenotype_of
 
-    phenotype = phenotype_of(universe_for(config.universe))
+    phenotype = phenotype_of(universe_for(config))
     t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
         developed = phenotype.develop(text, config)
@@ -156,36 +156,28 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
                           **grown)
     grown["score_seconds"] = time.perf_counter() - t1
     grown["criteria"] = criteria
-<<<<<<< HEAD
-    if developed.capped and phenotype.capped_is_invalid:
-        error = f"growth capped ({developed.capped}) in derivation step {developed.steps}"
+    return _judge(grown, config)
+
+
+def _judge(grown: dict[str, Any], config: Any) -> Evaluation:
+    """The verdict on a developed and measured text (``grown``: the fields ``_grow_and_score`` found,
+    ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
+    fitness, as the universe's phenotype decides. A pure function of those stored fields: ``rescore``
+    calls it again after an edit."""
+    from genr8_dist.phenotype import phenotype_of
+
+    phenotype = phenotype_of(universe_for(config))
+    capped, criteria, steps_done = grown["capped"], grown["criteria"], grown["steps_done"]
+    if capped and phenotype.capped_is_invalid:
+        error = f"growth capped ({capped}) in derivation step {steps_done}"
         return Evaluation(stage=phenotype.stage, error=error, **grown)
-    problem = phenotype.problem(developed, criteria)
+    problem = phenotype.problem(grown, criteria)
     if problem:
         return Evaluation(stage="score", error=problem, **grown)
     try:
         fitness = phenotype.fitness(criteria, config)
     except Exception as exc:  # failure is data
         return Evaluation(stage="score", error=_describe(exc), **grown)
-=======
-    return _judge(grown, config)
-
-
-def _judge(grown: dict[str, Any], config: Any) -> Evaluation:
-    """The verdict on a grown and measured text (``grown``: the fields ``_grow_and_score`` found,
-    ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
-    fitness. A pure function of those stored fields: ``rescore`` calls it again after an edit."""
-    capped, criteria, steps_done = grown["capped"], grown["criteria"], grown["steps_done"]
-    if capped:
-        error = f"growth capped ({capped}) in derivation step {steps_done}"
-        return Evaluation(stage="grow", error=error, **grown)
-    if not grown["n_vertices"] or not grown["n_edges"]:
-        return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
-    fitness = config.fitness.evaluate(criteria)
->>>>>>> main
     if not math.isfinite(fitness):
         return Evaluation(stage="score", error="fitness is not finite", **grown)
     return Evaluation(valid=True, fitness=fitness, **grown)

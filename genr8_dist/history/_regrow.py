@@ -62,23 +62,15 @@ def regrow(run: RunLike, id: str) -> Regrown:
     ``HistoryError`` says what differs. An individual that failed before growth has no surface.
     """
     from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.grammar.trust import may_run
     from genr8_dist.history._tables import individual
-    from genr8_dist.phenotype import phenotype_of
 
     store = open_run(run)
     row = individual(store, id).to_pylist()[0]
     config = config_of(store, row["config_version"])
-<<<<<<< HEAD
-    universe = universe_for(config.universe)
-    phenotype = phenotype_of(universe)
-    mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
-                          max_wraps=config.genome.max_wraps)
-=======
-    from genr8_dist.grammar.trust import may_run
-
->>>>>>> main
     text = row["text"]
     text_matches: bool | None = None
+    phenotype = phenotype_for(store, config)
     if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
         universe = universe_for(config)
         mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
@@ -100,15 +92,40 @@ def regrow(run: RunLike, id: str) -> Regrown:
     return Regrown(row, config, phenotype, developed, developed.steps, digest, text_matches)
 
 
+def phenotype_for(store: Any, config: Any) -> Any:
+    """The phenotype of ``config``'s universe (a configuration of ``store``).
+
+    History runs no stored code (:mod:`genr8_dist.grammar.trust`) but the code of an installed plugin
+    with the same digest, or one this machine remembers, is the user's own: a phenotype plugin's
+    individuals are regrown with it. A run whose criteria are the surface criteria regrows surfaces
+    without running any code; any other run whose code may not run is a ``HistoryError``."""
+    from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.fitness import SURFACE, criterion_names
+    from genr8_dist.grammar.discovery import installed_code_digest
+    from genr8_dist.grammar.trust import consent, may_run, remembered
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+
+    source = config.universe_source
+    digest = source.code_digest
+    if digest and not may_run(digest) and (installed_code_digest(source.name) == digest
+                                          or digest in remembered()):
+        consent(digest)
+    if may_run(digest):
+        return phenotype_of(universe_for(config))
+    if set(store.criteria) <= set(criterion_names(SURFACE)):
+        return SURFACES
+    raise HistoryError(f"{run_label(store)}: universe '{source.name}' develops its texts with Python code "
+                       f"this machine has not trusted (sha256 {digest[:16]}...); install the plugin, or "
+                       f"continue the run once with `genr8 resume --trust-hooks`, to regrow its individuals")
+
+
 def phenotype_of_run(run: RunLike, id: str) -> Any:
     """The phenotype individual ``id`` of ``run`` develops into (its configuration's universe's)."""
-    from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.history._tables import individual
-    from genr8_dist.phenotype import phenotype_of
 
     store = open_run(run)
     row = individual(store, id).select(["config_version"]).to_pylist()[0]
-    return phenotype_of(universe_for(config_of(store, row["config_version"]).universe))
+    return phenotype_for(store, config_of(store, row["config_version"]))
 
 
 def _need_surface(result: Regrown, what: str) -> Any:

@@ -96,11 +96,11 @@ def _section(title: str, body: str) -> str:
 
 def _phenotype(store: Any, configs: list) -> Any:
     """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
-    from genr8_dist.evolution.evaluate import universe_for
-    from genr8_dist.phenotype import SURFACES, phenotype_of
+    from genr8_dist.history._regrow import phenotype_for
+    from genr8_dist.phenotype import SURFACES
 
     try:
-        return phenotype_of(universe_for(store.config(configs[-1].version).universe))
+        return phenotype_for(store, store.config(configs[-1].version))
     except Genr8Error:
         return SURFACES
 
@@ -167,17 +167,12 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")
         rows.append("<tr>" + "".join(cells) + "</tr>")
     top_note = (f'<p class="note">Regrow and export any of them: <code>genr8 show '
-<<<<<<< HEAD
                 f"{html.escape(str(run_label(store)))} ID -o {phenotype.noun}.{formats[0]}</code> (also "
                 f"{' '.join('.' + f for f in formats[1:])}).</p>")
-=======
-                f"{html.escape(str(run_label(store)))} ID -o surface.obj</code> (also .ply .stl .glb .3dm)."
-                "</p>")
     ranked = (f'<p class="note">Ranked under configuration version {newest}, the one in force at the '
               "run's end: each individual rescored from its stored raw criteria with that version's "
               "targets and weights. <i>As scored</i> is the fitness the run gave it under the version "
               "in brackets.</p>" if len(configs) > 1 else "")
->>>>>>> main
     parts.append(_section(f"The {best.num_rows} best individuals of the run",
                           f"{ranked}<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
 
