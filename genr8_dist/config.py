@@ -170,14 +170,15 @@ class IslandSettings:
         _set(self, "emigrants", _choice(self.emigrants, "islands.emigrants", EMIGRANTS))
 
 
-def _names(value: Any, path: str, allowed: tuple[str, ...], low: int, high: int) -> tuple[str, ...]:
+def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, high: int
+           ) -> tuple[str, ...]:
     if isinstance(value, str) or not isinstance(value, (list, tuple)):
         raise _fail(path, f"must be a list of names, got {value!r}")
     if not low <= len(value) <= high:
         raise _fail(path, f"must name {low} to {high} values, got {len(value)}")
     for name in value:
-        if not isinstance(name, str) or name not in allowed:
-            raise _fail(path, f"{name!r} is not one of {', '.join(allowed)}")
+        if not isinstance(name, str) or (allowed is not None and name not in allowed):
+            raise _fail(path, f"{name!r} is not one of {', '.join(allowed or ())}")
     if len(set(value)) != len(value):
         raise _fail(path, f"names a value twice: {list(value)!r}")
     return tuple(value)
@@ -196,15 +197,11 @@ class SearchSettings:
     offspring: float = 0.5                 # map-elites: the least share of a generation bred anew
 
     def __post_init__(self) -> None:
-        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
-        from genr8_dist.fitness import CRITERIA
-
         _set(self, "mode", _choice(self.mode, "search.mode", SEARCH_MODES))
-        _set(self, "objectives", _names(self.objectives, "search.objectives", CRITERIA, 0, len(CRITERIA)))
+        _set(self, "objectives", _names(self.objectives, "search.objectives", None, 0, 100))
         if self.mode == "pareto" and len(self.objectives) == 1:
             raise _fail("search.objectives", "a Pareto search needs at least 2 objectives")
-        _set(self, "descriptors", _names(self.descriptors, "search.descriptors",
-                                         CRITERIA + DESCRIPTOR_COUNTS, 1, 3))
+        _set(self, "descriptors", _names(self.descriptors, "search.descriptors", None, 1, 3))
         n = len(self.descriptors)
         if isinstance(self.ranges, str) or not isinstance(self.ranges, (list, tuple)) \
                 or len(self.ranges) != n:
@@ -360,6 +357,12 @@ class RunConfig:
             _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
         elif not hasattr(self.environment, "to_dict"):
             raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
+        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
+
+        criteria = tuple(self.fitness.names)
+        _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
+        if self.search.mode == "map-elites":
+            _names(self.search.descriptors, "search.descriptors", criteria + DESCRIPTOR_COUNTS, 1, 3)
         if self.islands.migrants >= self.ea.population:
             raise _fail(
                 "islands.migrants",

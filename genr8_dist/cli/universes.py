@@ -107,6 +107,11 @@ def _map(args: argparse.Namespace) -> int:
             raise ConfigError(f"{name} must be >= {low}, got {value}")
     if args.max_depth > 100:
         raise ConfigError(f"--max-depth must be <= 100, got {args.max_depth}")
+    for name, value, high in (("--max-wraps", args.max_wraps, 1000), ("--length", args.length, 1_000_000)):
+        if value > high:
+            raise ConfigError(f"{name} must be <= {high}, got {value}")
+    if args.max_codon > 2**31 - 1:
+        raise ConfigError(f"--max-codon must be <= {2**31 - 1} (codons are 32-bit), got {args.max_codon}")
     universe = load_universe(args.universe)
     if args.random:
         from genr8_dist.rng import stream

@@ -210,6 +210,12 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
     if edit.generations is not None:
         if edit.generations < 1:
             raise ConfigError(f"--generations {edit.generations}: must be >= 1")
+        clash = [key for key in changes if key in ("ea", "ea.generations")]
+        if clash:
+            raise ConfigError(f"--set {clash[0]} and --generations {edit.generations} both set the run's "
+                              "length; give one of them")
+        if not isinstance(data.get("ea"), dict):
+            raise ConfigError("ea: must be a table of settings")
         data["ea"]["generations"] = effective - 1 + edit.generations
         changes["ea.generations"] = data["ea"]["generations"]
     config = RunConfig.from_dict(data, source="--set", criteria=store.criteria)

@@ -95,6 +95,22 @@ def _token_auth_like_ray_start() -> None:
         os.environ["RAY_AUTH_MODE"] = "token"
 
 
+def _signal_handlers() -> dict[int, Any]:
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _restore_signal_handlers(handlers: dict[int, Any]) -> None:
+    import signal
+
+    for sig, handler in handlers.items():
+        signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+
 def _preload() -> None:
     """Import what a run needs once Ray is up: the coordinator, the hosts, the store and pyarrow."""
     import pyarrow.compute
@@ -145,17 +161,26 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         if address is not None and address != "auto" and "://" not in address:
             _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
+    handlers = _signal_handlers()
     helper = _meanwhile(meanwhile)
     try:
         if address is None:
-            # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file)
+            # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file);
+            # its processes end with this one, even when it is killed (distributed/reaper.py)
+            from genr8_dist.distributed.reaper import start_reaper
+
+            start_reaper()
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)
         else:
             ray.init(address=address, **kwargs)
     except (ConnectionError, TimeoutError, RuntimeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+    except SystemExit:  # SIGTERM while Ray starts: its own handler exits; nothing is written yet
+        ray.shutdown()
+        raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
     finally:
+        _restore_signal_handlers(handlers)  # ray.init installs a SIGTERM handler that exits at once
         if helper is not None:
             helper.join()
     try:
@@ -272,6 +297,19 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
             hosts.shutdown()
 
 
+def _stop_request(given: Any) -> Any:
+    from genr8_dist.distributed.coordinator import StopRequest
+
+    return given if given is not None else StopRequest()
+
+
+def _signals_stop(stop: Any, out: TextIO) -> Any:
+    """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``)."""
+    from genr8_dist.distributed.interrupts import stop_on_signals
+
+    return stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True))
+
+
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
     from genr8_dist.distributed.progress import format_duration
 
@@ -290,7 +328,10 @@ def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
     else:
         spread = sorted(set(committed.values()))
         at = f"generation {low}" if len(spread) == 1 else f"generations {spread[0]}..{spread[-1]}"
-        print(f"interrupted: islands committed up to {at}; {timing}", file=out)
+        if low < 0 and len(spread) <= 1:
+            print(f"interrupted before generation 0 was committed; {timing}", file=out)
+        else:
+            print(f"interrupted: islands committed up to {at}; {timing}", file=out)
         print(f"resume with: genr8 resume {run_dir}", file=out)
     out.flush()
 
@@ -324,7 +365,11 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     _check_new_run_dir(run_dir)
     consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
-    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
+    # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
+    # run before its first epoch, one after the last commit changes nothing (the run is complete)
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
@@ -373,7 +418,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

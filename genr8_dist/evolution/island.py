@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from genr8_dist.errors import ConfigError
@@ -65,7 +65,6 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
-from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
@@ -112,7 +111,7 @@ def pareto_objectives(config: Any) -> tuple[str, ...]:
     with a weight above 0."""
     if config.search.objectives:
         return tuple(config.search.objectives)
-    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
+    return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
 def is_trivial(evaluation: Evaluation) -> bool:
@@ -434,7 +433,30 @@ class Island:
             if evaluation.valid and evaluation.surface_digest is not None:
                 seen.add(evaluation.surface_digest)
             population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
-        return self._finish(generation, population, before)
+        return self._finish(generation, self._placed(population), before)
+
+    def _placed(self, population: list[Individual]) -> list[Individual]:
+        """``population`` with each individual's Pareto front among it (over ``pareto_objectives``)
+        and, in ``map-elites`` mode, its archive cell."""
+        from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+
+        names = pareto_objectives(self.config)
+        ranks = non_dominated_ranks(objectives_of([p.criteria for p in population],
+                                                  [p.valid for p in population], self.config.fitness,
+                                                  names)) if names else [0] * len(population)
+        grid = None
+        if self.config.search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(self.config.search)
+        placed = []
+        for p, r in zip(population, ranks, strict=True):
+            extra = {**p.extra, "pareto_rank": int(r)}
+            cell = grid.cell(p) if grid is not None else None
+            if cell is not None:
+                extra["cell"] = cell
+            placed.append(replace(p, extra=extra))
+        return placed
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:

@@ -16,7 +16,14 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    atomic_write,
+    open_run,
+    run_directory_holding,
+    run_label,
+)
 
 __all__ = ["EXPORT_FORMATS", "Regrown", "check_export_path", "config_of", "export", "export_formats",
            "phenotype_of_run", "picture", "regrow", "save_text"]
@@ -151,6 +158,10 @@ def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
     if path.suffix.lower().lstrip(".") not in allowed:
         raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
                            + ", ".join(f".{s}" for s in allowed))
+    inside = run_directory_holding(path)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
     return path
 
 

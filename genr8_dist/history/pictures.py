@@ -408,6 +408,9 @@ def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
         fetch *= 4
 
 
+GALLERY_MAX = 144  # surfaces on one contact sheet (a row per island with per_island)
+
+
 def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
                       island: int | None = None, per_island: bool = False,
                       distinct: bool = True) -> tuple[Any, str]:
@@ -422,6 +425,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
 
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
+    if k > GALLERY_MAX:
+        raise HistoryError(f"k: a contact sheet holds at most {GALLERY_MAX} surfaces (per island with "
+                           f"per-island), got {k}")
     store = open_run(run)
     generation = _resolve_generation(dataset(store), generation)
     if per_island:

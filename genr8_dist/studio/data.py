@@ -41,6 +41,8 @@ class RunView:
         self.run_dir = run_dir
         self._store: Any = None
         self._lock = threading.RLock()
+        self._curves_lock = threading.Lock()
+        self._curves_store: Any = None
         self._curves: dict[str, Any] | None = None
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
@@ -101,7 +103,8 @@ class RunView:
             status = "stopped"
         population = int(config.ea.population)
         rate, left = self._rate(events, low, n * population, last, status)
-        curves = self.curves()
+        with self._lock:
+            curves = self._curves or {"islands": {}}   # as far as computed (``curves`` runs apart)
         islands = []
         for i in range(n):
             best = curves["islands"].get(str(i), {}).get("best", [])
@@ -205,22 +208,36 @@ class RunView:
         """Per generation: the best and mean fitness over all islands, each island's best, and the
         raw criteria of the generation's best design; plus the configuration versions' first
         generations. Only the generations committed since the last call are read."""
-        store = self.store()
+        import copy
+
+        from genr8_dist.store import RunStore
+
+        version = self.store().version
         with self._lock:
-            if self._curves is not None and self._curves_version == store.version:
+            if self._curves is not None and self._curves_version == version:
                 return self._curves
-            curves = self._curves or {"generation": [], "best": [], "mean": [], "best_id": [],
-                                      "islands": {}, "criteria": {}, "last": -1}
+        # Computed apart (its own store, its own lock): the state, a generation and a surface are
+        # answered meanwhile, so the page shows them before the first read of the whole run ends.
+        with self._curves_lock:
+            if self._curves_store is None:
+                self._curves_store = RunStore.open(self.run_dir)
+            store = self._curves_store.refresh()
+            with self._lock:
+                if self._curves is not None and self._curves_version == store.version:
+                    return self._curves
+                curves = copy.deepcopy(self._curves) if self._curves is not None else {
+                    "generation": [], "best": [], "mean": [], "best_id": [], "islands": {}, "criteria": {},
+                    "last": -1}
             _add_generations(curves, store)
             curves["versions"] = [{"version": int(c.version), "generation": int(c.effective_generation)}
                                   for c in store.configs()]
-            self._curves, self._curves_version = curves, store.version
+            with self._lock:
+                self._curves, self._curves_version = curves, store.version
             return curves
 
     # -- generations and designs --------------------------------------------------------------------
     def generation(self, generation: int | None = None) -> dict[str, Any]:
         """The individuals of ``generation`` (default: the newest every island committed), best first."""
-        import pyarrow.compute as pc
 
         store = self.store()
         committed = store.committed_generations()
@@ -231,7 +248,10 @@ class RunView:
         crits = [f"crit_{c}" for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
                    "config_version", *crits]
-        table = store.dataset().to_table(columns=columns, filter=pc.field("generation") == g)
+        import pyarrow as pa
+
+        parts = [store.generation_table(i, g, columns) for i in sorted(committed) if committed[i] >= g]
+        table = pa.concat_tables(parts)
         front = self._pareto(table, store.criteria)
         table = table.drop_columns(crits)
         rows = table.to_pylist()

@@ -230,3 +230,20 @@ def test_the_pareto_front_is_the_non_dominated_valid_designs(run_dir):
 
     marked = {r["id"] for r in gen["individuals"] if r["pareto"]}
     assert marked and marked == {i for i in valid if not dominated(i)}
+
+
+def test_a_rewrite_system_written_in_the_studio_is_injected_and_weights_change(studio, run_dir):
+    store = RunStore.open(run_dir)
+    text = next(ind.text for ind in store.load_generation(0, 1) if ind.valid)
+    status, answer = post(studio, {"action": "inject", "text": text, "island": 1})
+    assert status == 200, answer
+    status, answer = post(studio, {"action": "set", "assignments": ["fitness.size.weight=3",
+                                                                    "environment.gravity=[0, 0, -0.2]"]})
+    assert status == 200, answer
+    events = [json.loads(e["detail"]) for e in RunStore.open(run_dir).events().to_pylist()
+              if e["kind"] == "intervention"]
+    (item,) = events[0]["injected"]
+    assert item["island"] == 1 and item["source"] == "rewrite system written in the studio"
+    assert events[1]["changes"] == {"fitness.size.weight": 3, "environment.gravity": [0, 0, -0.2]}
+    config = RunStore.open(run_dir).configs()[-1]
+    assert "weight = 3" in config.toml

@@ -497,9 +497,11 @@ async function poll() {
     showState(s);
     if (s.version !== ui.version) {
       ui.version = s.version;
-      curves = await getJSON("/api/curves");
-      drawCurves();
-      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) await loadGeneration(s.generation);
+      // the generation's designs first (a few files), the curves apart (the whole run, once)
+      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) loadGeneration(s.generation);
+      const asked = s.version;
+      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last) { curves = c; drawCurves(); } })
+        .catch(() => { if (ui.version === asked) ui.version = -1; });   // asked again at the next poll
     }
   } catch (e) {
     $("status").textContent = e.message.includes("not a run") || e.message.includes("no such run") ? "starting" : "waiting";
