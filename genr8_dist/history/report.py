@@ -85,9 +85,16 @@ def _changes(old_toml: str, new_toml: str) -> list[str]:
         return []
     lines = []
     for key in sorted(set(old) | set(new)):
+        if key.startswith("stored_universe.") and key != "stored_universe.digest":
+            continue   # the universe's files: their digest says whether they changed
         if old.get(key) != new.get(key):
-            lines.append(f"{key}: {old.get(key, '(default)')} → {new.get(key, '(default)')}")
+            lines.append(f"{key}: {_short(old.get(key, '(default)'))} → {_short(new.get(key, '(default)'))}")
     return lines
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    text = str(value)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 def _section(title: str, body: str) -> str:
