@@ -29,9 +29,9 @@ from genr8_dist.errors import UniverseError
 
 __all__ = [
     "consent",
+    "consent_for_history",
     "consent_for_new_run",
     "consent_for_stored",
-    "consent_if_installed",
     "may_run",
     "remember",
     "remembered",
@@ -110,16 +110,16 @@ def require_trust(source, *, trust_flag: bool, command: str,
         f"run's configs/*.toml), then run `genr8 {command} --trust-hooks`")
 
 
-def consent_if_installed(source) -> bool:
-    """Consent to ``source``'s code when it is exactly the code of the installed plugin of the same
-    name (then it is the user's installed code, not the run's); whether its code may now run. What
-    history commands use: they run a stored universe's code only in that case."""
+def consent_for_history(source) -> bool:
+    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
+    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
+    digest this machine already trusted (the user's own code either way). Never anything else."""
     digest = source.code_digest
     if may_run(digest):
         return True
     from genr8_dist.grammar.discovery import installed_code_digest
 
-    if installed_code_digest(source.name) == digest:
+    if digest in remembered() or installed_code_digest(source.name) == digest:
         consent(digest)
         return True
     return False

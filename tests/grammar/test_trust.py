@@ -29,11 +29,11 @@ def altered(source: UniverseSource, marker: str) -> UniverseSource:
 def test_the_installed_plugins_own_code_is_trusted_an_altered_copy_is_not(machine):
     timed, origin = find_source("timed")
     assert origin.startswith("plugin:") and timed.modules == ("hooks",)
-    assert trust.consent_if_installed(timed)
+    assert trust.consent_for_history(timed)
     assert build_universe(timed).hooks is not None
     other = altered(timed, "changed")
     assert other.code_digest != timed.code_digest
-    assert not trust.consent_if_installed(other)
+    assert not trust.consent_for_history(other)
     with pytest.raises(UniverseError, match=r"refusing to run its Python code \(hooks.py, sha256 "):
         load_modules(other)
     with pytest.raises(UniverseError) as info:
