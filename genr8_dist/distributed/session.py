@@ -374,7 +374,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
-            store = RunStore.create(run_dir, config.to_toml())
+            store = RunStore.create(run_dir, config.to_toml(), criteria=config.fitness.names)
             stack.enter_context(hold_run_lock(store))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
@@ -419,8 +419,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
-    with _signals_stop(stop, out), \
-            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
+    with _signals_stop(stop, out), hold_run_lock(store), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

@@ -1,4 +1,4 @@
-"""Evaluate one genome: map it with the universe, parse the rewrite system, grow it, score the surface.
+"""Evaluate one genome: map it with the universe, develop the text into its phenotype, score it.
 
 Failure is data: whatever goes wrong (the genome wraps too often, the text does not parse, growth raises
 or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
@@ -27,7 +27,6 @@ from functools import lru_cache
 from typing import Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.fitness import score_surface
 
 __all__ = [
     "Evaluation",
@@ -123,40 +122,35 @@ def regions_of(surface: Any) -> int:
 
 
 def _grow_and_score(text: str, config: Any) -> Evaluation:
-    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
+    """Develop ``text`` into the universe's phenotype and score it (no mapping fields set).
 
-    ``grow_seconds`` is the time to parse the text and grow it; ``score_seconds`` the criteria's."""
-    from genr8_dist.hemls import grow, parse
+    The phenotype (:func:`genr8_dist.phenotype.phenotype_of`: a HEMLS surface unless the universe
+    brings its own) develops the text, measures its criteria and combines them into the fitness.
+    ``grow_seconds`` is the time to develop the text (parsing included); ``score_seconds`` the
+    criteria's and the fitness's."""
+    from genr8_dist.phenotype import phenotype_of
 
+    phenotype = phenotype_of(universe_for(config))
     t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
-        system = parse(text)
-    except Exception as exc:  # failure is data: a text that does not parse is an invalid individual
-        return Evaluation(text=text, stage="parse", error=_describe(exc),
+        developed = phenotype.develop(text, config)
+    except Exception as exc:  # failure is data, whatever development raised
+        return Evaluation(text=text, stage=getattr(exc, "genr8_stage", phenotype.stage), error=_describe(exc),
                           grow_seconds=time.perf_counter() - t0)
-    try:
-        result = grow(system, config.environment)
-    except Exception as exc:  # failure is data, whatever growth raised
-        return Evaluation(text=text, stage="grow", error=_describe(exc),
-                          grow_seconds=time.perf_counter() - t0)
-    grow_seconds = time.perf_counter() - t0
-    surface = result.surface
-    capped = result.capped
-    capped = (capped if isinstance(capped, str) else "cap") if capped else None
-    steps_done = steps_of(result)
+    counts = developed.counts
     grown = {
         "text": text,
-        "n_vertices": len(surface.vertices),
-        "n_edges": len(surface.edges),
-        "n_regions": regions_of(surface),
-        "steps_done": steps_done,
-        "capped": capped,
-        "grow_seconds": grow_seconds,
+        "n_vertices": int(counts.get("n_vertices", 0)),
+        "n_edges": int(counts.get("n_edges", 0)),
+        "n_regions": int(counts.get("n_regions", 0)),
+        "steps_done": int(developed.steps),
+        "capped": developed.capped,
+        "grow_seconds": time.perf_counter() - t0,
+        "surface_digest": developed.digest,
     }
     t1 = time.perf_counter()
     try:
-        grown["surface_digest"] = surface.digest()
-        criteria = score_surface(surface, config.environment, config.fitness.names)
+        criteria = phenotype.measure(developed, config)
     except Exception as exc:  # failure is data
         return Evaluation(stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1,
                           **grown)
@@ -166,19 +160,24 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
 
 
 def _judge(grown: dict[str, Any], config: Any) -> Evaluation:
-    """The verdict on a grown and measured text (``grown``: the fields ``_grow_and_score`` found,
+    """The verdict on a developed and measured text (``grown``: the fields ``_grow_and_score`` found,
     ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
-    fitness. A pure function of those stored fields: ``rescore`` calls it again after an edit."""
+    fitness, as the universe's phenotype decides. A pure function of those stored fields: ``rescore``
+    calls it again after an edit."""
+    from genr8_dist.phenotype import phenotype_of
+
+    phenotype = phenotype_of(universe_for(config))
     capped, criteria, steps_done = grown["capped"], grown["criteria"], grown["steps_done"]
-    if capped:
+    if capped and phenotype.capped_is_invalid:
         error = f"growth capped ({capped}) in derivation step {steps_done}"
-        return Evaluation(stage="grow", error=error, **grown)
-    if not grown["n_vertices"] or not grown["n_edges"]:
-        return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
-    fitness = config.fitness.evaluate(criteria)
+        return Evaluation(stage=phenotype.stage, error=error, **grown)
+    problem = phenotype.problem(grown, criteria)
+    if problem:
+        return Evaluation(stage="score", error=problem, **grown)
+    try:
+        fitness = phenotype.fitness(criteria, config)
+    except Exception as exc:  # failure is data
+        return Evaluation(stage="score", error=_describe(exc), **grown)
     if not math.isfinite(fitness):
         return Evaluation(stage="score", error="fitness is not finite", **grown)
     return Evaluation(valid=True, fitness=fitness, **grown)
