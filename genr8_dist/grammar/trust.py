@@ -27,8 +27,17 @@ from pathlib import Path
 
 from genr8_dist.errors import UniverseError
 
-__all__ = ["consent", "consent_for_new_run", "consent_for_stored", "may_run", "remember", "remembered",
-           "require_trust", "trust_file"]
+__all__ = [
+    "consent",
+    "consent_for_history",
+    "consent_for_new_run",
+    "consent_for_stored",
+    "may_run",
+    "remember",
+    "remembered",
+    "require_trust",
+    "trust_file",
+]
 
 _CONSENTED: set[str] = set()
 _LOCK = threading.Lock()
@@ -99,6 +108,21 @@ def require_trust(source, *, trust_flag: bool, command: str,
         f"{source.origin or 'the run'}: universe '{source.name}' carries Python code ({modules}, sha256 "
         f"{digest[:16]}...) that this machine has not trusted; read it (the [stored_universe] table of the "
         f"run's configs/*.toml), then run `genr8 {command} --trust-hooks`")
+
+
+def consent_for_history(source) -> bool:
+    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
+    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
+    digest this machine already trusted (the user's own code either way). Never anything else."""
+    digest = source.code_digest
+    if may_run(digest):
+        return True
+    from genr8_dist.grammar.discovery import installed_code_digest
+
+    if digest in remembered() or installed_code_digest(source.name) == digest:
+        consent(digest)
+        return True
+    return False
 
 
 def consent_for_new_run(source, notify: Callable[[str], None]) -> None:

@@ -78,7 +78,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     text = row["text"]
     text_matches: bool | None = None
     phenotype = phenotype_for(store, config)
-    if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
+    if may_run(config.universe_source.code_digest):  # consented by phenotype_for: installed or trusted
         universe = universe_for(config)
         mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
                               max_wraps=config.genome.max_wraps)
@@ -108,16 +108,12 @@ def phenotype_for(store: Any, config: Any) -> Any:
     without running any code; any other run whose code may not run is a ``HistoryError``."""
     from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.fitness import SURFACE, criterion_names
-    from genr8_dist.grammar.discovery import installed_code_digest
-    from genr8_dist.grammar.trust import consent, may_run, remembered
+    from genr8_dist.grammar.trust import consent_for_history
     from genr8_dist.phenotype import SURFACES, phenotype_of
 
     source = config.universe_source
     digest = source.code_digest
-    if digest and not may_run(digest) and (installed_code_digest(source.name) == digest
-                                          or digest in remembered()):
-        consent(digest)
-    if may_run(digest):
+    if consent_for_history(source):
         return phenotype_of(universe_for(config))
     if set(store.criteria) <= set(criterion_names(SURFACE)):
         return SURFACES
