@@ -15,54 +15,27 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.fitness import score_surface
+from genr8_dist.evolution.individual import Evaluation
+from genr8_dist.fitness import FitnessSpec, score_surface
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
 
 __all__ = [
     "Evaluation",
     "Evaluator",
     "evaluate_genome",
     "evaluate_text",
+    "judge",
     "regions_of",
     "steps_of",
     "universe_for",
 ]
-
-
-@dataclass(frozen=True, slots=True)
-class Evaluation:
-    """The evaluated fields of an ``Individual`` (same names), for one genome or text."""
-
-    text: str | None = None
-    valid: bool = False
-    stage: str | None = None
-    error: str | None = None
-    fitness: float = math.inf
-    criteria: dict[str, float] = field(default_factory=dict)
-    codons_used: int = 0
-    wraps: int = 0
-    n_vertices: int = 0
-    n_edges: int = 0
-    n_regions: int = 0
-    steps_done: int = 0
-    capped: str | None = None
-    surface_digest: str | None = None
-    eval_seconds: float = 0.0
-    map_seconds: float = 0.0
-    grow_seconds: float = 0.0
-    score_seconds: float = 0.0
-
-    def as_fields(self) -> dict[str, Any]:
-        """The fields as keyword arguments for ``Individual``."""
-        return {name: getattr(self, name) for name in self.__dataclass_fields__}
-
-    def untimed(self) -> Evaluation:
-        """This evaluation with every timing set to 0 (a cache hit costs nothing)."""
-        return replace(self, eval_seconds=0.0, map_seconds=0.0, grow_seconds=0.0, score_seconds=0.0)
 
 
 @lru_cache(maxsize=16)
@@ -102,7 +75,40 @@ def regions_of(surface: Any) -> int:
     return int(n) if n is not None else len(surface.regions)
 
 
-def _grow_and_score(text: str, config: Any) -> Evaluation:
+def judge(text: str, result: Any, env: Any, fitness: FitnessSpec, *, grow_seconds: float = 0.0
+          ) -> Evaluation:
+    """Score a grown ``result`` (a ``GrowthResult`` of ``text``) under ``fitness`` in ``env``: the
+    rules that make an individual valid (not capped, not degenerate, every criterion and the total
+    finite) in one place, for runs and ``genr8 score``."""
+    surface = result.surface
+    raw_capped = result.capped
+    capped = (raw_capped if isinstance(raw_capped, str) else "cap") if raw_capped else None
+    steps_done = steps_of(result)
+    grown = Evaluation(text=text, n_vertices=len(surface.vertices), n_edges=len(surface.edges),
+                       n_regions=regions_of(surface), steps_done=steps_done, capped=capped,
+                       grow_seconds=grow_seconds)
+    t1 = time.perf_counter()
+    try:
+        digest = surface.digest()
+        criteria = score_surface(surface, env, fitness.names)
+    except Exception as exc:  # failure is data
+        return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
+    grown = replace(grown, surface_digest=digest, criteria=criteria,
+                    score_seconds=time.perf_counter() - t1)
+    if capped:
+        return replace(grown, stage="grow", error=f"growth capped ({capped}) in derivation step {steps_done}")
+    if not grown.n_vertices or not grown.n_edges:
+        return replace(grown, stage="score", error="degenerate surface: no vertices or no edges")
+    bad = [name for name in criteria if not math.isfinite(criteria[name])]
+    if bad:
+        return replace(grown, stage="score", error=f"degenerate surface: {', '.join(bad)} not finite")
+    total = fitness.evaluate(criteria)
+    if not math.isfinite(total):
+        return replace(grown, stage="score", error="fitness is not finite")
+    return replace(grown, valid=True, fitness=total)
+
+
+def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
 
     ``grow_seconds`` is the time to parse the text and grow it; ``score_seconds`` the criteria's."""
@@ -119,48 +125,14 @@ def _grow_and_score(text: str, config: Any) -> Evaluation:
     except Exception as exc:  # failure is data, whatever growth raised
         return Evaluation(text=text, stage="grow", error=_describe(exc),
                           grow_seconds=time.perf_counter() - t0)
-    grow_seconds = time.perf_counter() - t0
-    surface = result.surface
-    capped = result.capped
-    capped = (capped if isinstance(capped, str) else "cap") if capped else None
-    steps_done = steps_of(result)
-    grown = {
-        "text": text,
-        "n_vertices": len(surface.vertices),
-        "n_edges": len(surface.edges),
-        "n_regions": regions_of(surface),
-        "steps_done": steps_done,
-        "capped": capped,
-        "grow_seconds": grow_seconds,
-    }
-    t1 = time.perf_counter()
-    try:
-        grown["surface_digest"] = surface.digest()
-        criteria = score_surface(surface, config.environment, config.fitness.names)
-    except Exception as exc:  # failure is data
-        return Evaluation(stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1,
-                          **grown)
-    grown["score_seconds"] = time.perf_counter() - t1
-    grown["criteria"] = criteria
-    if capped:
-        error = f"growth capped ({capped}) in derivation step {steps_done}"
-        return Evaluation(stage="grow", error=error, **grown)
-    if not grown["n_vertices"] or not grown["n_edges"]:
-        return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
-    fitness = config.fitness.evaluate(criteria)
-    if not math.isfinite(fitness):
-        return Evaluation(stage="score", error="fitness is not finite", **grown)
-    return Evaluation(valid=True, fitness=fitness, **grown)
+    return judge(text, result, config.environment, config.fitness, grow_seconds=time.perf_counter() - t0)
 
 
 class Evaluator:
     """Evaluates genomes for one configuration, each distinct genome and each distinct text once
     (bounded caches of ``cache_size`` entries, least recently used dropped first)."""
 
-    def __init__(self, config: Any, *, cache_size: int = 4096) -> None:
+    def __init__(self, config: RunConfig, *, cache_size: int = 4096) -> None:
         self.config = config
         self.universe = universe_for(config.universe)
         self.cache_size = cache_size
@@ -170,7 +142,7 @@ class Evaluator:
         self.growths = 0         # texts actually grown
         self.cache_hits = 0
 
-    def _remember(self, cache: OrderedDict, key: Any, value: Evaluation) -> None:
+    def _remember(self, cache: OrderedDict[Any, Evaluation], key: Any, value: Evaluation) -> None:
         cache[key] = value
         if len(cache) > self.cache_size:
             cache.popitem(last=False)
@@ -207,12 +179,11 @@ class Evaluator:
             result = replace(result, eval_seconds=result.map_seconds)
             self._remember(self._genomes, key, result)
             return result
+        codons_used, wraps = int(mapped.codons_used), int(mapped.wraps)
         map_seconds = time.perf_counter() - start
-        mapping = {"codons_used": int(mapped.codons_used), "wraps": int(mapped.wraps),
-                   "map_seconds": map_seconds}
         if not mapped.valid:
             result = Evaluation(text=mapped.text or None, stage="map",
-                                error=str(mapped.reason or "mapping failed"), **mapping)
+                                error=str(mapped.reason or "mapping failed"))
         else:
             grown = self._texts.get(mapped.text)
             if grown is not None:
@@ -222,8 +193,9 @@ class Evaluator:
                 self.growths += 1
                 grown = _grow_and_score(mapped.text, self.config)
                 self._remember(self._texts, mapped.text, grown)
-            result = replace(grown, **mapping)
-        result = replace(result, eval_seconds=time.perf_counter() - start)
+            result = grown
+        result = replace(result, codons_used=codons_used, wraps=wraps, map_seconds=map_seconds,
+                         eval_seconds=time.perf_counter() - start)
         self._remember(self._genomes, key, result)
         return result
 
@@ -240,7 +212,8 @@ class Evaluator:
         return replace(result, eval_seconds=time.perf_counter() - start)
 
 
-def evaluate_genome(genome: Sequence[int], config: Any, *, evaluator: Evaluator | None = None) -> Evaluation:
+def evaluate_genome(genome: Sequence[int], config: RunConfig, *,
+                    evaluator: Evaluator | None = None) -> Evaluation:
     """Map, parse, grow and score one genome under ``config`` (a ``RunConfig``); never raises for a
     sequence of non-negative ints (``GenomeError`` otherwise). Pass an ``Evaluator`` to share caches."""
     if evaluator is None or evaluator.config is not config:
@@ -248,7 +221,7 @@ def evaluate_genome(genome: Sequence[int], config: Any, *, evaluator: Evaluator 
     return evaluator.evaluate(genome)
 
 
-def evaluate_text(text: str, config: Any) -> Evaluation:
+def evaluate_text(text: str, config: RunConfig) -> Evaluation:
     """Grow and score a hand-written rewrite system under ``config`` (what ``genr8 score`` does)."""
     if not isinstance(text, str):
         raise Genr8Error(f"a rewrite system is text, got {type(text).__name__}")
