@@ -77,10 +77,10 @@ def _int(value: Any, path: str, minimum: int | None = None, maximum: int | None 
 def _rate(value: Any, path: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    value = float(value)
-    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    return value
+    rate = float(value)
+    if not (math.isfinite(rate) and 0.0 <= rate <= 1.0):
+        raise _fail(path, f"must be a number in [0, 1], got {rate!r}")
+    return rate
 
 
 def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:

@@ -108,7 +108,7 @@ def _neighbour_pairs(edges: Any) -> np.ndarray:
     e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     e = e[e[:, 0] != e[:, 1]]
     if not len(e):
-        return e
+        return np.asarray(e)
     lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
     n = int(hi.max()) + 1
     keys = np.sort(lo * n + hi)  # one int per unordered pair; sorted, repeats are neighbours
@@ -310,10 +310,10 @@ def score_surface(surface: _SurfaceLike, env: Any = None, criteria: Sequence[str
 def _number(value: Any, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ConfigError(f"field '{where}': must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"field '{where}': must be finite, got {value!r}")
-    return value
+    number = float(value)
+    if not math.isfinite(number):
+        raise ConfigError(f"field '{where}': must be finite, got {number!r}")
+    return number
 
 
 @dataclass(frozen=True, slots=True)

@@ -238,18 +238,8 @@ def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
 
 
 def _history_commands(run_dir: str) -> list[str]:
-    """The ``genr8`` commands that show a run's results, among those this install has."""
-    from genr8_dist.cli import build_parser
-
-    try:
-        parser = build_parser()
-        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-        names = set(sub.choices)
-    except (StopIteration, ImportError):
-        return []
-    wanted = [("top", f"genr8 top {run_dir}"), ("report", f"genr8 report {run_dir}"),
-              ("history", f"genr8 history {run_dir}")]
-    return [line for name, line in wanted if name in names]
+    """The ``genr8`` commands that show a run's results."""
+    return [f"genr8 top {run_dir}", f"genr8 report {run_dir}", f"genr8 history {run_dir}"]
 
 
 def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOptions,
@@ -260,7 +250,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
-    config = load_config(config_path)
+    config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
     with connect_ray(options.address, options.num_cpus), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,

@@ -122,7 +122,7 @@ class Boundary(abc.ABC):
     allowed_inside: bool | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        read_choice(self.behaviour, self._where(), "behaviour", BEHAVIOURS)
+        read_choice(self.behaviour, self._where(), "behaviour", tuple(BEHAVIOURS))
         read_optional_bool(self.inside, self._where(), "inside")
         if self.allowed_inside is None and self.inside is not None:
             object.__setattr__(self, "allowed_inside", self.inside)

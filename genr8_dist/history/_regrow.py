@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError
+from genr8_dist.evolution.evaluate import steps_of
 from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
 
 __all__ = ["EXPORT_FORMATS", "Regrown", "config_of", "export", "picture", "regrow", "save_text"]
@@ -72,7 +73,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     result = grow(system, config.environment)
     surface = result.surface
     digest = surface.digest()
-    steps = len(result.steps) if hasattr(result.steps, "__len__") else int(result.steps)
+    steps = steps_of(result)
     counts = (len(surface.vertices), len(surface.edges), len(surface.regions), steps)
     recorded = (row["n_vertices"], row["n_edges"], row["n_regions"], row["steps_done"])
     if digest != row["surface_digest"] or counts != recorded:
@@ -116,7 +117,9 @@ def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
     import numpy as np
 
     try:
-        import rhino3dm
+        import importlib
+
+        rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
     except ImportError:
         raise HistoryError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
     vertices = np.asarray(surface.vertices, dtype=np.float64)

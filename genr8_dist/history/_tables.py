@@ -398,7 +398,7 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
     store = open_run(run)
     individuals = dataset(store)
     tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
-    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
         for name, table in tables.items():
