@@ -14,6 +14,7 @@ import pyarrow.dataset as pads
 
 from genr8_dist.errors import HistoryError, StoreError
 from genr8_dist.evolution.individual import parse_id
+from genr8_dist.files import replacing
 from genr8_dist.store.schema import criterion_of
 
 __all__ = [
@@ -128,13 +129,8 @@ def atomic_write(path: str | os.PathLike, write: Any) -> None:
     if inside is not None:
         raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
                            "write into a run: choose a path outside it")
-    tmp = folder / f".{target.name}.tmp-{os.getpid()}"
-    try:
+    with replacing(target) as tmp:
         write(str(tmp))
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = None) -> None:
