@@ -16,17 +16,15 @@ A path to a ``.lark`` file or plugin folder is accepted wherever a name is.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
-import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
 
 from genr8_dist.errors import UniverseError
 from genr8_dist.grammar.compiler import read_grammar_file
+from genr8_dist.grammar.hooks import load_hooks
 from genr8_dist.grammar.universe import Universe
 from genr8_dist.resources import grammars_dir, plugins_dir
 
@@ -139,25 +137,6 @@ def list_universes() -> list[UniverseInfo]:
     return infos
 
 
-def _load_hooks(folder: Path) -> ModuleType | None:
-    hooks = folder / "hooks.py"
-    if not hooks.is_file():
-        return None
-    name = "genr8_dist_plugin_" + re.sub(r"\W", "_", str(folder.resolve()))
-    spec = importlib.util.spec_from_file_location(name, hooks)
-    if spec is None or spec.loader is None:
-        raise UniverseError(f"{hooks}: cannot be imported")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # a plugin's own bug: report it as the plugin's, in one line
-        sys.modules.pop(name, None)
-        raise UniverseError(f"{hooks}: importing the plugin's hooks failed: "
-                            f"{type(exc).__name__}: {exc}") from None
-    return module
-
-
 def _build(name: str, origin: str, lark: Path) -> Universe:
     lark = lark.resolve()
     try:
@@ -174,7 +153,7 @@ def _build(name: str, origin: str, lark: Path) -> Universe:
     if cached is not None:
         return cached
     text = read_grammar_file(lark)
-    hooks = _load_hooks(lark.parent) if plugin else None
+    hooks = load_hooks(lark.parent) if plugin else None
     universe = Universe(name, origin, lark, text, hooks)
     with _LOCK:
         _CACHE[key] = universe

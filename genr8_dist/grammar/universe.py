@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 from genr8_dist.errors import GenomeError, UniverseError
 from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
-from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
+from genr8_dist.grammar.hooks import RepairContext, hemls_repair, load_hooks, rule_predecessors
 from genr8_dist.grammar.mapper import CompiledMapper, _walk, compile_mapper
 
 __all__ = ["MapResult", "Universe", "check_genome"]
@@ -77,9 +77,7 @@ def check_genome(genome: Iterable[int]) -> list[int] | tuple[int, ...]:
 
 
 def _rebuild(name: str, origin: str, path: str, text: str, hooks_dir: str | None) -> Universe:
-    from genr8_dist.grammar.discovery import _load_hooks
-
-    hooks = _load_hooks(Path(hooks_dir)) if hooks_dir else None
+    hooks = load_hooks(Path(hooks_dir)) if hooks_dir else None
     return Universe(name, origin, Path(path), text, hooks)
 
 
