@@ -3,6 +3,7 @@
     python bench/fidelity.py              # all three figures
     python bench/fidelity.py --only drape # penetrations and regions kept
     python bench/fidelity.py --genomes 100
+    python bench/fidelity.py --pictures docs   # docs/boundary_behaviours.png
 
 1. penetrations: four_sided_tiles draped over the sphere of examples/environments/drape_sphere.toml
    (gravity, slide): vertices on the wrong side of the sphere after each derivation step (deeper
@@ -12,6 +13,9 @@
 3. symmetric share: random genomes (seed 0, 50-150 codons) of the symmetric universes grown 4 steps
    in the empty environment; the share of grown (uncapped) surfaces with a mirror line
    (``Surface.mirror_line``: a vertical plane through the centre mapping every vertex onto one).
+
+``--pictures DIR`` draws four_sided_tiles in examples/environments/box_corner*.toml (slide, cut-off,
+reflect: thesis Figs 2-13 and 2-14) side by side into DIR/boundary_behaviours.png.
 """
 
 from __future__ import annotations
@@ -83,11 +87,43 @@ def symmetric_share(n_genomes: int) -> None:
               f"{time.perf_counter() - t0:>6.1f}")
 
 
+BOXES = (("slide", "box_corner.toml"), ("cut-off", "box_corner_cutoff.toml"),
+         ("reflect", "box_corner_reflect.toml"))
+
+
+def pictures(folder: Path) -> Path:
+    import tempfile
+
+    import matplotlib.image as mpimg
+
+    from genr8_dist.export import _pyplot, render_png, save_png
+
+    plt = _pyplot()
+    system = load_system("four_sided_tiles")
+    fig, axes = plt.subplots(1, len(BOXES), figsize=(15, 4.8))
+    with tempfile.TemporaryDirectory() as tmp:
+        for ax, (behaviour, name) in zip(axes, BOXES, strict=True):
+            env = load_environment(ROOT / "examples" / "environments" / name)
+            surface = grow(system, env).surface
+            one = render_png(surface, Path(tmp) / f"{behaviour}.png", env=env, size=(5.5, 5.0), dpi=90,
+                             title=f"{behaviour} ({name})")
+            ax.imshow(mpimg.imread(one))
+            ax.axis("off")
+            print(f"{behaviour:>8}: {surface!r}, {int(surface.stopped.sum())} stopped, "
+                  f"highest z {surface.vertices[:, 2].max():.2f}")
+    fig.tight_layout()
+    return save_png(fig, folder / "boundary_behaviours.png", dpi=90)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=("drape", "symmetric"), help="one part only")
     parser.add_argument("--genomes", type=int, default=500, help="random genomes per symmetric universe")
+    parser.add_argument("--pictures", type=Path, metavar="DIR", help="only draw the boundary behaviours")
     args = parser.parse_args()
+    if args.pictures:
+        print(f"wrote {pictures(args.pictures)}")
+        return
     if args.only in (None, "drape"):
         penetrations()
         regions_kept()

@@ -15,6 +15,8 @@ the report only ever talk to a phenotype through this interface:
 ``export(developed, path, config)``        a file a CAD tool or a 3D printer reads (suffix decides)
 ``preview(developed, path, title, config)`` a PNG picture
 ``draw(ax, developed)``                    the same picture on a matplotlib 3D axes (gallery tiles)
+``parse(text)`` (optional)                 read a text; when given, a universe is checked at load by
+                                           parsing a sample of its derivations
 
 Development is a pure function of (text, configuration); ``Developed.digest`` identifies the result,
 so regrowing an individual checks it is bit-identical to what the run scored.
@@ -99,6 +101,14 @@ class SurfacePhenotype(Phenotype):
         from genr8_dist.fitness import SURFACE, criterion_names
 
         return criterion_names(SURFACE)
+
+    def parse(self, text: str) -> Any:
+        """Read a derived text (a rewrite system); raises for a text no individual could grow from.
+        Optional for a phenotype: when present, a universe is checked at load by parsing a sample of
+        its derivations (genr8_dist.grammar.universe.Universe.check_sample)."""
+        from genr8_dist.hemls import parse
+
+        return parse(text)
 
     def develop(self, text: str, config: Any) -> Developed:
         from genr8_dist.hemls import grow, parse

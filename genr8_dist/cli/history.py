@@ -20,16 +20,27 @@ def _run_arg(parser: argparse.ArgumentParser) -> None:
 
 def _generation(text: str) -> int:
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a generation number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
 
 
-def _count(text: str) -> int:
+def _int(text: str) -> int:
+    """A whole number that fits the run store's 32-bit columns."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
+
+
+def _count(text: str) -> int:
+    value = _int(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value}: must be 0 or more")
     return value
@@ -52,7 +63,7 @@ def register(subparsers: Any) -> None:
         description="Per generation and island: best, median and worst total fitness of the valid "
                     "individuals and each criterion's value closest to its target.")
     _run_arg(p)
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--png", metavar="OUT.png", help="also draw the fitness curves to this PNG")
     p.add_argument("--csv", metavar="OUT.csv", help="write the table as CSV instead of printing it")
     p.set_defaults(handler=_history)
@@ -61,9 +72,9 @@ def register(subparsers: Any) -> None:
         "top", help="the best individuals, with their criteria (and rewrite systems)",
         description="The k best valid individuals of the run, a generation or an island.")
     _run_arg(p)
-    p.add_argument("-k", type=int, default=10, help="how many (default 10)")
+    p.add_argument("-k", type=_int, default=10, help="how many (default 10)")
     p.add_argument("--generation", type=_generation, help="only this generation (-1: the last)")
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
     p.set_defaults(handler=_top)
@@ -74,7 +85,7 @@ def register(subparsers: Any) -> None:
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
     p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
-    p.add_argument("--depth", type=int, help="only this many generations back")
+    p.add_argument("--depth", type=_int, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
     p.add_argument("--png", metavar="OUT.png", help="also draw the ancestry to this PNG")
@@ -114,9 +125,9 @@ def register(subparsers: Any) -> None:
                     "side by side, each tile labelled with its id and fitness.")
     _run_arg(p)
     p.add_argument("--generation", type=_generation, default=-1, help="the generation (default -1: the last)")
-    p.add_argument("-k", type=int, default=12,
+    p.add_argument("-k", type=_int, default=12,
                    help="how many surfaces (default 12; per island with --per-island)")
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
     p.add_argument("--duplicates", action="store_true",
                    help="also show individuals whose surface equals a better one's (elites, copies)")
@@ -130,8 +141,8 @@ def register(subparsers: Any) -> None:
                     "Images are embedded; it needs no network to view.")
     _run_arg(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.html", help="the HTML file to write")
-    p.add_argument("-k", type=int, default=10, help="individuals in the table (default 10)")
-    p.add_argument("--gallery", type=int, default=12, metavar="K",
+    p.add_argument("-k", type=_int, default=10, help="individuals in the table (default 10)")
+    p.add_argument("--gallery", type=_int, default=12, metavar="K",
                    help="surfaces in the gallery (default 12)")
     p.set_defaults(handler=_report)
 
@@ -151,11 +162,11 @@ def _history(args: argparse.Namespace) -> int:
         history.write_table(table, args.csv)
         _print(f"wrote {table.num_rows} rows to {args.csv}")
     else:
-        crits = [c[5:] for c in table.column_names if c.startswith("best_") and c != "best_id"]
+        crits = [c[len("closest_"):] for c in table.column_names if c.startswith("closest_")]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
-        headings.update({f"best_{c}": _text.heading(criterion_column(c)) for c in crits})
+        headings.update({f"closest_{c}": "closest_" + _text.heading(criterion_column(c)) for c in crits})
         columns = ["generation", "island", "n", "n_valid", "best", "median", "worst", "best_id"]
-        _print(_text.format_table(table, columns + [f"best_{c}" for c in crits], headings=headings))
+        _print(_text.format_table(table, columns + [f"closest_{c}" for c in crits], headings=headings))
     if args.png:
         from genr8_dist.history import pictures
 
@@ -229,7 +240,7 @@ def _show(args: argparse.Namespace) -> int:
     _print("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
         _print(f"    {statement}")
-    if row["text"] and not result.text_matches:
+    if row["text"] and result.text_matches is False:
         _print("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
     if result.surface is not None:

@@ -87,12 +87,13 @@ def _universes(args: argparse.Namespace) -> int:
     infos = list_universes()
     if args.json:
         print(json.dumps([{"name": i.name, "origin": i.origin, "path": str(i.path),
-                           "description": i.description} for i in infos], indent=2))
+                           "description": i.description, "error": i.error} for i in infos], indent=2))
         return 0
     width = max((len(i.name) for i in infos), default=4)
     owidth = max((len(i.origin) for i in infos), default=6)
     for info in infos:
-        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {info.description or info.path}")
+        about = f"BROKEN: {info.error}" if info.error else info.description or info.path
+        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {about}")
     return 0
 
 
@@ -106,6 +107,11 @@ def _map(args: argparse.Namespace) -> int:
             raise ConfigError(f"{name} must be >= {low}, got {value}")
     if args.max_depth > 100:
         raise ConfigError(f"--max-depth must be <= 100, got {args.max_depth}")
+    for name, value, high in (("--max-wraps", args.max_wraps, 1000), ("--length", args.length, 1_000_000)):
+        if value > high:
+            raise ConfigError(f"{name} must be <= {high}, got {value}")
+    if args.max_codon > 2**31 - 1:
+        raise ConfigError(f"--max-codon must be <= {2**31 - 1} (codons are 32-bit), got {args.max_codon}")
     universe = load_universe(args.universe)
     if args.random:
         from genr8_dist.rng import stream

@@ -66,19 +66,34 @@ class IslandHost:
         if found is None:
             if config_version not in self._configs:
                 raise RuntimeError(f"island host was not sent configuration version {config_version}")
-            found = Island(self._configs[config_version], island, config_version=config_version)
+            found = Island(self._configs[config_version], island, config_version=config_version,
+                           config_of=self._config_of)
             self._islands[key] = found
         return found
+
+    def _config_of(self, version: int) -> Any:
+        """Configuration ``version`` of the run: as sent, else read from the run store (None when the
+        store cannot say): an island judges rows made under it again without regrowing them."""
+        found = self._configs.get(version)
+        if found is None:
+            try:
+                found = self._store_of().config(version)
+            except Exception:
+                return None
+        return found
+
+    def _store_of(self) -> Any:
+        if self._store is None:
+            from genr8_dist.store import RunStore
+
+            self._store = RunStore.open(self.run_dir)
+        return self._store
 
     def _previous(self, island: int, generation: int) -> list[Individual]:
         held = self._latest.get(island)
         if held is not None and held[0] == generation:
             return held[1]
-        if self._store is None:
-            from genr8_dist.store import RunStore
-
-            self._store = RunStore.open(self.run_dir)
-        return list(self._store.load_generation(island, generation))
+        return list(self._store_of().load_generation(island, generation))
 
     def advance(
         self,

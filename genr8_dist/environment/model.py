@@ -159,8 +159,11 @@ class Environment:
         put(self, "uniform_iterations", read_int(self.uniform_iterations, src, "uniform_iterations",
                                                  minimum=1, maximum=1000))
         put(self, "repelling_points", read_float(self.repelling_points, src, "repelling_points", minimum=0.0))
-        put(self, "repelling_radius", read_float(self.repelling_radius, src, "repelling_radius", minimum=0.0,
-                                                 strict_minimum=True))
+        radius = read_float(self.repelling_radius, src, "repelling_radius")
+        if radius != -1.0 and radius <= 0.0:
+            raise fail(src, "repelling_radius",
+                       f"must be -1 (every vertex, the thesis) or > 0, got {self.repelling_radius!r}")
+        put(self, "repelling_radius", radius)
         put(self, "gravity", _read_gravity(self.gravity, src))
         for name in ("attractors", "repellers"):
             items = getattr(self, name)
@@ -314,8 +317,8 @@ class Environment:
         """The repelling-points displacement (zero when ``repelling_points`` is 0)."""
         if self.repelling_points <= 0.0:
             return np.zeros_like(positions)
-        return repelling_displacement(positions, masses, self.repelling_points,
-                                      self.repelling_radius * length, length)
+        radius = math.inf if self.repelling_radius == -1.0 else self.repelling_radius * length
+        return repelling_displacement(positions, masses, self.repelling_points, radius, length)
 
 
 def load_environment(path: str | Path) -> Environment:

@@ -6,11 +6,18 @@ or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with `
 
 An ``Evaluator`` keeps two caches for one configuration: genome -> evaluation, and rewrite-system text
 -> grown and scored surface (many genomes map to the same text, since GE genomes carry unread codons).
-Evaluation is a pure function of (genome, configuration), so the caches change timings, never results.
+Every Evaluator of a process (an island host) also shares a bounded cache keyed by (text,
+``development_key``): growing and measuring a text depends on the universe and the environment only,
+so a text grown for one configuration is not grown again for another that differs in its fitness
+(an edit, another island's version, a helper's share): ``rescore`` judges it again from its raw
+criteria. Evaluation is a pure function of (genome, configuration), so the caches change timings,
+never results.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import time
 from collections import OrderedDict
@@ -29,18 +36,31 @@ if TYPE_CHECKING:
 __all__ = [
     "Evaluation",
     "Evaluator",
+    "development_key",
     "evaluate_genome",
     "evaluate_text",
     "judge",
     "regions_of",
+    "rescore",
     "steps_of",
     "universe_for",
 ]
 
 
+def universe_for(config: Any) -> Any:
+    """The universe of ``config`` (a ``RunConfig``), built from the files it carries (once per process),
+    never looked up again by name: a Ray host on any machine builds the driver's universe. A plain
+    name is looked up (the Python API's shorthand)."""
+    source = getattr(config, "universe_source", None)
+    if source is None:
+        return _named_universe(str(config))
+    from genr8_dist.grammar.universe import build_universe
+
+    return build_universe(source, check=False)
+
+
 @lru_cache(maxsize=16)
-def universe_for(name: str) -> Any:
-    """The loaded universe ``name`` (loaded once per process)."""
+def _named_universe(name: str) -> Any:
     from genr8_dist.grammar import load_universe
 
     return load_universe(name)
@@ -75,39 +95,6 @@ def regions_of(surface: Any) -> int:
     return int(n) if n is not None else len(surface.regions)
 
 
-def judge(text: str, result: Any, env: Any, fitness: FitnessSpec, *, grow_seconds: float = 0.0
-          ) -> Evaluation:
-    """Score a grown ``result`` (a ``GrowthResult`` of ``text``) under ``fitness`` in ``env``: the
-    rules that make an individual valid (not capped, not degenerate, every criterion and the total
-    finite) in one place, for runs and ``genr8 score``."""
-    surface = result.surface
-    raw_capped = result.capped
-    capped = (raw_capped if isinstance(raw_capped, str) else "cap") if raw_capped else None
-    steps_done = steps_of(result)
-    grown = Evaluation(text=text, n_vertices=len(surface.vertices), n_edges=len(surface.edges),
-                       n_regions=regions_of(surface), steps_done=steps_done, capped=capped,
-                       grow_seconds=grow_seconds)
-    t1 = time.perf_counter()
-    try:
-        digest = surface.digest()
-        criteria = score_surface(surface, env, fitness.names)
-    except Exception as exc:  # failure is data
-        return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
-    grown = replace(grown, surface_digest=digest, criteria=criteria,
-                    score_seconds=time.perf_counter() - t1)
-    if capped:
-        return replace(grown, stage="grow", error=f"growth capped ({capped}) in derivation step {steps_done}")
-    if not grown.n_vertices or not grown.n_edges:
-        return replace(grown, stage="score", error="degenerate surface: no vertices or no edges")
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return replace(grown, stage="score", error=f"degenerate surface: {', '.join(bad)} not finite")
-    total = fitness.evaluate(criteria)
-    if not math.isfinite(total):
-        return replace(grown, stage="score", error="fitness is not finite")
-    return replace(grown, valid=True, fitness=total)
-
-
 def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
 
@@ -128,19 +115,132 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     return judge(text, result, config.environment, config.fitness, grow_seconds=time.perf_counter() - t0)
 
 
+def judge(text: str, result: Any, env: Any, fitness: FitnessSpec, *, grow_seconds: float = 0.0
+          ) -> Evaluation:
+    """A grown ``result`` (a ``GrowthResult`` of ``text``) measured in ``env`` and judged under
+    ``fitness``: what a run stores for it, and what ``genr8 score`` reports."""
+    surface = result.surface
+    raw_capped = result.capped
+    grown = Evaluation(text=text, n_vertices=len(surface.vertices), n_edges=len(surface.edges),
+                       n_regions=regions_of(surface), steps_done=steps_of(result),
+                       capped=(raw_capped if isinstance(raw_capped, str) else "cap") if raw_capped else None,
+                       grow_seconds=grow_seconds)
+    t1 = time.perf_counter()
+    try:
+        digest = surface.digest()
+        criteria = score_surface(surface, env, fitness.names)
+    except Exception as exc:  # failure is data
+        return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
+    return _judge(replace(grown, surface_digest=digest, criteria=criteria,
+                          score_seconds=time.perf_counter() - t1), fitness)
+
+
+def _judge(grown: Evaluation, fitness: FitnessSpec) -> Evaluation:
+    """The verdict on a grown and measured text (``grown``: what growing and measuring found, its
+    ``criteria`` the raw values ``fitness`` asks for) under ``fitness``: valid or why not, and the
+    fitness. The rules that make an individual valid, in one place; a pure function of those stored
+    fields, so ``rescore`` calls it again after an edit."""
+    criteria = grown.criteria
+    if grown.capped:
+        return replace(grown, stage="grow",
+                       error=f"growth capped ({grown.capped}) in derivation step {grown.steps_done}")
+    if not grown.n_vertices or not grown.n_edges:
+        return replace(grown, stage="score", error="degenerate surface: no vertices or no edges")
+    bad = [name for name in criteria if not math.isfinite(criteria[name])]
+    if bad:
+        return replace(grown, stage="score", error=f"degenerate surface: {', '.join(bad)} not finite")
+    total = fitness.evaluate(criteria)
+    if not math.isfinite(total):
+        return replace(grown, stage="score", error="fitness is not finite")
+    return replace(grown, valid=True, fitness=total)
+
+
+# The grown and measured texts of this process, shared by its Evaluators: (development_key, text) ->
+# the evaluation made for some configuration with that key (see the module docstring).
+_DEVELOPED: OrderedDict[tuple[str, str], Evaluation] = OrderedDict()
+DEVELOPED_CACHE_SIZE = 8192
+
+# The fields of an evaluation that growing and measuring its text produced (rescore keeps them).
+_GROWN_FIELDS = ("text", "n_vertices", "n_edges", "n_regions", "steps_done", "capped", "surface_digest",
+                 "grow_seconds", "score_seconds")
+
+
+def development_key(config: RunConfig) -> str:
+    """What growing and measuring a text depends on besides the text: the universe (whose phenotype
+    it is) and the environment. Configurations with the same key grow every text into the same
+    surface and measure the same raw criteria; their fitness may differ."""
+    env = config.environment
+    table = env.to_dict() if hasattr(env, "to_dict") else env
+    blob = json.dumps([config.universe, table], sort_keys=True, default=repr)
+    return hashlib.blake2b(blob.encode(), digest_size=16).hexdigest()
+
+
+def rescore(evaluation: Evaluation, config: RunConfig) -> Evaluation | None:
+    """``evaluation`` of a text, made under a configuration with ``config``'s ``development_key``,
+    judged again under ``config`` from its raw criteria, without growing the text; what evaluating it
+    under ``config`` gives (timings aside). None when it lacks a raw value ``config`` asks for
+    (the text must be grown and measured again)."""
+    if not evaluation.criteria and evaluation.stage in ("parse", "grow"):
+        return evaluation   # it failed before any criterion was measured: the fitness plays no part
+    names = tuple(config.fitness.names)
+    if not all(name in evaluation.criteria for name in names):
+        return None
+    grown: dict[str, Any] = {name: getattr(evaluation, name) for name in _GROWN_FIELDS}
+    grown["criteria"] = {name: evaluation.criteria[name] for name in names}
+    return replace(_judge(Evaluation(**grown), config.fitness), codons_used=evaluation.codons_used,
+                   wraps=evaluation.wraps,
+                   map_seconds=evaluation.map_seconds, eval_seconds=evaluation.eval_seconds)
+
+
 class Evaluator:
     """Evaluates genomes for one configuration, each distinct genome and each distinct text once
-    (bounded caches of ``cache_size`` entries, least recently used dropped first)."""
+    (bounded caches of ``cache_size`` entries, least recently used dropped first), and no text
+    grown in this process for a configuration of the same ``development_key`` grown again."""
 
     def __init__(self, config: RunConfig, *, cache_size: int = 4096) -> None:
         self.config = config
-        self.universe = universe_for(config.universe)
+        self.universe = universe_for(config)
         self.cache_size = cache_size
         self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
         self.evaluations = 0     # genomes actually mapped
         self.growths = 0         # texts actually grown
         self.cache_hits = 0
+        self.rescored = 0        # texts judged again from a growth made for another configuration
+        self._development_key: str | None = None
+
+    @property
+    def development_key(self) -> str:
+        """``development_key(self.config)``, computed once."""
+        if self._development_key is None:
+            self._development_key = development_key(self.config)
+        return self._development_key
+
+    def _share(self, text: str, evaluation: Evaluation) -> None:
+        key = (self.development_key, text)
+        _DEVELOPED[key] = evaluation
+        _DEVELOPED.move_to_end(key)
+        if len(_DEVELOPED) > DEVELOPED_CACHE_SIZE:
+            _DEVELOPED.popitem(last=False)
+
+    def _grown(self, text: str) -> Evaluation:
+        """``text`` grown and scored under this configuration: from this Evaluator's cache, judged
+        again from the process's growth of it for another configuration, or grown now."""
+        cached = self._texts.get(text)
+        if cached is not None:
+            self._texts.move_to_end(text)
+            return cached.untimed()
+        shared = _DEVELOPED.get((self.development_key, text))
+        judged = rescore(shared, self.config) if shared is not None else None
+        if judged is not None:
+            self.rescored += 1
+            judged = judged.untimed()
+        else:
+            self.growths += 1
+            judged = _grow_and_score(text, self.config)
+            self._share(text, judged)
+        self._remember(self._texts, text, judged)
+        return judged
 
     def _remember(self, cache: OrderedDict[Any, Evaluation], key: Any, value: Evaluation) -> None:
         cache[key] = value
@@ -158,6 +258,7 @@ class Evaluator:
         if evaluation.text is not None and evaluation.stage != "map":
             self.growths += 1
             self._remember(self._texts, evaluation.text, evaluation)
+            self._share(evaluation.text, evaluation)
         self._remember(self._genomes, key, evaluation)
 
     def evaluate(self, genome: Sequence[int]) -> Evaluation:
@@ -179,36 +280,24 @@ class Evaluator:
             result = replace(result, eval_seconds=result.map_seconds)
             self._remember(self._genomes, key, result)
             return result
-        codons_used, wraps = int(mapped.codons_used), int(mapped.wraps)
         map_seconds = time.perf_counter() - start
         if not mapped.valid:
             result = Evaluation(text=mapped.text or None, stage="map",
                                 error=str(mapped.reason or "mapping failed"))
         else:
-            grown = self._texts.get(mapped.text)
-            if grown is not None:
-                self._texts.move_to_end(mapped.text)
-                grown = grown.untimed()
-            else:
-                self.growths += 1
-                grown = _grow_and_score(mapped.text, self.config)
-                self._remember(self._texts, mapped.text, grown)
-            result = grown
-        result = replace(result, codons_used=codons_used, wraps=wraps, map_seconds=map_seconds,
-                         eval_seconds=time.perf_counter() - start)
+            result = self._grown(mapped.text)
+        result = replace(result, codons_used=int(mapped.codons_used), wraps=int(mapped.wraps),
+                         map_seconds=map_seconds, eval_seconds=time.perf_counter() - start)
         self._remember(self._genomes, key, result)
         return result
 
     def evaluate_text(self, text: str) -> Evaluation:
         """Grow and score a rewrite system written by hand (no mapping: codons_used and wraps are 0)."""
-        cached = self._texts.get(text)
-        if cached is not None:
+        if text in self._texts:
             self.cache_hits += 1
-            return cached.untimed()
+            return self._texts[text].untimed()
         start = time.perf_counter()
-        self.growths += 1
-        result = _grow_and_score(text, self.config)
-        self._remember(self._texts, text, result)
+        result = self._grown(text)
         return replace(result, eval_seconds=time.perf_counter() - start)
 
 

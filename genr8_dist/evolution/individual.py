@@ -235,3 +235,10 @@ def registered_column(column: Column) -> Iterator[Column]:
         yield registered
     finally:
         unregister_column(column.name)
+
+
+# The search modes' columns, registered as a plugin's would be (values in ``Individual.extra``):
+# ``pareto_rank``, an individual's front among its island's generation over the Pareto objectives
+# (0: non-dominated; every mode); ``cell``, its MAP-Elites archive cell (``map-elites`` mode only).
+PARETO_RANK = register_column(Column("pareto_rank", "int32", top=16, shown=7, heading="front"))
+ARCHIVE_CELL = register_column(Column("cell", "int32", top=17))

@@ -35,7 +35,10 @@ choice of elites and parents of generation g; a marked individual not of generat
 
 Individuals of generation g-1 evaluated under another ``config_version`` (the fitness, the environment
 or the universe changed: an intervention) are re-evaluated before selection, so they compete under the
-configuration now in force. Identical genomes are evaluated once (``Evaluator``'s cache).
+configuration now in force. When only the fitness changed (the island's ``config_of`` gives their
+version, with the same universe, genome settings and ``development_key``), they are judged again
+from their stored raw criteria (``evaluate.rescore``) instead of being grown again: the same result.
+Identical genomes are evaluated once (``Evaluator``'s cache).
 
 A generation is built in two parts: ``breed`` draws every genome with its origin and parents (cheap,
 sequential, seeded), then ``complete`` evaluates the genomes not yet evaluated and makes the
@@ -48,11 +51,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.evolution.evaluate import Evaluation, Evaluator
+from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
@@ -62,7 +65,6 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
-from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
@@ -109,7 +111,7 @@ def pareto_objectives(config: Any) -> tuple[str, ...]:
     with a weight above 0."""
     if config.search.objectives:
         return tuple(config.search.objectives)
-    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
+    return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
 def is_trivial(evaluation: Evaluation) -> bool:
@@ -131,7 +133,8 @@ class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
     def __init__(self, config: Any, island_index: int, config_version: int = 1, *,
-                 evaluator: Evaluator | None = None) -> None:
+                 evaluator: Evaluator | None = None,
+                 config_of: Callable[[int], Any] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:
             raise ConfigError(f"island index must be a non-negative integer, got {island_index!r}")
         if island_index >= config.islands.count:
@@ -143,6 +146,7 @@ class Island:
         self.config_version = int(config_version)
         self.evaluator = evaluator if evaluator is not None and evaluator.config is config \
             else Evaluator(config)
+        self.config_of = config_of   # configuration version -> its configuration (None: unknown)
         self.stats = IslandStats()
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
@@ -189,11 +193,32 @@ class Island:
                           config_version=self.config_version, **evaluation.as_fields())
 
     def _kept(self, individual: Individual) -> Evaluation:
-        """The evaluation of an individual carried over: kept when made under this configuration."""
+        """The evaluation of an individual carried over: kept when made under this configuration,
+        judged again from its raw criteria when only the fitness changed since, else evaluated."""
+        fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
         if individual.config_version == self.config_version:
-            fields = {name: getattr(individual, name) for name in Evaluation.__dataclass_fields__}
             return Evaluation(**fields).untimed()
+        if self._only_fitness_changed(individual.config_version) and individual.stage != "map":
+            judged = rescore(Evaluation(**fields), self.config)
+            if judged is not None:
+                return judged.untimed()
         return self.evaluate(individual.genome)
+
+    def _only_fitness_changed(self, version: int) -> bool:
+        """Whether configuration ``version`` maps genomes to the texts this island's does and grows
+        and measures them as it does (it may differ in fitness, EA or islands)."""
+        earlier = self.config_of(version) if self.config_of is not None else None
+        if earlier is None:
+            return False
+        return (earlier.universe == self.config.universe and earlier.genome == self.config.genome
+                and development_key(earlier) == self.evaluator.development_key)
+
+    def _now(self, individual: Individual) -> Individual:
+        """``individual`` as it competes under this island's configuration."""
+        if individual.config_version == self.config_version:
+            return individual
+        return self._make(individual.generation, individual.index, individual.genome, individual.origin,
+                          individual.parents, self._kept(individual))
 
     def _finish(self, generation: int, population: list[Individual], before: tuple[int, int, int]
                 ) -> list[Individual]:
@@ -271,18 +296,14 @@ class Island:
             births.append(Birth(genome, "injected", parents))
 
         # Generation g-1 as it competes now: re-evaluated where its configuration was another one.
-        pool = [p if p.config_version == self.config_version
-                else self._make(p.generation, p.index, p.genome, p.origin, p.parents, self.evaluate(p.genome))
-                for p in previous]
+        pool = [self._now(p) for p in previous]
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
         for marked, fitness in hand:
             if marked.id in parent_ids:
                 fitnesses[parent_ids.index(marked.id)] = float(fitness)
                 continue
-            pool.append(marked if marked.config_version == self.config_version
-                        else self._make(marked.generation, marked.index, marked.genome, marked.origin,
-                                        marked.parents, self.evaluate(marked.genome)))
+            pool.append(self._now(marked))
             parent_ids.append(marked.id)
             fitnesses.append(float(fitness))
 
@@ -412,7 +433,30 @@ class Island:
             if evaluation.valid and evaluation.surface_digest is not None:
                 seen.add(evaluation.surface_digest)
             population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
-        return self._finish(generation, population, before)
+        return self._finish(generation, self._placed(population), before)
+
+    def _placed(self, population: list[Individual]) -> list[Individual]:
+        """``population`` with each individual's Pareto front among it (over ``pareto_objectives``)
+        and, in ``map-elites`` mode, its archive cell."""
+        from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+
+        names = pareto_objectives(self.config)
+        ranks = non_dominated_ranks(objectives_of([p.criteria for p in population],
+                                                  [p.valid for p in population], self.config.fitness,
+                                                  names)) if names else [0] * len(population)
+        grid = None
+        if self.config.search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(self.config.search)
+        placed = []
+        for p, r in zip(population, ranks, strict=True):
+            extra = {**p.extra, "pareto_rank": int(r)}
+            cell = grid.cell(p) if grid is not None else None
+            if cell is not None:
+                extra["cell"] = cell
+            placed.append(replace(p, extra=extra))
+        return placed
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:

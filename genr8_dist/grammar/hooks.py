@@ -8,18 +8,10 @@ replace it by defining ``repair(ctx)`` in its ``hooks.py`` (see ``grammars/READM
 
 from __future__ import annotations
 
-import importlib.util
-import re
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
-from types import ModuleType
 
-from genr8_dist.errors import UniverseError
-
-__all__ = ["RepairContext", "add_rules", "hemls_repair", "load_hooks", "predecessor_label",
-           "rule_predecessors"]
+__all__ = ["RepairContext", "add_rules", "hemls_repair", "predecessor_label", "rule_predecessors"]
 
 
 @dataclass
@@ -96,24 +88,3 @@ def add_rules(ctx: RepairContext, has: set[int], end: int) -> None:
         occurring |= ctx.labels_in(successor)
         missing = occurring - has
     ctx.text = ctx.text[:end] + "\n".join(new) + "\n" + ctx.text[end:]
-
-
-def load_hooks(folder: Path) -> ModuleType | None:
-    """The plugin hooks module in ``folder`` (its ``hooks.py``), imported once under a name of its
-    own; ``None`` when there is none. A plugin whose hooks fail to import is a ``UniverseError``."""
-    hooks = folder / "hooks.py"
-    if not hooks.is_file():
-        return None
-    name = "genr8_dist_plugin_" + re.sub(r"\W", "_", str(folder.resolve()))
-    spec = importlib.util.spec_from_file_location(name, hooks)
-    if spec is None or spec.loader is None:
-        raise UniverseError(f"{hooks}: cannot be imported")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # a plugin's own bug: report it as the plugin's, in one line
-        sys.modules.pop(name, None)
-        raise UniverseError(f"{hooks}: importing the plugin's hooks failed: "
-                            f"{type(exc).__name__}: {exc}") from None
-    return module

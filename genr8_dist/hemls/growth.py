@@ -482,6 +482,7 @@ class _Grower:
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
         self.pairs = 0      # branch pairs tested and re-tested for joining
         self.cone = getattr(env, "branch_join", "orientation") == "cone"
+        self._stop_later: list[np.ndarray] = []  # vertices drawn between two stopped ones
         self._keys: np.ndarray | None = None
 
     # -- step ------------------------------------------------------------------------------------
@@ -510,13 +511,17 @@ class _Grower:
     def _constrain(self) -> None:
         """Hard boundaries hold at the end of the step: the vertices rewriting placed on the wrong
         side (a new vertex on an edge that is a chord of a sphere) go to the wall's nearest allowed
-        point, and stop there at a cut-off wall (``Environment.constrain``)."""
+        point, and stop there at a cut-off wall (``Environment.constrain``); then the vertices drawn
+        between two stopped vertices stop."""
         if not self.env.boundaries:
             return
         m = self.m
         fixed = self.env.constrain(m.pos[:m.nv], stopped=m.stopped[:m.nv])
         m.pos[:m.nv] = fixed.positions
         m.stopped[:m.nv] = fixed.stopped
+        for frozen in self._stop_later:
+            m.stopped[frozen] = True
+        self._stop_later = []
 
     @property
     def spent(self) -> int:
@@ -641,6 +646,11 @@ class _Grower:
         m.pos[nv0:nv0 + n * (k - 1)] = world[:, 1:k, :].reshape(-1, 3)
         m.mass[nv0:nv0 + n * (k - 1)] = self.env.vertex_mass
         m.stopped[nv0:nv0 + n * (k - 1)] = False
+        # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
+        # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
+        frozen = np.flatnonzero(np.repeat(m.stopped[s] & m.stopped[t], k - 1))
+        if len(frozen):
+            self._stop_later.append(nv0 + frozen)
         m.nv = nv0 + n * (k - 1)
         chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
         new_e = ne0 + np.arange(n * k, dtype=np.int64).reshape(n, k)

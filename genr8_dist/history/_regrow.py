@@ -16,7 +16,14 @@ from typing import Any
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import steps_of
-from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    atomic_write,
+    open_run,
+    run_directory_holding,
+    run_label,
+)
 
 __all__ = ["EXPORT_FORMATS", "Regrown", "config_of", "export", "picture", "regrow", "save_text"]
 
@@ -35,7 +42,7 @@ class Regrown:
     surface: Any
     steps: int
     digest: str | None
-    text_matches: bool
+    text_matches: bool | None    # None: not checked (the universe's hooks are code history never runs)
 
 
 def config_of(store: Any, version: int) -> Any:
@@ -62,11 +69,15 @@ def regrow(run: RunLike, id: str) -> Regrown:
     store = open_run(run)
     row = individual(store, id).to_pylist()[0]
     config = config_of(store, row["config_version"])
-    universe = universe_for(config.universe)
-    mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
-                          max_wraps=config.genome.max_wraps)
+    from genr8_dist.grammar.trust import may_run
+
     text = row["text"]
-    text_matches = bool(mapped.valid) and mapped.text == text
+    text_matches: bool | None = None
+    if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
+        universe = universe_for(config)
+        mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
+                              max_wraps=config.genome.max_wraps)
+        text_matches = bool(mapped.valid) and mapped.text == text
     if text is None or row["surface_digest"] is None:
         return Regrown(row, config, None, None, 0, None, text_matches)
     system = parse(text)
@@ -101,6 +112,10 @@ def export(result: Regrown, path: str | os.PathLike) -> Path:
     if suffix not in EXPORT_FORMATS:
         raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
                            + ", ".join(f".{s}" for s in EXPORT_FORMATS))
+    inside = run_directory_holding(path)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
     surface = _need_surface(result, "export")
     if suffix == "3dm":
         _export_3dm(surface, path, name=result.row["id"])

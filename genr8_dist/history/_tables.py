@@ -54,7 +54,8 @@ def _groups(key: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
     """Per generation and island: how many individuals (``n``, ``n_valid``), the best, median, worst
     and mean total fitness of the valid ones, the best individual's id, and for every criterion the
-    raw value closest to its target under the configuration version then in force (``best_<name>``).
+    raw value closest to its target under the configuration version then in force (``closest_<name>``:
+    the value nearest the target among the generation's individuals, not necessarily the best one's).
 
     Rows are sorted by generation, then island; a group without a valid individual has nulls.
     """
@@ -115,7 +116,7 @@ def per_generation(run: RunLike, *, island: int | None = None) -> pa.Table:
             mins = np.minimum.reduceat(dev, starts)
             hit = np.flatnonzero(dev == np.repeat(mins, counts))
             first = hit[np.searchsorted(hit, starts)]
-            out[f"best_{name}"] = pa.array(raw[order[first]], pa.float64(), mask=~np.isfinite(mins))
+            out[f"closest_{name}"] = pa.array(raw[order[first]], pa.float64(), mask=~np.isfinite(mins))
     return pa.table(out)
 
 
@@ -148,14 +149,20 @@ def _rows_by_ids(data: Any, ids: list[str], columns: list[str]) -> pa.Table:
 
 
 def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int | None = None,
-        criterion: str | None = None, systems: bool = False) -> pa.Table:
+        criterion: str | None = None, systems: bool = False, under: int | None = None) -> pa.Table:
     """The ``k`` best valid individuals (lowest total fitness, or with ``criterion`` the raw value
     closest to that criterion's target), optionally only of one ``generation`` (negative counts back
     from the last) and ``island``. Ties are broken by generation, island and index.
 
+    ``fitness`` is what the run stored: the fitness under the configuration version that scored the
+    individual (``config_version``). After an edit of the fitness, individuals scored under different
+    versions do not compare; with ``under=V`` every one is rescored from its stored raw criteria with
+    version V's targets and weights, ranked by that, and the column ``fitness_v<V>`` holds it.
+
     Columns: ``rank``, then those the stored row declares for ``top`` (the id and position,
     ``fitness``, every ``crit_<name>``, how it was made and its growth statistics); ``deviation``
-    when ranking by a criterion; ``text`` (its rewrite system) when ``systems``.
+    when ranking by a criterion; ``fitness_v<V>`` with ``under``; ``text`` (its rewrite system) when
+    ``systems``.
     """
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
@@ -174,6 +181,8 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     rank_cols = ["generation", "island", "index", "fitness", "config_version"]
     if criterion is not None:
         rank_cols.append(criterion_column(criterion))
+    elif under is not None:
+        rank_cols += [criterion_column(c) for c in crits]
     table = data.to_table(columns=rank_cols, filter=filt)
     if table.num_rows == 0:
         where = []
@@ -184,7 +193,9 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         scope = " of " + ", ".join(where) if where else ""
         raise HistoryError(f"{run_label(store)}: no valid individual{scope}")
 
-    if criterion is None:
+    if criterion is None and under is not None:
+        score = rescored(store, table, crits, under)
+    elif criterion is None:
         score = as_numpy(table["fitness"], math.inf).astype(np.float64)
     else:
         targets = targets_by_version(store, crits)
@@ -209,7 +220,31 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     rows = rows.add_column(0, "rank", pa.array(np.arange(1, rows.num_rows + 1), pa.int32()))
     if criterion is not None:
         rows = rows.append_column("deviation", pa.array(score[candidates][chosen], pa.float64()))
+    elif under is not None:
+        rows = rows.append_column(f"fitness_v{under}", pa.array(score[candidates][chosen], pa.float64()))
     return rows
+
+
+def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.ndarray:
+    """The total fitness of each row of ``table`` (valid rows with their ``crit_<name>`` columns) under
+    configuration ``version``'s targets and weights: ``sum w * |raw - target| / unit``, as the run
+    scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing."""
+    chosen = [cv for cv in store.configs() if int(cv.version) == int(version)]
+    if not chosen:
+        raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    spec = store.fitness(chosen[0])
+    total = np.zeros(table.num_rows)
+    for c in spec.criteria:
+        if c.weight == 0.0:
+            continue
+        if c.name not in crits:
+            raise HistoryError(f"{run_label(store)}: version {version} weighs criterion {c.name!r}, "
+                               "which the run does not record")
+        raw = as_numpy(table[criterion_column(c.name)], math.nan).astype(np.float64)
+        with np.errstate(invalid="ignore"):
+            dev = c.weight * np.abs(raw - c.target) / c.unit
+        total += np.where(np.isfinite(raw), dev, np.inf)
+    return total
 
 
 def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Table:

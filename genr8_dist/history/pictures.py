@@ -77,6 +77,25 @@ def _island_colours(n: int) -> list[Any]:
     return [cmap(i % cmap.N) for i in range(n)]
 
 
+def _label_interventions(ax: Any, labels: dict[int, list[str]], *, span: int) -> None:
+    """One label per generation where interventions take effect (several at one generation are joined),
+    each beside its line; labels of generations close together step right so that none overlap."""
+    colour = _EVENT_STYLE["intervention"][0]
+    near = max(1.0, span / 45)   # generations closer than this would share the labels' column
+    previous: float | None = None
+    shift = 0
+    for g in sorted(labels):
+        shift = shift + 1 if previous is not None and g - previous < near * (shift + 1) else 0
+        texts = labels[g]
+        text = texts[0] if len(texts) == 1 else f"{len(texts)} edits: " + "; ".join(texts)
+        if len(text) > 60:
+            text = text[:59] + "…"
+        ax.annotate(text, xy=(g, 1.0), xycoords=("data", "axes fraction"), xytext=(4 + 11 * shift, -4),
+                    textcoords="offset points", rotation=90, va="top", fontsize=8, color=colour)
+        if shift == 0:
+            previous = g
+
+
 def _short_detail(detail: str, limit: int = 38) -> str:
     """An intervention's detail as a short label (``fitness.size.weight=2``)."""
     try:
@@ -99,6 +118,9 @@ def _short_detail(detail: str, limit: int = 38) -> str:
                 break
         else:
             walk("", {k: v for k, v in data.items() if k not in ("version", "config_version")})
+        parts += [str(item.get("source")) for item in data.get("injected") or () if isinstance(item, dict)]
+        parts += [f"hand fitness {item.get('id')}={item.get('fitness')}"
+                  for item in data.get("hand_fitness") or () if isinstance(item, dict)]
     text = ", ".join(parts)
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
@@ -168,23 +190,24 @@ def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
                 marker="^", ls="none", ms=7, color="#555555", alpha=0.8, label="migration",
                 clip_on=False)
     drawn: set[str] = set()
+    labels: dict[int, list[str]] = {}   # generation -> the interventions taking effect there
     for kind, g, detail in zip(kinds, gens_ev, details, strict=True):
         if kind not in _EVENT_STYLE:
             continue
         colour, style, label = _EVENT_STYLE[kind]
-        ax.axvline(g, color=colour, ls=style, lw=1.4, label=None if label in drawn else label)
+        if kind != "intervention" or g not in labels:
+            ax.axvline(g, color=colour, ls=style, lw=1.4, label=None if label in drawn else label)
         drawn.add(label)
         if kind == "intervention":
-            ax.annotate(_short_detail(detail), xy=(g, 1.0), xycoords=("data", "axes fraction"),
-                        xytext=(4, -4), textcoords="offset points", rotation=90, va="top",
-                        fontsize=8, color=colour)
+            labels.setdefault(g, []).append(_short_detail(detail))
+    _label_interventions(ax, labels, span=max(1, last))
     ax.legend(loc="upper right", fontsize=8, ncols=2 if len(islands) > 4 else 1, frameon=False)
 
     targets = targets_by_version(store, list(crits)) if crits else {}
     configs = {int(c.version): int(c.effective_generation) for c in store.configs()}
     for n, name in enumerate(crits):
         cax = fig.add_subplot(grid[1 + n // ncols, n % ncols])
-        values = column(f"best_{name}")
+        values = column(f"closest_{name}")
         for i in islands:
             rows = isl == i
             cax.plot(gen[rows], values[rows], color=colours[i], lw=1.2)
@@ -368,6 +391,9 @@ def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
         fetch *= 4
 
 
+GALLERY_MAX = 144  # surfaces on one contact sheet (a row per island with per_island)
+
+
 def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
                       island: int | None = None, per_island: bool = False,
                       distinct: bool = True) -> tuple[Any, str]:
@@ -382,6 +408,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
 
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
+    if k > GALLERY_MAX:
+        raise HistoryError(f"k: a contact sheet holds at most {GALLERY_MAX} surfaces (per island with "
+                           f"per-island), got {k}")
     store = open_run(run)
     generation = _resolve_generation(dataset(store), generation)
     if per_island:

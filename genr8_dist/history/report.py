@@ -106,7 +106,8 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     islands = sorted(set(per_gen["island"].to_pylist()))
     n_total = int(pc.sum(per_gen["n"]).as_py())
     n_valid = int(pc.sum(per_gen["n_valid"]).as_py())
-    best = _tables.top(store, k, systems=True)
+    newest = int(store.configs()[-1].version)
+    best = _tables.top(store, k, systems=True, under=newest)
     events = _tables.events(store)
     configs = list(store.configs())
     kinds = events["kind"].to_pylist()
@@ -135,14 +136,16 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     parts.append(_section(f"The best surfaces of generation {last}", gallery))
 
     crits = criteria_of(best.schema)
-    head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", "fitness",
+    head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
+                                              "as scored",
                                               *[c.replace("_", " ") for c in crits],
                                               "made by", "rewrite system"])
     rows = []
     for r in best.to_pylist():
         cells = [f'<td class="num">{r["rank"]}</td>', f"<td><code>{html.escape(r['id'])}</code></td>",
                  f'<td class="num">{r["generation"]}</td>', f'<td class="num">{r["island"]}</td>',
-                 f'<td class="num"><b>{_fmt(r["fitness"])}</b></td>']
+                 f'<td class="num"><b>{_fmt(r[f"fitness_v{newest}"])}</b></td>',
+                 f'<td class="num">{_fmt(r["fitness"])} (v{r["config_version"]})</td>']
         cells += [f'<td class="num">{_fmt(r[criterion_column(c)])}</td>' for c in crits]
         made = r["origin"] + (" of " + ", ".join(r["parents"]) if r["parents"] else "")
         cells.append(f"<td>{html.escape(made)}</td>")
@@ -151,8 +154,12 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     top_note = (f'<p class="note">Regrow and export any of them: <code>genr8 show '
                 f"{html.escape(str(run_label(store)))} ID -o surface.obj</code> (also .ply .stl .glb .3dm)."
                 "</p>")
+    ranked = (f'<p class="note">Ranked under configuration version {newest}, the one in force at the '
+              "run's end: each individual rescored from its stored raw criteria with that version's "
+              "targets and weights. <i>As scored</i> is the fitness the run gave it under the version "
+              "in brackets.</p>" if len(configs) > 1 else "")
     parts.append(_section(f"The {best.num_rows} best individuals of the run",
-                          f"<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
+                          f"{ranked}<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
 
     if best.num_rows:
         champion = best["id"][0].as_py()

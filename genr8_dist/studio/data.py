@@ -41,6 +41,8 @@ class RunView:
         self.run_dir = run_dir
         self._store: Any = None
         self._lock = threading.RLock()
+        self._curves_lock = threading.Lock()
+        self._curves_store: Any = None
         self._curves: dict[str, Any] | None = None
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
@@ -63,7 +65,10 @@ class RunView:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
         from genr8_dist.history._regrow import config_of
 
-        store = self.store()
+        with self._lock:
+            if version is not None and version in self._configs:
+                return self._configs[version]
+        store = self.store() if version is None or self._store is None else self._store
         if version is None:
             version = int(store.configs()[-1].version)
         with self._lock:
@@ -98,7 +103,8 @@ class RunView:
             status = "stopped"
         population = int(config.ea.population)
         rate, left = self._rate(events, low, n * population, last, status)
-        curves = self.curves()
+        with self._lock:
+            curves = self._curves or {"islands": {}}   # as far as computed (``curves`` runs apart)
         islands = []
         for i in range(n):
             best = curves["islands"].get(str(i), {}).get("best", [])
@@ -202,22 +208,36 @@ class RunView:
         """Per generation: the best and mean fitness over all islands, each island's best, and the
         raw criteria of the generation's best design; plus the configuration versions' first
         generations. Only the generations committed since the last call are read."""
-        store = self.store()
+        import copy
+
+        from genr8_dist.store import RunStore
+
+        version = self.store().version
         with self._lock:
-            if self._curves is not None and self._curves_version == store.version:
+            if self._curves is not None and self._curves_version == version:
                 return self._curves
-            curves = self._curves or {"generation": [], "best": [], "mean": [], "best_id": [],
-                                      "islands": {}, "criteria": {}, "last": -1}
+        # Computed apart (its own store, its own lock): the state, a generation and a surface are
+        # answered meanwhile, so the page shows them before the first read of the whole run ends.
+        with self._curves_lock:
+            if self._curves_store is None:
+                self._curves_store = RunStore.open(self.run_dir)
+            store = self._curves_store.refresh()
+            with self._lock:
+                if self._curves is not None and self._curves_version == store.version:
+                    return self._curves
+                curves = copy.deepcopy(self._curves) if self._curves is not None else {
+                    "generation": [], "best": [], "mean": [], "best_id": [], "islands": {}, "criteria": {},
+                    "last": -1}
             _add_generations(curves, store)
             curves["versions"] = [{"version": int(c.version), "generation": int(c.effective_generation)}
                                   for c in store.configs()]
-            self._curves, self._curves_version = curves, store.version
+            with self._lock:
+                self._curves, self._curves_version = curves, store.version
             return curves
 
     # -- generations and designs --------------------------------------------------------------------
     def generation(self, generation: int | None = None) -> dict[str, Any]:
         """The individuals of ``generation`` (default: the newest every island committed), best first."""
-        import pyarrow.compute as pc
 
         store = self.store()
         committed = store.committed_generations()
@@ -225,15 +245,61 @@ class RunView:
             return {"generation": -1, "individuals": []}
         newest = min(committed.values())
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        crits = [f"crit_{c}" for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
-                   "config_version"]
-        table = store.individuals(columns=columns, filter=pc.field("generation") == g)
+                   "config_version", *crits]
+        import pyarrow as pa
+
+        parts = [store.generation_table(i, g, columns) for i in sorted(committed) if committed[i] >= g]
+        table = pa.concat_tables(parts)
+        front = self._pareto(table, store.criteria)
+        table = table.drop_columns(crits)
         rows = table.to_pylist()
+        for r, on in zip(rows, front, strict=True):
+            r["pareto"] = bool(on)
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
                                  r["island"], r["index"]))
         for r in rows:
             r["fitness"] = _finite(r["fitness"])
         return {"generation": g, "newest": newest, "individuals": rows}
+
+    def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
+        """Which rows are on the Pareto front of their generation: valid, and no other valid row is at
+        least as close to every weighted criterion's target (``|raw - target| / unit``, under the
+        configuration version that scored it) and closer to one."""
+        import numpy as np
+
+        n = table.num_rows
+        valid = np.asarray(table["valid"].to_pylist(), dtype=bool)
+        versions = table["config_version"].to_pylist()
+        columns = []
+        specs = {v: self.config(int(v)).fitness for v in set(versions)}
+        for name in criteria:
+            raw = np.asarray(table[f"crit_{name}"].to_pylist(), dtype=object)
+            dev = np.full(n, np.inf)
+            used = False
+            for version, spec in specs.items():
+                term = spec[name] if name in getattr(spec, "names", ()) else None
+                if term is None or term.weight == 0.0:
+                    continue
+                used = True
+                rows = np.asarray([v == version for v in versions])
+                values = np.asarray([np.nan if x is None else float(x) for x in raw[rows]])
+                with np.errstate(invalid="ignore"):
+                    dev[rows] = np.abs(values - term.target) / term.unit
+            if used:
+                columns.append(np.where(np.isfinite(dev), dev, np.inf))
+        if not columns:
+            return [False] * n
+        points = np.stack(columns, axis=1)
+        candidates = np.flatnonzero(valid & np.isfinite(points).all(axis=1))
+        front = np.zeros(n, dtype=bool)
+        p = points[candidates]
+        for k, i in enumerate(candidates):
+            no_worse = (p <= p[k]).all(axis=1)
+            better = (p < p[k]).any(axis=1)
+            front[i] = not (no_worse & better).any()
+        return front.tolist()
 
     def individual(self, id: str) -> dict[str, Any]:
         """One design: its row (criteria, rewrite system, provenance), its main line of ancestors, the
@@ -350,8 +416,8 @@ def _add_generations(curves: dict[str, Any], store: Any) -> None:
         return
     crits = [f"crit_{c}" for c in store.criteria]
     span = (pc.field("generation") > since) & (pc.field("generation") <= done)
-    table = store.individuals(columns=["generation", "island", "index", "fitness", *crits],
-                              filter=span if since >= 0 or done < max(committed.values()) else None)
+    table = store.dataset().to_table(columns=["generation", "island", "index", "fitness", *crits],
+                                     filter=span if since >= 0 or done < max(committed.values()) else None)
     if table.num_rows == 0:
         return
     fitness = pc.if_else(pc.is_finite(table["fitness"]), table["fitness"], pa.scalar(None, pa.float64()))

@@ -7,8 +7,6 @@ is in ``voxels.py`` beside this file: the P0L-system, the turtle, the criteria, 
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Mapping
 from pathlib import Path
 from types import MappingProxyType
@@ -16,21 +14,9 @@ from typing import Any
 
 from genr8_dist.phenotype import Developed, Phenotype
 
-
-def _sibling(name: str) -> Any:
-    """Import ``<name>.py`` from this plugin's folder (hooks are loaded by path, not as a package)."""
-    module_name = f"{__name__}__{name}"
-    module = sys.modules.get(module_name)
-    if module is None:
-        spec = importlib.util.spec_from_file_location(module_name, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[module_name] = module
-        spec.loader.exec_module(module)
-    return module
-
-
-voxels = _sibling("voxels")
+# A plugin's modules are one package (genr8_dist.grammar.source): its siblings are relative imports,
+# and they travel with the run that stores the universe, so this works after the plugin folder is gone.
+from . import voxels
 
 
 class TablesPhenotype(Phenotype):

@@ -84,3 +84,18 @@ def test_the_drape_of_the_journal_figure_keeps_every_vertex_outside_the_sphere()
     for surface in history:
         assert np.linalg.norm(surface.vertices - centre, axis=1).min() >= radius - TOLERANCE
     assert history[-1].n_vertices == 4225  # every join made: 65 x 65 vertices
+
+
+def test_slide_cut_off_and_reflect_give_different_surfaces_in_the_box():
+    """Thesis Figs 2-13 and 2-14: with slide the rim slides along the walls and climbs them; with
+    cut-off the part that hits stops dead and grows no further, so the surface stays flat; reflect
+    bounces off and crumples. (docs/boundary_behaviours.png shows them.)"""
+    tiles = load_system("four_sided_tiles")
+    grown = {name: grow(tiles, load_environment(EXAMPLES / f"{name}.toml")).surface
+             for name in ("box_corner", "box_corner_cutoff", "box_corner_reflect")}
+    slide, cut, reflect = grown.values()
+    assert slide.vertices[:, 2].max() > 1.0 and reflect.vertices[:, 2].max() > 1.0
+    assert cut.vertices[:, 2].max() < 0.5
+    assert cut.stopped.mean() > 0.5 and not slide.stopped.any() and not reflect.stopped.any()
+    assert len({s.digest() for s in grown.values()}) == 3
+    assert all(s.validate() == [] for s in grown.values())

@@ -75,3 +75,66 @@ def test_failures_are_data(config):
 def test_a_genome_that_is_not_non_negative_ints_is_refused(config, genome):
     with pytest.raises(GenomeError):
         evaluate_genome(genome, config)
+
+
+# -- growths shared across configurations of one process; judging again from raw criteria ----------------
+
+def _other_fitness(config):
+    """``config`` with other targets and weights: the same development, another fitness."""
+    data = config.to_dict()
+    data["fitness"] = {"size": {"target": 2.0, "weight": 3.0}, "subdivisions": {"target": 0.9, "weight": 0.5}}
+    return RunConfig.from_dict(data)
+
+
+@pytest.fixture(scope="module")
+def tight():
+    """Two derivation steps and a small work cap: some genomes grow, some are capped, some fail."""
+    return RunConfig.from_dict({"environment": {"steps": 2, "max_work": 300}})
+
+
+def test_a_fitness_only_change_grows_nothing_again_and_changes_no_result(tight):
+    from genr8_dist.evolution import evaluate as ev
+
+    config = tight
+    other = _other_fitness(config)
+    batch = genomes(25, seed=3)
+    ev._DEVELOPED.clear()
+    fresh = [Evaluator(other).evaluate(g).untimed() for g in batch]   # each grown for `other` itself
+    ev._DEVELOPED.clear()
+    first = Evaluator(config)
+    for g in batch:
+        first.evaluate(g)
+    second = Evaluator(other)
+    shared = [second.evaluate(g).untimed() for g in batch]
+    assert shared == fresh
+    assert second.growths == 0 and second.rescored == first.growths > 0
+    assert any(e.valid for e in shared) and any(e.capped == "work" for e in shared)
+
+
+def test_rescore_judges_a_stored_evaluation_as_evaluating_it_again_would(tight):
+    import dataclasses
+
+    from genr8_dist.evolution import evaluate as ev
+    from genr8_dist.fitness import FitnessSpec
+
+    config = tight
+    other = _other_fitness(config)
+    assert ev.development_key(other) == ev.development_key(config)
+    elsewhere = RunConfig.from_dict({"environment": {"steps": 2}})
+    assert ev.development_key(elsewhere) != ev.development_key(config)
+    kinds = set()
+    for g in genomes(40, seed=4):
+        ev._DEVELOPED.clear()
+        before = Evaluator(config).evaluate(g)
+        ev._DEVELOPED.clear()
+        after = Evaluator(other).evaluate(g)
+        if before.stage == "map":
+            continue
+        judged = ev.rescore(before, other)
+        assert judged is not None and judged.untimed() == after.untimed()
+        kinds.add(before.capped or before.valid)
+    assert kinds == {True, "work"}
+    fewer = dataclasses.replace(config, fitness=FitnessSpec(names=("size", "symmetry")))
+    grown = Evaluator(fewer).evaluate_text(SQUARE)
+    assert list(grown.criteria) == ["size", "symmetry"]
+    assert ev.rescore(grown, config) is None   # it lacks criteria `config` asks for: grow it again

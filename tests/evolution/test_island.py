@@ -305,3 +305,23 @@ def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
     front = {p.id for p, r in zip(previous, ranks, strict=True) if r == 0 and p.valid}
     kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
     assert kept <= front and len(kept) == min(len(front), 8)
+
+
+def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(history):
+    """Generation g-1 made under version 1 competes in generation g under version 2 (other targets
+    and weights): judged again from its rows, not grown again, with the rows evaluation would give."""
+    from genr8_dist.evolution import evaluate as ev
+
+    config, hist = history
+    changed = config.replace(fitness={"size": {"weight": 7.0, "target": 3.0}})
+    ev._DEVELOPED.clear()
+    plain = Island(changed, 0, config_version=2)
+    regrown = plain.step(hist[2], 3)
+    ev._DEVELOPED.clear()
+    island = Island(changed, 0, config_version=2, config_of={1: config, 2: changed}.get)
+    rescored = island.step(hist[2], 3)
+    assert [i.untimed() for i in rescored] == [i.untimed() for i in regrown]
+    pool_texts = {p.text for p in hist[2] if p.text and p.stage != "map"}
+    assert island.evaluator.growths < plain.evaluator.growths
+    assert plain.evaluator.growths - island.evaluator.growths >= len(pool_texts) - len(
+        pool_texts & {i.text for i in rescored if i.origin != "elite"})

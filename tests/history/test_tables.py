@@ -39,7 +39,7 @@ def _expected_per_generation(rows: list[dict]) -> dict[tuple[int, int], dict]:
             scored = [r for r in ok if r[f"crit_{c}"] is not None]
             pick = min(scored, key=lambda r: abs(r[f"crit_{c}"] - targets()[r["config_version"]][c])
                        / units()[r["config_version"]][c])
-            entry[f"best_{c}"] = pick[f"crit_{c}"]
+            entry[f"closest_{c}"] = pick[f"crit_{c}"]
         out[key] = entry
     return out
 
@@ -56,7 +56,7 @@ def test_per_generation_matches_an_independent_computation(history_run, all_rows
         assert r["n"] == POP == e["n"]
         assert r["n_valid"] == e["n_valid"]
         assert r["best_id"] == e["best_id"]
-        for name in ("best", "median", "worst", "mean", *(f"best_{c}" for c in CRITS)):
+        for name in ("best", "median", "worst", "mean", *(f"closest_{c}" for c in CRITS)):
             assert r[name] == pytest.approx(e[name], rel=1e-12), (r["generation"], r["island"], name)
 
 
@@ -76,8 +76,8 @@ def test_criterion_best_follows_the_target_in_force(history_run, all_rows):
     sizes = all_rows.filter(pc.and_(pc.equal(all_rows["generation"], INTERVENTION_AT),
                                     pc.and_(pc.equal(all_rows["island"], 0), all_rows["valid"])))
     values = np.array(sizes["crit_size"].to_pylist())
-    assert row["best_size"] == values[np.argmin(np.abs(values - 0.8))]
-    assert row["best_size"] != values[np.argmin(np.abs(values - 1.5))]
+    assert row["closest_size"] == values[np.argmin(np.abs(values - 0.8))]
+    assert row["closest_size"] != values[np.argmin(np.abs(values - 1.5))]
 
 
 def _valid_sorted(all_rows: pa.Table) -> list[dict]:
@@ -297,7 +297,7 @@ def test_a_generation_without_valid_individuals(tmp_path, capsys):
     rows = table.to_pylist()
     assert rows[0]["best"] == 0.0 and rows[0]["median"] == 1.0 and rows[0]["best_id"] == "0-0-0"
     assert rows[1]["n_valid"] == 0 and rows[1]["best"] is None and rows[1]["best_id"] is None
-    assert rows[1]["best_size"] is None
+    assert rows[1]["closest_size"] is None
     assert cli.main(["history", str(tmp_path / "run"), "--png", str(tmp_path / "c.png")]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[2].split()[:8] == ["0", "1", "3", "0", "-", "-", "-", "-"]
@@ -342,3 +342,27 @@ def test_property_per_generation_and_top_on_any_synthetic_run(tmp_path_factory, 
                       for r in rows.to_pylist() if r["valid"])[:k]
     if expected:
         assert history.top(path, k)["id"].to_pylist() == [e[-1] for e in expected]
+
+
+def test_top_under_a_version_rescores_every_individual_from_its_raw_criteria(history_run, all_rows):
+    """After the size target changed at generation 30, `under=2` ranks the whole run by version 2's
+    targets and weights (computed from the stored raw criteria), and says so in `fitness_v2`."""
+    import math
+
+    from genr8_dist.history import top
+    from genr8_dist.store import RunStore
+
+    store = RunStore.open(history_run)
+    spec = store.fitness(store.configs()[-1])
+    ranked = top(history_run, 25, under=2).to_pylist()
+    assert len(ranked) == 25 and [r["rank"] for r in ranked] == list(range(1, 26))
+    for r in ranked:
+        raw = {c: r[f"crit_{c}"] for c in spec.names}
+        assert math.isclose(r["fitness_v2"], spec.evaluate(raw), rel_tol=1e-9, abs_tol=1e-12)
+    assert [r["fitness_v2"] for r in ranked] == sorted(r["fitness_v2"] for r in ranked)
+    every = [spec.evaluate({c: row[f"crit_{c}"] for c in spec.names})
+             for row in all_rows.to_pylist() if row["valid"]]
+    assert math.isclose(ranked[0]["fitness_v2"], min(every), rel_tol=1e-9, abs_tol=1e-12)
+    # the stored fitness is kept beside it; as scored, version 1 rows used the old size target
+    as_scored = top(history_run, 25).to_pylist()
+    assert "fitness_v2" not in as_scored[0]

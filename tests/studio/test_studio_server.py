@@ -204,3 +204,46 @@ def test_genr8_studio_refuses_what_is_not_a_run(tmp_path, capsys):
     assert main(["studio", str(tmp_path / "nowhere")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("genr8: error:") and "nowhere" in err and len(err.strip().splitlines()) == 1
+
+
+def test_the_pareto_front_is_the_non_dominated_valid_designs(run_dir):
+    """Each generation's designs are marked on or off the Pareto front of the weighted criteria's
+    deviations from their targets; checked against a plain pairwise comparison."""
+    from genr8_dist.studio import RunView
+
+    view = RunView(str(run_dir))
+    gen = view.generation(1)
+    store = RunStore.open(run_dir)
+    spec = store.fitness(store.configs()[0])
+    weighted = [c for c in spec.criteria if c.weight]
+    rows = {ind.id: ind for i in range(2) for ind in store.load_generation(i, 1)}
+
+    def point(ident):
+        return [abs(rows[ident].criteria[c.name] - c.target) / c.unit for c in weighted]
+
+    valid = [r["id"] for r in gen["individuals"] if r["valid"]]
+    points = {i: point(i) for i in valid}
+
+    def dominated(i):
+        return any(all(a <= b for a, b in zip(points[j], points[i], strict=True)) and points[j] != points[i]
+                   for j in valid)
+
+    marked = {r["id"] for r in gen["individuals"] if r["pareto"]}
+    assert marked and marked == {i for i in valid if not dominated(i)}
+
+
+def test_a_rewrite_system_written_in_the_studio_is_injected_and_weights_change(studio, run_dir):
+    store = RunStore.open(run_dir)
+    text = next(ind.text for ind in store.load_generation(0, 1) if ind.valid)
+    status, answer = post(studio, {"action": "inject", "text": text, "island": 1})
+    assert status == 200, answer
+    status, answer = post(studio, {"action": "set", "assignments": ["fitness.size.weight=3",
+                                                                    "environment.gravity=[0, 0, -0.2]"]})
+    assert status == 200, answer
+    events = [json.loads(e["detail"]) for e in RunStore.open(run_dir).events().to_pylist()
+              if e["kind"] == "intervention"]
+    (item,) = events[0]["injected"]
+    assert item["island"] == 1 and item["source"] == "rewrite system written in the studio"
+    assert events[1]["changes"] == {"fitness.size.weight": 3, "environment.gravity": [0, 0, -0.2]}
+    config = RunStore.open(run_dir).configs()[-1]
+    assert "weight = 3" in config.toml

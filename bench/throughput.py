@@ -1,0 +1,221 @@
+"""Evaluations per core-second, the tail of the cost of one individual, and how soon a run starts.
+
+    python bench/throughput.py                         # everything (about 10 minutes on 2 cores)
+    python bench/throughput.py --only islands          # the island configurations only
+    python bench/throughput.py --only genomes --genomes 300
+    python bench/throughput.py --only startup
+
+Three parts, each a table:
+
+- islands: one island (plain Python, no Ray) of bench/island.py's default configuration (default
+  universe, 50 individuals, generations 0..3, seed 1, 4 and 5 derivation steps) and of the run
+  configurations of bench/islands.py and bench/search.py (examples/quick.toml, examples/subdivide.toml);
+  individuals per core-second (per second of this process's CPU time, so a shared machine's load
+  changes it less) and per wall second.
+- genomes: ``--genomes`` random genomes of every universe (100 codons, default mapping, the default
+  environment at ``--steps`` derivation steps), each mapped, parsed, grown and scored on its own (no
+  cache): the median, 99th percentile and maximum CPU seconds per individual, how many growth caps
+  cut short, and individuals per core-second.
+- startup: ``genr8 run examples/quick.toml`` in a subprocess: seconds to its first line, to the first
+  generation's progress line (``gen 0/...``) and to its end; and ``ray.init`` of a local Ray alone
+  (what Ray itself needs: subtract it to get the time that is this program's own).
+
+It uses only APIs that every version of genr8_dist has had, so the same command measures an older
+checkout (``PYTHONPATH=/path/to/checkout python bench/throughput.py``): compare before and after in one
+sitting, on a shared machine, and read the ratios. Numpy runs single-threaded here (one core per
+process, as on an island host).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    if not ordered:
+        return float("nan")
+    k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
+    return ordered[k]
+
+
+# -- islands ------------------------------------------------------------------------------------------
+
+def _island_configs(steps: list[int]) -> list[tuple[str, object]]:
+    from genr8_dist.config import RunConfig, load_config
+
+    out: list[tuple[str, object]] = []
+    for s in steps:   # bench/island.py's default: default universe, 50 x generations 0..3, seed 1
+        out.append((f"island.py {s} steps", RunConfig(universe="default", seed=1,
+                                                      ea={"population": 50, "generations": 3},
+                                                      environment={"steps": s})))
+    out.append(("islands.py RunConfig()", RunConfig(ea={"generations": 3})))
+    for name in ("quick", "subdivide"):   # bench/search.py's configurations
+        out.append((f"examples/{name}.toml", load_config(ROOT / "examples" / f"{name}.toml")))
+    return out
+
+
+def islands(steps: list[int]) -> None:
+    from genr8_dist.evolution import Island
+
+    print("\nislands: one island, generations 0..3, no Ray")
+    print(f"{'configuration':<26} {'indiv':>6} {'cpu s':>7} {'wall s':>7} {'ind/core-s':>11} "
+          f"{'ind/wall-s':>11} {'valid':>6} {'capped':>6}")
+    for name, config in _island_configs(steps):
+        island = Island(config, 0)
+        c0, w0 = time.process_time(), time.perf_counter()
+        history = island.run(3)
+        cpu, wall = time.process_time() - c0, time.perf_counter() - w0
+        everyone = [ind for pop in history for ind in pop]
+        valid = sum(ind.valid for ind in everyone)
+        capped = sum(1 for ind in everyone if ind.capped)
+        print(f"{name:<26} {len(everyone):>6} {cpu:>7.2f} {wall:>7.2f} {len(everyone) / cpu:>11.1f} "
+              f"{len(everyone) / wall:>11.1f} {valid / len(everyone):>6.0%} {capped:>6}")
+        sys.stdout.flush()
+
+
+# -- random genomes ----------------------------------------------------------------------------------
+
+def _one(universe, genome, config) -> tuple[float, str | None, bool]:
+    """CPU seconds to map, parse, grow and score ``genome``; the cap that cut growth short; valid."""
+    from genr8_dist.fitness import score_surface
+    from genr8_dist.hemls import grow, parse
+
+    t0 = time.thread_time()
+    mapped = universe.map(list(genome), max_depth=config.genome.max_depth,
+                          max_wraps=config.genome.max_wraps)
+    capped, valid = None, False
+    if mapped.valid:
+        try:
+            result = grow(parse(mapped.text), config.environment)
+            capped = result.capped
+            score_surface(result.surface, config.environment)
+            valid = not capped
+        except Exception:  # failure is data, as in evaluation
+            pass
+    return time.thread_time() - t0, capped, valid
+
+
+def _grows_surfaces(name: str) -> bool:
+    """Whether universe ``name`` writes HEMLS rewrite systems (a plugin may bring its own phenotype)."""
+    try:
+        from genr8_dist.phenotype import SURFACES, phenotype_of
+    except ImportError:   # a checkout from before phenotypes: every universe grows surfaces
+        return True
+    from genr8_dist.grammar import load_universe
+
+    return phenotype_of(load_universe(name)) is SURFACES
+
+
+def genomes(n: int, steps: int, universes: list[str] | None) -> None:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.operators import random_genome
+    from genr8_dist.grammar import list_universes, load_universe
+    from genr8_dist.rng import stream
+
+    names = universes or [u.name for u in list_universes() if _grows_surfaces(u.name)]
+    print(f"\ngenomes: {n} random genomes per universe (100 codons), {steps} derivation steps, each "
+          "evaluated on its own; CPU seconds per individual")
+    print(f"{'universe':<14} {'n':>5} {'valid':>6} {'capped':>6} {'median s':>9} {'p99 s':>8} "
+          f"{'max s':>8} {'p99/med':>8} {'ind/core-s':>11}")
+    for name in names:
+        config = RunConfig(universe=name, environment={"steps": steps})
+        universe = load_universe(name)
+        rng = stream(0, "bench", "throughput", name)
+        costs, caps, valid = [], 0, 0
+        _one(universe, random_genome(rng, 100, 255), config)   # warm imports and compiled tables
+        for _ in range(n):
+            seconds, capped, ok = _one(universe, random_genome(rng, 100, 255), config)
+            costs.append(seconds)
+            caps += bool(capped)
+            valid += ok
+        med, p99 = statistics.median(costs), _percentile(costs, 0.99)
+        print(f"{name:<14} {n:>5} {valid / n:>6.0%} {caps:>6} {med:>9.4f} {p99:>8.3f} {max(costs):>8.3f} "
+              f"{p99 / med if med > 0 else float('inf'):>8.1f} {n / sum(costs):>11.1f}")
+        sys.stdout.flush()
+
+
+# -- start-up -----------------------------------------------------------------------------------------
+
+def _timed_lines(cmd: list[str], env: dict[str, str], cwd: Path) -> tuple[dict[str, float], int]:
+    start = time.perf_counter()
+    marks: dict[str, float] = {}
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+                            cwd=cwd)
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        now = time.perf_counter() - start
+        marks.setdefault("first line", now)
+        if line.startswith("gen "):
+            marks.setdefault("first gen line", now)
+    rc = proc.wait()
+    marks["exit"] = time.perf_counter() - start
+    return marks, rc
+
+
+def startup(repeat: int) -> None:
+    import genr8_dist
+
+    env = dict(os.environ)   # the subprocesses import the genr8_dist this process imported
+    here = str(Path(genr8_dist.__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (here, env.get("PYTHONPATH", "")) if p)
+    print("\nstartup: genr8 run examples/quick.toml (local Ray of 2 CPUs); ray.init alone")
+    print(f"{'what':<30} {'first line s':>12} {'gen 0 line s':>12} {'exit s':>8}")
+    probe = ("import time; t = time.perf_counter(); import ray; "
+             "ray.init(address='local', num_cpus=2, include_dashboard=False, log_to_driver=False); "
+             "t1 = time.perf_counter(); print(f'{t1 - t:.3f}'); ray.shutdown()")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env)
+        total = time.perf_counter() - t0
+        inside = out.stdout.strip().splitlines()[-1] if out.stdout.strip() else "?"
+        print(f"{'import ray + ray.init':<30} {inside:>12} {'':>12} {total:>8.2f}")
+        with tempfile.TemporaryDirectory() as tmp:
+            marks, rc = _timed_lines([sys.executable, "-m", "genr8_dist.cli", "run",
+                                      str(ROOT / "examples" / "quick.toml"), "--run-dir",
+                                      str(Path(tmp) / "run"), "--cpus", "2"], env, ROOT)
+        what = "genr8 run quick.toml" + ("" if rc == 0 else f" (exit {rc})")
+        print(f"{what:<30} {marks.get('first line', float('nan')):>12.2f} "
+              f"{marks.get('first gen line', float('nan')):>12.2f} {marks['exit']:>8.2f}")
+        sys.stdout.flush()
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--only", choices=["islands", "genomes", "startup"], action="append",
+                        help="run only this part (repeatable)")
+    parser.add_argument("--steps", type=int, default=4, help="derivation steps of the random genomes")
+    parser.add_argument("--island-steps", type=int, nargs="+", default=[4, 5])
+    parser.add_argument("--genomes", type=int, default=1000, help="random genomes per universe")
+    parser.add_argument("--universe", action="append", help="only this universe (repeatable)")
+    parser.add_argument("--repeat", type=int, default=2, help="start-up measurements")
+    args = parser.parse_args(argv)
+    parts = args.only or ["islands", "genomes", "startup"]
+    import genr8_dist
+
+    print(f"genr8_dist from {Path(genr8_dist.__file__).parent.parent}")
+    if "islands" in parts:
+        islands(args.island_steps)
+    if "genomes" in parts:
+        genomes(args.genomes, args.steps, args.universe)
+    if "startup" in parts:
+        startup(args.repeat)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
