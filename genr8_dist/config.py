@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError, Genr8Error
-from genr8_dist.fitness import FitnessSpec
+from genr8_dist.fitness import SURFACE, FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
 __all__ = [
@@ -283,6 +283,30 @@ def _check_source(source: Any) -> None:
 _CHECKED: set[str] = set()
 
 
+def phenotype_kind(source: Any) -> str:
+    """The name of the phenotype the universe ``source`` (a ``UniverseSource``; ``None``: the default
+    universe) develops into, under which its criteria are registered: ``surface`` for HEMLS.
+
+    Only a universe's code can say, and code runs only where the trust rule lets it
+    (:mod:`genr8_dist.grammar.trust`): an installed plugin's or a remembered digest is consented to
+    here; other code is not run and the kind read as ``surface`` (``genr8 run`` reads its file again
+    once the user's universe is consented to)."""
+    digest = getattr(source, "code_digest", "") if source is not None else ""
+    if not digest:
+        return SURFACE
+    from genr8_dist.grammar.discovery import installed_code_digest
+    from genr8_dist.grammar.trust import consent, may_run, remembered
+
+    if not may_run(digest):
+        if installed_code_digest(source.name) != digest and digest not in remembered():
+            return SURFACE
+        consent(digest)
+    from genr8_dist.grammar.universe import build_universe
+    from genr8_dist.phenotype import phenotype_of
+
+    return phenotype_of(build_universe(source, check=False)).name
+
+
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     """Everything a run needs: universe, genome, EA, fitness, environment, islands and seed."""
@@ -291,7 +315,7 @@ class RunConfig:
     seed: int = 0
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
-    fitness: FitnessSpec = field(default_factory=FitnessSpec)
+    fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
     environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
     islands: IslandSettings = field(default_factory=IslandSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
@@ -318,8 +342,11 @@ class RunConfig:
         _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
-        if isinstance(self.fitness, Mapping):
-            _set(self, "fitness", FitnessSpec.from_dict(self.fitness))
+        if self.fitness is None:
+            _set(self, "fitness", FitnessSpec(phenotype=phenotype_kind(self.universe_source)))
+        elif isinstance(self.fitness, Mapping):
+            kind = phenotype_kind(self.universe_source)
+            _set(self, "fitness", FitnessSpec.from_dict(self.fitness, phenotype=kind))
         elif not isinstance(self.fitness, FitnessSpec):
             raise _fail("fitness", f"must be a table, got {self.fitness!r}")
         if self.environment is None:
@@ -399,7 +426,9 @@ class RunConfig:
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
         if "fitness" in data or criteria is not None:
-            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
+            # a run's stored configuration names its criteria and sets each in full: no defaults
+            kind = phenotype_kind(kwargs.get("universe_source")) if criteria is None else SURFACE
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria, phenotype=kind)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)

@@ -214,19 +214,16 @@ def _lineage(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from genr8_dist.history import HistoryError, _text
     from genr8_dist.history import _regrow as regrow
     from genr8_dist.store.schema import criterion_of
 
-    for path in args.output:  # refuse a bad name before anything is grown or written
-        suffix = Path(path).suffix.lower().lstrip(".")
-        if suffix not in regrow.EXPORT_FORMATS:
-            raise HistoryError(f"{path}: unknown format '{Path(path).suffix or '(no suffix)'}'; use one "
-                               "of " + ", ".join(f".{s}" for s in regrow.EXPORT_FORMATS))
     if args.png and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
+    if args.output:  # refuse a bad name before anything is grown or written
+        phenotype = regrow.phenotype_of_run(args.run, args.id)
+        for path in args.output:
+            regrow.check_export_path(path, phenotype)
     result = regrow.regrow(args.run, args.id)
     row = result.row
     crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
@@ -243,10 +240,9 @@ def _show(args: argparse.Namespace) -> int:
     if row["text"] and result.text_matches is False:
         _print("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
-    if result.surface is not None:
-        s = result.surface
-        _print(f"regrown: {len(s.vertices)} vertices, {len(s.edges)} edges, {len(s.regions)} regions "
-               f"after {result.steps} derivation steps; digest {result.digest} matches the recorded one")
+    if result.developed is not None:
+        _print(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
+               f"derivation steps; digest {result.digest} matches the recorded one")
     for path in args.output:
         regrow.export(result, path)
         _print(f"wrote {path}")

@@ -45,17 +45,17 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     """Grow ``system`` (a ``RewriteSystem``, or its text) in ``env`` and score it under ``spec``: the
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
-    from genr8_dist.evolution.evaluate import judge
-    from genr8_dist.hemls import grow, parse
+    from genr8_dist.config import RunConfig
+    from genr8_dist.errors import GrowthError
+    from genr8_dist.evolution.evaluate import evaluate_text
+    from genr8_dist.hemls import parse
 
     if isinstance(system, str):
         system = parse(system, source=name)
     text = system.to_text() if hasattr(system, "to_text") else str(system)
-    judged = judge(text, grow(system, env), env, spec)  # the validity rules of a run
-    if judged.stage == "score" and not judged.criteria:
-        from genr8_dist.errors import GrowthError
-
-        raise GrowthError(f"{name}: the grown surface cannot be scored: {judged.error}")
+    judged = evaluate_text(text, RunConfig(fitness=spec, environment=env))  # as a run evaluates it
+    if not judged.criteria:
+        raise GrowthError(f"{name}: {judged.error}")
     raw = judged.criteria
     deviations = spec.deviations(raw)
     total = spec.evaluate(raw)

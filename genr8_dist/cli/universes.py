@@ -26,8 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``genr8 universes``, ``genr8 map`` and ``genr8 invert``."""
     p = subparsers.add_parser(
         "universes", help="list the universes (built-in, plugins, entry points) and where each is from",
-        description="List every universe discovery finds: the built-ins, plugin folders (./plugins, "
-        "GENR8_PLUGINS), and installed packages' 'genr8_dist.universes' entry points.")
+        description="List every universe discovery finds: the built-ins, the shipped plugins, plugin "
+        "folders in GENR8_PLUGINS, and installed packages' 'genr8_dist.universes' entry points; a broken "
+        "plugin is listed as BROKEN with its one-line error.")
     p.add_argument("--json", action="store_true", help="print a JSON list")
     p.set_defaults(handler=_universes)
 

@@ -1,4 +1,4 @@
-"""Evaluate one genome: map it with the universe, parse the rewrite system, grow it, score the surface.
+"""Evaluate one genome: map it with the universe, develop the text into its phenotype, score it.
 
 Failure is data: whatever goes wrong (the genome wraps too often, the text does not parse, growth raises
 or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
 from genr8_dist.evolution.individual import Evaluation
-from genr8_dist.fitness import FitnessSpec, score_surface
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
@@ -39,7 +38,6 @@ __all__ = [
     "development_key",
     "evaluate_genome",
     "evaluate_text",
-    "judge",
     "regions_of",
     "rescore",
     "steps_of",
@@ -96,63 +94,59 @@ def regions_of(surface: Any) -> int:
 
 
 def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
-    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
+    """Develop ``text`` into the universe's phenotype and score it (no mapping fields set).
 
-    ``grow_seconds`` is the time to parse the text and grow it; ``score_seconds`` the criteria's."""
-    from genr8_dist.hemls import grow, parse
+    The phenotype (:func:`genr8_dist.phenotype.phenotype_of`: a HEMLS surface unless the universe
+    brings its own) develops the text, measures its criteria and combines them into the fitness.
+    ``grow_seconds`` is the time to develop the text (parsing included); ``score_seconds`` the
+    criteria's and the fitness's."""
+    from genr8_dist.phenotype import phenotype_of
 
+    phenotype = phenotype_of(universe_for(config))
     t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
-        system = parse(text)
-    except Exception as exc:  # failure is data: a text that does not parse is an invalid individual
-        return Evaluation(text=text, stage="parse", error=_describe(exc),
+        developed = phenotype.develop(text, config)
+    except Exception as exc:  # failure is data, whatever development raised
+        return Evaluation(text=text, stage=getattr(exc, "genr8_stage", phenotype.stage), error=_describe(exc),
                           grow_seconds=time.perf_counter() - t0)
-    try:
-        result = grow(system, config.environment)
-    except Exception as exc:  # failure is data, whatever growth raised
-        return Evaluation(text=text, stage="grow", error=_describe(exc),
-                          grow_seconds=time.perf_counter() - t0)
-    return judge(text, result, config.environment, config.fitness, grow_seconds=time.perf_counter() - t0)
-
-
-def judge(text: str, result: Any, env: Any, fitness: FitnessSpec, *, grow_seconds: float = 0.0
-          ) -> Evaluation:
-    """A grown ``result`` (a ``GrowthResult`` of ``text``) measured in ``env`` and judged under
-    ``fitness``: what a run stores for it, and what ``genr8 score`` reports."""
-    surface = result.surface
-    raw_capped = result.capped
-    grown = Evaluation(text=text, n_vertices=len(surface.vertices), n_edges=len(surface.edges),
-                       n_regions=regions_of(surface), steps_done=steps_of(result),
-                       capped=(raw_capped if isinstance(raw_capped, str) else "cap") if raw_capped else None,
-                       grow_seconds=grow_seconds)
+    counts = developed.counts
+    grown = Evaluation(text=text, n_vertices=int(counts.get("n_vertices", 0)),
+                       n_edges=int(counts.get("n_edges", 0)), n_regions=int(counts.get("n_regions", 0)),
+                       steps_done=int(developed.steps), capped=developed.capped,
+                       grow_seconds=time.perf_counter() - t0, surface_digest=developed.digest)
     t1 = time.perf_counter()
     try:
-        digest = surface.digest()
-        criteria = score_surface(surface, env, fitness.names)
+        criteria = phenotype.measure(developed, config)
     except Exception as exc:  # failure is data
         return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
-    return _judge(replace(grown, surface_digest=digest, criteria=criteria,
-                          score_seconds=time.perf_counter() - t1), fitness)
+    return _judge(replace(grown, criteria=criteria, score_seconds=time.perf_counter() - t1), config)
 
 
-def _judge(grown: Evaluation, fitness: FitnessSpec) -> Evaluation:
-    """The verdict on a grown and measured text (``grown``: what growing and measuring found, its
-    ``criteria`` the raw values ``fitness`` asks for) under ``fitness``: valid or why not, and the
-    fitness. The rules that make an individual valid, in one place; a pure function of those stored
-    fields, so ``rescore`` calls it again after an edit."""
+def _judge(grown: Evaluation, config: RunConfig) -> Evaluation:
+    """The verdict on a developed and measured text (``grown``: what ``_grow_and_score`` found, its
+    ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
+    fitness, as the universe's phenotype decides; the rules that make an individual valid, in one
+    place (``genr8 score`` reports them too). A pure function of those stored fields: ``rescore``
+    calls it again after an edit."""
+    from genr8_dist.phenotype import phenotype_of
+
+    phenotype = phenotype_of(universe_for(config))
     criteria = grown.criteria
-    if grown.capped:
-        return replace(grown, stage="grow",
-                       error=f"growth capped ({grown.capped}) in derivation step {grown.steps_done}")
-    if not grown.n_vertices or not grown.n_edges:
-        return replace(grown, stage="score", error="degenerate surface: no vertices or no edges")
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return replace(grown, stage="score", error=f"degenerate surface: {', '.join(bad)} not finite")
-    total = fitness.evaluate(criteria)
-    if not math.isfinite(total):
+    if grown.capped and phenotype.capped_is_invalid:
+        error = f"growth capped ({grown.capped}) in derivation step {grown.steps_done}"
+        return replace(grown, stage=phenotype.stage, error=error)
+    counts = {"n_vertices": grown.n_vertices, "n_edges": grown.n_edges, "n_regions": grown.n_regions,
+              "steps_done": grown.steps_done}
+    problem = phenotype.problem(counts, criteria)
+    if problem:
+        return replace(grown, stage="score", error=problem)
+    try:
+        fitness = phenotype.fitness(criteria, config)
+    except Exception as exc:  # failure is data
+        return replace(grown, stage="score", error=_describe(exc))
+    if not math.isfinite(fitness):
         return replace(grown, stage="score", error="fitness is not finite")
-    return replace(grown, valid=True, fitness=total)
+    return replace(grown, valid=True, fitness=fitness)
 
 
 # The grown and measured texts of this process, shared by its Evaluators: (development_key, text) ->
@@ -187,7 +181,7 @@ def rescore(evaluation: Evaluation, config: RunConfig) -> Evaluation | None:
         return None
     grown: dict[str, Any] = {name: getattr(evaluation, name) for name in _GROWN_FIELDS}
     grown["criteria"] = {name: evaluation.criteria[name] for name in names}
-    return replace(_judge(Evaluation(**grown), config.fitness), codons_used=evaluation.codons_used,
+    return replace(_judge(Evaluation(**grown), config), codons_used=evaluation.codons_used,
                    wraps=evaluation.wraps,
                    map_seconds=evaluation.map_seconds, eval_seconds=evaluation.eval_seconds)
 

@@ -15,6 +15,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from genr8_dist.fitness import SURFACE, criterion_names
 from genr8_dist.history._run import (
     HistoryError,
     RunLike,
@@ -228,10 +229,20 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
 def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.ndarray:
     """The total fitness of each row of ``table`` (valid rows with their ``crit_<name>`` columns) under
     configuration ``version``'s targets and weights: ``sum w * |raw - target| / unit``, as the run
-    scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing."""
+    scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing. A universe whose
+    phenotype combines its criteria otherwise (``genr8_dist.phenotype``) is rescored by its
+    phenotype's ``fitness``."""
     chosen = [cv for cv in store.configs() if int(cv.version) == int(version)]
     if not chosen:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    if not set(store.criteria) <= set(criterion_names(SURFACE)):
+        from genr8_dist.history._regrow import config_of, phenotype_for
+
+        config = config_of(store, version)
+        phenotype = phenotype_for(store, config)
+        columns = {c: as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits}
+        return np.array([phenotype.fitness({c: float(v[i]) for c, v in columns.items()}, config)
+                         for i in range(table.num_rows)], dtype=np.float64)
     spec = store.fitness(chosen[0])
     total = np.zeros(table.num_rows)
     for c in spec.criteria:

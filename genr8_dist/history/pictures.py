@@ -344,20 +344,38 @@ def _tile_grid(n: int, columns: int | None = None) -> tuple[int, int]:
     return math.ceil(n / cols), cols
 
 
+def _draw_tile(ax: Any, item: Any) -> bool:
+    """Draw a surface, or a regrown individual through its phenotype; False when there is nothing."""
+    from genr8_dist.phenotype import SURFACES
+
+    if item is None:
+        return False
+    if hasattr(item, "phenotype"):  # a history._regrow.Regrown
+        if item.developed is None:
+            return False
+        if item.phenotype is not SURFACES:
+            item.phenotype.draw(ax, item.developed)
+            return True
+        item = item.surface
+    if not len(item.vertices):
+        return False
+    draw_surface(ax, item)
+    return True
+
+
 def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int | None = None,
                    row_labels: Sequence[str] | None = None) -> Any:
-    """A contact sheet: one 3D tile per ``(label, surface)``; ``None`` surfaces show their label only."""
+    """A contact sheet: one 3D tile per ``(label, surface)`` (or ``(label, regrown individual)``,
+    drawn by its phenotype); ``None`` shows the label only."""
     plt = _pyplot()
     rows, cols = _tile_grid(len(tiles), columns)
     fig = plt.figure(figsize=(3.1 * cols, 3.2 * rows + 0.7), facecolor="white")
     for n, (label, surface) in enumerate(tiles):
         ax = fig.add_subplot(rows, cols, n + 1, projection="3d")
         ax.set_facecolor("white")
-        if surface is not None and len(surface.vertices):
-            draw_surface(ax, surface)
-        else:
+        if not _draw_tile(ax, surface):
             ax.set_axis_off()
-            ax.text2D(0.5, 0.5, "no surface", ha="center", va="center", transform=ax.transAxes,
+            ax.text2D(0.5, 0.5, "nothing grown", ha="center", va="center", transform=ax.transAxes,
                       color="#999999")
         ax.set_title(label, fontsize=9, pad=-2)
         if row_labels and n % cols == 0:
@@ -431,8 +449,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     else:
         ids = list(_best_ids(store, k, generation, island, distinct))
         row_labels, columns = None, None
-    tiles = []
+    tiles: list[tuple[str, Any]] = []
     count = 0
+    noun = "surface"
     for ident in ids:
         if ident is None:
             tiles.append(("", None))
@@ -442,15 +461,16 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
         except Genr8Error as exc:
             raise HistoryError(f"gallery: cannot regrow {ident}: {exc}") from None
         count += 1
-        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result.surface))
+        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result))
+        noun = result.phenotype.noun
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
         where += f", island {island}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: the best {count if not per_island else k}"
-             + (" distinct surfaces" if distinct else "") + f" of {where}"
+             + (f" distinct {noun}s" if distinct else "") + f" of {where}"
              + (" per island" if per_island else "") + "  (lower fitness is better)")
     fig = gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels)
-    return fig, f"{count} surfaces of {where}"
+    return fig, f"{count} {noun}s of {where}"
 
 
 def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,

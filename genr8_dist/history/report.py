@@ -1,6 +1,7 @@
 """One self-contained HTML page about a run: Genr8's output window as a file a designer can open anywhere.
 
-The page holds the fitness curves, a gallery of the best surfaces of the last generation, the top
+The page holds the fitness curves, a gallery of the best surfaces (or
+whatever the universe's phenotype develops: tables, ...) of the last generation, the top
 individuals with their criteria and rewrite systems, the interventions with what each changed, and the
 configuration versions. Images are embedded as base64 PNG; there are no scripts, fonts or links to
 fetch, so it opens offline and can be mailed as one file.
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import Genr8Error
+from genr8_dist.history._regrow import export_formats
 from genr8_dist.history._run import RunLike, atomic_write, criteria_of, open_run, run_label
 from genr8_dist.store.schema import criterion_column
 
@@ -83,13 +85,31 @@ def _changes(old_toml: str, new_toml: str) -> list[str]:
         return []
     lines = []
     for key in sorted(set(old) | set(new)):
+        if key.startswith("stored_universe.") and key != "stored_universe.digest":
+            continue   # the universe's files: their digest says whether they changed
         if old.get(key) != new.get(key):
-            lines.append(f"{key}: {old.get(key, '(default)')} → {new.get(key, '(default)')}")
+            lines.append(f"{key}: {_short(old.get(key, '(default)'))} → {_short(new.get(key, '(default)'))}")
     return lines
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    text = str(value)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 def _section(title: str, body: str) -> str:
     return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
+
+
+def _phenotype(store: Any, configs: list) -> Any:
+    """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
+    from genr8_dist.history._regrow import phenotype_for
+    from genr8_dist.phenotype import SURFACES
+
+    try:
+        return phenotype_for(store, store.config(configs[-1].version))
+    except Genr8Error:
+        return SURFACES
 
 
 def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
@@ -133,13 +153,15 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         gallery += f'<p class="note">{html.escape(info)}, regrown from the run\'s rows.</p>'
     except Genr8Error as exc:
         gallery = f'<p class="note">No gallery: {html.escape(str(exc))}</p>'
-    parts.append(_section(f"The best surfaces of generation {last}", gallery))
+    phenotype = _phenotype(store, configs)
+    parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
 
     crits = criteria_of(best.schema)
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
                                               "as scored",
                                               *[c.replace("_", " ") for c in crits],
                                               "made by", "rewrite system"])
+    formats = export_formats(phenotype)
     rows = []
     for r in best.to_pylist():
         cells = [f'<td class="num">{r["rank"]}</td>', f"<td><code>{html.escape(r['id'])}</code></td>",
@@ -152,8 +174,8 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")
         rows.append("<tr>" + "".join(cells) + "</tr>")
     top_note = (f'<p class="note">Regrow and export any of them: <code>genr8 show '
-                f"{html.escape(str(run_label(store)))} ID -o surface.obj</code> (also .ply .stl .glb .3dm)."
-                "</p>")
+                f"{html.escape(str(run_label(store)))} ID -o {phenotype.noun}.{formats[0]}</code> (also "
+                f"{' '.join('.' + f for f in formats[1:])}).</p>")
     ranked = (f'<p class="note">Ranked under configuration version {newest}, the one in force at the '
               "run's end: each individual rescored from its stored raw criteria with that version's "
               "targets and weights. <i>As scored</i> is the fitness the run gave it under the version "

@@ -177,7 +177,10 @@ class RunFS:
         folder, name = posixpath.split(rel)
         tmp_rel = posixpath.join(folder, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
         tmp = self._local(tmp_rel)
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, self._local(rel)) from None
         done = False
         try:
             view = memoryview(data)
@@ -186,6 +189,8 @@ class RunFS:
                 view = view[written:]
             os.fsync(fd)
             done = True
+        except OSError as exc:  # a full disk, say: name the file being written
+            raise OSError(exc.errno, exc.strerror, self._local(rel)) from None
         finally:
             os.close(fd)
             if not done:

@@ -120,7 +120,7 @@ class RunView:
             "interventions": self._interventions(events),
             "environment": self._environment_values(config),
             "injectable": _builtin_universe(str(config.universe)),
-            "has": self._extras(store),
+            "search": getattr(getattr(config, "search", None), "mode", "weighted"),
         }
 
     def _events(self, store: Any) -> list[dict[str, Any]]:
@@ -196,13 +196,6 @@ class RunView:
                         "what": parts, "source": d.get("source", "edit")})
         return out
 
-    @staticmethod
-    def _extras(store: Any) -> dict[str, bool]:
-        """Which of the search's results (clusters, Pareto front, MAP-Elites) the run holds."""
-        names = set(store.schema.names)
-        return {"pareto": "pareto_rank" in names, "clusters": "cluster" in names,
-                "map_elites": "niche" in names}
-
     # -- curves -------------------------------------------------------------------------------------
     def curves(self) -> dict[str, Any]:
         """Per generation: the best and mean fitness over all islands, each island's best, and the
@@ -264,42 +257,46 @@ class RunView:
         return {"generation": g, "newest": newest, "individuals": rows}
 
     def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
-        """Which rows are on the Pareto front of their generation: valid, and no other valid row is at
-        least as close to every weighted criterion's target (``|raw - target| / unit``, under the
-        configuration version that scored it) and closer to one."""
-        import numpy as np
+        """Which rows are on the Pareto front of their generation (all islands together): the
+        non-dominated valid ones over the weighted deviations of the Pareto objectives (the search's
+        own ``pareto_objectives``, ``objectives_of`` and ``non_dominated_ranks``), under the newest
+        configuration version among them."""
+        from genr8_dist.evolution.island import pareto_objectives
+        from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
 
-        n = table.num_rows
-        valid = np.asarray(table["valid"].to_pylist(), dtype=bool)
-        versions = table["config_version"].to_pylist()
-        columns = []
-        specs = {v: self.config(int(v)).fitness for v in set(versions)}
-        for name in criteria:
-            raw = np.asarray(table[f"crit_{name}"].to_pylist(), dtype=object)
-            dev = np.full(n, np.inf)
-            used = False
-            for version, spec in specs.items():
-                term = spec[name] if name in getattr(spec, "names", ()) else None
-                if term is None or term.weight == 0.0:
-                    continue
-                used = True
-                rows = np.asarray([v == version for v in versions])
-                values = np.asarray([np.nan if x is None else float(x) for x in raw[rows]])
-                with np.errstate(invalid="ignore"):
-                    dev[rows] = np.abs(values - term.target) / term.unit
-            if used:
-                columns.append(np.where(np.isfinite(dev), dev, np.inf))
-        if not columns:
-            return [False] * n
-        points = np.stack(columns, axis=1)
-        candidates = np.flatnonzero(valid & np.isfinite(points).all(axis=1))
-        front = np.zeros(n, dtype=bool)
-        p = points[candidates]
-        for k, i in enumerate(candidates):
-            no_worse = (p <= p[k]).all(axis=1)
-            better = (p < p[k]).any(axis=1)
-            front[i] = not (no_worse & better).any()
-        return front.tolist()
+        if table.num_rows == 0:
+            return []
+        config = self.config(max(table["config_version"].to_pylist()))
+        names = [n for n in pareto_objectives(config) if n in criteria]
+        if not names:
+            return [False] * table.num_rows
+        raws = [{n: (math.nan if r[f"crit_{n}"] is None else r[f"crit_{n}"]) for n in names}
+                for r in table.select([f"crit_{n}" for n in names]).to_pylist()]
+        valid = table["valid"].to_pylist()
+        ranks = non_dominated_ranks(objectives_of(raws, valid, config.fitness, names))
+        return [bool(ok) and int(r) == 0 for ok, r in zip(valid, ranks, strict=True)]
+
+    def archive(self, generation: int | None = None) -> dict[str, Any] | None:
+        """The MAP-Elites archive of ``generation`` (default: the newest) when the run searches in
+        ``map-elites`` mode: per occupied cell its bins and elite (the lowest fitness over all islands,
+        ``Grid.archive``); ``None`` for a run of another mode."""
+        from genr8_dist.evolution.archive import Grid
+
+        store = self.store()
+        committed = store.committed_generations()
+        config = self.config()
+        search = getattr(config, "search", None)
+        if not committed or search is None or search.mode != "map-elites":
+            return None
+        g = min(committed.values()) if generation is None or generation < 0 else int(generation)
+        grid = Grid.from_settings(search)
+        individuals = [ind for i in sorted(committed) if committed[i] >= g
+                       for ind in store.load_generation(i, g)]
+        cells = grid.archive(individuals)
+        return {"generation": g, "descriptors": list(grid.descriptors),
+                "ranges": [list(r) for r in grid.ranges], "bins": list(grid.bins),
+                "cells": [{"cell": c, "bins": list(grid.coordinates(c)), "id": ind.id,
+                           "fitness": _finite(ind.fitness)} for c, ind in sorted(cells.items())]}
 
     def individual(self, id: str) -> dict[str, Any]:
         """One design: its row (criteria, rewrite system, provenance), its main line of ancestors, the

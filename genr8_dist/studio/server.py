@@ -250,6 +250,9 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/generation":
             g = arg("g")
             self._json(view.generation(None if g in (None, "") else int(_number(g, "g"))))
+        elif path == "/api/archive":
+            g = arg("g")
+            self._json(view.archive(None if g in (None, "") else int(_number(g, "g"))))
         elif path == "/api/individual":
             self._json(view.individual(_check_id(arg("id"))))
         elif path == "/api/surface":

@@ -23,7 +23,7 @@ def test_universes_lists_names_and_origins(capsys):
     code, out, _ = run(capsys, "universes")
     assert code == 0
     names = [line.split()[0] for line in out.splitlines()]
-    assert names[:4] == ["default", "probabilistic", "reversible", "symmetric"]
+    assert names[:6] == ["default", "gecco", "probabilistic", "reversible", "symmetric", "symmetric_thesis"]
     assert "timed" in names and "plugin:" in out
     code, out, _ = run(capsys, "universes", "--json")
     listed = {u["name"]: u for u in json.loads(out)}

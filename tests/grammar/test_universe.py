@@ -16,7 +16,7 @@ from genr8_dist.grammar import load_universe
 from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
 from genr8_dist.grammar.mapper import eligible
 
-BUILT_INS = ["default", "reversible", "symmetric", "symmetric_thesis", "probabilistic"]
+BUILT_INS = ["default", "reversible", "symmetric", "symmetric_thesis", "probabilistic", "gecco"]
 genomes = st.lists(st.integers(0, 65535), min_size=1, max_size=300)
 
 

@@ -610,3 +610,43 @@ def test_manifests_are_published_where_hard_links_are_not_supported(
     monkeypatch.undo()
     assert RunStore.open(store.path).committed_generations() == {0: 2, 1: 2}
     assert not [n for n in os.listdir(Path(store.path) / "_manifest") if n.startswith(".tmp")]
+
+
+# --- creation that stopped half-way, a full disk -------------------------------------------------
+
+def test_a_half_created_run_is_named_and_a_new_run_finishes_it(tmp_path: Path) -> None:
+    from genr8_dist.distributed.session import _check_new_run_dir
+
+    half = tmp_path / "half"
+    for folder in ("_manifest", "configs", "individuals", "events"):
+        (half / folder).mkdir(parents=True)
+    (half / "configs" / ".tmp-v0001.toml-4242-0badf00d").write_bytes(b"[run")  # killed while writing
+    with pytest.raises(StoreError, match=r"half: a run whose creation did not finish .*genr8 run CONFIG"):
+        RunStore.open(half)
+    _check_new_run_dir(str(half))  # `genr8 run` accepts it ...
+    store = RunStore.create(half, CONFIG)  # ... and finishes it
+    assert store.verify() == [] and RunStore.open(half).configs()[0].toml == CONFIG
+    with pytest.raises(StoreError, match="already holds a run"):
+        _check_new_run_dir(str(half))
+
+
+def test_a_full_disk_names_the_file_and_leaves_the_run_whole(
+    store: RunStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    store.commit(epoch(range(2)))
+    real_write = os.write
+
+    def full(fd: int, data: object) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "write", full)
+    with pytest.raises(OSError) as caught:
+        store.commit(epoch(range(2, 4)))
+    monkeypatch.setattr(os, "write", real_write)
+    assert caught.value.errno == errno.ENOSPC
+    assert caught.value.filename.startswith(str(Path(store.path) / "individuals" / "part-0000000003-"))
+    assert RunStore.open(store.path).verify() == []
+    assert RunStore.open(store.path).committed_generations() == {0: 1, 1: 1}
+    assert not [p for p in Path(store.path).rglob("*") if p.name.startswith((".tmp-", "part-0000000003"))]

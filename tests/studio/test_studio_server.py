@@ -247,3 +247,35 @@ def test_a_rewrite_system_written_in_the_studio_is_injected_and_weights_change(s
     assert events[1]["changes"] == {"fitness.size.weight": 3, "environment.gravity": [0, 0, -0.2]}
     config = RunStore.open(run_dir).configs()[-1]
     assert "weight = 3" in config.toml
+
+
+def test_the_map_elites_archive_of_a_generation(tmp_path):
+    """A run searching in map-elites mode: the studio's archive holds, per occupied cell, the valid
+    design of lowest fitness over all islands; a weighted run has none."""
+    toml = TOML + ('\n[search]\nmode = "map-elites"\ndescriptors = ["n_regions", "size"]\n'
+                   "ranges = [[1.0, 30.0], [0.0, 12.0]]\nbins = [3, 4]\n")
+    path = tmp_path / "run"
+    store = RunStore.create(path, toml)
+    config = parse_config(toml, "t")
+    population = [ind for i in range(2) for ind in Island(config, i).initial()]
+    store.commit(population)
+    studio = Studio(str(path), port=0).start()
+    try:
+        archive = json.loads(get(studio, "/api/archive")[2])
+    finally:
+        studio.close()
+    assert archive["bins"] == [3, 4] and archive["descriptors"] == ["n_regions", "size"]
+    expected: dict[tuple[int, int], tuple[float, str]] = {}
+    for ind in population:
+        if not ind.valid:
+            continue
+        i = min(2, max(0, int((ind.n_regions - 1.0) / 29.0 * 3)))
+        j = min(3, max(0, int(ind.criteria["size"] / 12.0 * 4)))
+        held = expected.get((i, j))
+        if held is None or ind.fitness < held[0]:
+            expected[(i, j)] = (ind.fitness, ind.id)
+    assert {tuple(c["bins"]): c["id"] for c in archive["cells"]} == {k: v[1] for k, v in expected.items()}
+
+
+def test_a_weighted_run_has_no_archive(studio):
+    assert json.loads(get(studio, "/api/archive")[2]) is None

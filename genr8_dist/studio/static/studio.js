@@ -384,6 +384,33 @@ renderer.domElement.addEventListener("pointerup", (e) => {
   if (hit) select(hit.object.userData.id);
 });
 
+// ------------------------------------------------------------------------------------ the archive
+async function drawArchive(g) {
+  const panel = $("archive-panel");
+  if (!ui.state || ui.state.search !== "map-elites") { panel.classList.add("hidden"); return; }
+  const a = await getJSON(`/api/archive?g=${g}`);
+  if (!a) { panel.classList.add("hidden"); return; }
+  panel.classList.remove("hidden");
+  const [nx, ny, nz] = [a.bins[0], a.bins[1] || 1, a.bins[2] || 1];
+  const rows = ny * nz, W = 340, H = 160, L = 8, T = 6, cw = (W - 2 * L) / nx, ch = (H - T - 16) / rows;
+  const svg = $("archive"); svg.innerHTML = "";
+  const fits = a.cells.map((c) => c.fitness).filter((f) => f !== null);
+  const [lo, hi] = extent(fits);
+  const byCell = new Map(a.cells.map((c) => [c.bins.join(","), c]));
+  for (let i = 0; i < nx; i++) for (let j = 0; j < ny; j++) for (let k = 0; k < nz; k++) {
+    const key = [i, j, k].slice(0, a.bins.length).join(","), c = byCell.get(key);
+    const y = T + (rows - 1 - (j * nz + k)) * ch;
+    const fill = c ? "#" + rankColour(hi > lo ? (c.fitness - lo) / (hi - lo) : 0).getHexString() : "#1f262f";
+    const r = el("rect", { x: L + i * cw + 1, y: y + 1, width: cw - 2, height: ch - 2, rx: 3, fill,
+      stroke: c && c.id === ui.selected ? "#e6e9ee" : "none", "stroke-width": 1.5 }, svg);
+    if (c) { r.style.cursor = "pointer"; r.addEventListener("click", () => select(c.id));
+      el("title", {}, r).textContent = `${c.id} · fitness ${fmt(c.fitness, 4)}`; }
+  }
+  el("text", { x: L, y: H - 3, class: "axis" }, svg).textContent = `${a.descriptors[0]} →`;
+  $("archive-axes").textContent = `${a.cells.length} of ${a.bins.reduce((p, b) => p * b, 1)} cells filled · ` +
+    `${a.descriptors.join(" × ")} · click a cell`;
+}
+
 // ------------------------------------------------------------------------------------ generations
 async function loadGeneration(g) {
   const data = await getJSON(`/api/generation?g=${g}`);
@@ -401,6 +428,7 @@ async function loadGeneration(g) {
   const choice = $("count").value;
   const shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) : rows.filter((r) => r.valid).slice(0, Number(choice));
   showDesigns(shown.map((r) => r.id), rows);
+  drawArchive(data.generation).catch(() => {});
   drawCurves();
 }
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
