@@ -236,7 +236,7 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
     if not chosen:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
     if not set(store.criteria) <= set(criterion_names(SURFACE)):
-        from genr8_dist.history._regrow import config_of, phenotype_for
+        from genr8_dist.history._run import config_of, phenotype_for
 
         config = config_of(store, version)
         phenotype = phenotype_for(store, config)
