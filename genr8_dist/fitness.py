@@ -48,6 +48,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
+from genr8_dist.fields import read_float
 
 __all__ = [
     "CRITERIA",
@@ -345,12 +346,7 @@ def score_surface(surface: _SurfaceLike, env: Any = None, criteria: Sequence[str
 
 
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"field '{where}': must be a number, got {value!r}")
-    number = float(value)
-    if not math.isfinite(number):
-        raise ConfigError(f"field '{where}': must be finite, got {number!r}")
-    return number
+    return read_float(value, "", where)
 
 
 @dataclass(frozen=True, slots=True)
