@@ -37,7 +37,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment._meshgeom import TriangleMesh
+from genr8_dist.errors import ConfigError, GrowthError
+from genr8_dist.fields import (
     fail,
     read_choice,
     read_float,
@@ -45,8 +47,6 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment._meshgeom import TriangleMesh
-from genr8_dist.errors import ConfigError, GrowthError
 
 __all__ = [
     "BEHAVIOURS",

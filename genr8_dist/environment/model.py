@@ -16,7 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
+from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
+from genr8_dist.environment.physics import SizeIncrease, increase_size, repair
+from genr8_dist.errors import ConfigError
+from genr8_dist.fields import (
     fail,
     read_bool,
     read_choice,
@@ -25,10 +29,6 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
-from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
-from genr8_dist.environment.physics import SizeIncrease, increase_size, repair
-from genr8_dist.errors import ConfigError
 from genr8_dist.tomlfile import read_toml
 
 __all__ = ["BRANCH_JOINS", "Environment", "SizeIncrease", "load_environment"]
