@@ -409,8 +409,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
-    with _signals_stop(stop, out), \
-            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
+    with _signals_stop(stop, out), hold_run_lock(store), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

@@ -276,6 +276,13 @@ class Environment:
         return increase_size(self, positions, step=step, masses=masses, stopped=stopped, perimeter=perimeter,
                              edges=edges, rng=rng)
 
+    def relax_cells(self, positions: np.ndarray, *, edges: np.ndarray, perimeter: np.ndarray,
+                    stopped: np.ndarray) -> np.ndarray:
+        """Uniform cells at the end of a derivation step; see genr8_dist.environment.physics.relax_cells."""
+        from genr8_dist.environment.physics import relax_cells
+
+        return relax_cells(self, positions, edges=edges, perimeter=perimeter, stopped=stopped)
+
     def constrain(self, positions: np.ndarray, *, stopped: np.ndarray) -> SizeIncrease:
         """Bring vertices on the wrong side of a hard boundary to its nearest allowed point.
 

@@ -34,7 +34,8 @@ from genr8_dist.grammar.trust import consent, may_run, remember, remembered, req
 from genr8_dist.grammar.universe import Universe, build_universe
 from genr8_dist.resources import grammars_dir, plugins_dir
 
-__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "consent_for_new_run", "consent_for_stored", "find_source",
+__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "consent_for_history", "consent_for_new_run",
+           "consent_for_stored", "find_source",
            "installed_code_digest", "list_universes", "load_universe"]
 
 ENTRY_POINT_GROUP = "genr8_dist.universes"
@@ -234,6 +235,19 @@ def load_universe(name: str | os.PathLike[str]) -> Universe:
     source, origin = find_source(name)
     consent(source.code_digest)
     return build_universe(source, origin=origin)
+
+
+def consent_for_history(source: UniverseSource) -> bool:
+    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
+    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
+    digest this machine already trusted (the user's own code either way). Never anything else."""
+    digest = source.code_digest
+    if may_run(digest):
+        return True
+    if digest in remembered() or installed_code_digest(source.name) == digest:
+        consent(digest)
+        return True
+    return False
 
 
 def consent_for_new_run(source, notify: Callable[[str], None]) -> None:

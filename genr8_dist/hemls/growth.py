@@ -506,6 +506,9 @@ class _Grower:
                 self._join(pending, max_dist)
         finally:
             m.compact()
+            if self.env.uniform_cells:
+                m.pos[:m.nv] = self.env.relax_cells(m.pos[:m.nv], edges=m.edge_array(),
+                                                    perimeter=m.perimeter_mask(), stopped=m.stopped[:m.nv])
             self._constrain()
 
     def _constrain(self) -> None:

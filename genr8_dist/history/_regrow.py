@@ -68,7 +68,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     text = row["text"]
     text_matches: bool | None = None
     phenotype = phenotype_for(store, config)
-    if may_run(config.universe_source.code_digest):  # stored plugin code is never run by history
+    if may_run(config.universe_source.code_digest):  # consented by phenotype_for: installed or trusted
         universe = universe_for(config)
         mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
                               max_wraps=config.genome.max_wraps)

@@ -175,16 +175,12 @@ def phenotype_for(store: Any, config: Any) -> Any:
     without running any code; any other run whose code may not run is a ``HistoryError``."""
     from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.fitness import SURFACE, criterion_names
-    from genr8_dist.grammar.discovery import installed_code_digest
-    from genr8_dist.grammar.trust import consent, may_run, remembered
+    from genr8_dist.grammar.discovery import consent_for_history
     from genr8_dist.phenotype import SURFACES, phenotype_of
 
     source = config.universe_source
     digest = source.code_digest
-    if digest and not may_run(digest) and (installed_code_digest(source.name) == digest
-                                          or digest in remembered()):
-        consent(digest)
-    if may_run(digest):
+    if consent_for_history(source):
         return phenotype_of(universe_for(config))
     if set(store.criteria) <= set(criterion_names(SURFACE)):
         return SURFACES

@@ -1116,12 +1116,21 @@ class RunStore:
     def _verify_files(self, entries: list[dict[str, Any]]) -> None:
         """Check each file against its manifest entry (size, sha256, Parquet rows) the first time
         this store reads it; ``StoreError`` naming the first damaged one."""
+        todo = []
         for e in entries:
             key = (e["path"], e["sha256"])
             stamp = self._stamp(e["path"])
             if self._verified.get(key) == stamp and stamp[0] is not None:
                 continue  # checked before, and neither its size nor its time has changed since
-            problem = self._check_entry(e, deep=True)
+            todo.append((e, key, stamp))
+        if len(todo) > 1:  # hashing releases the GIL: several files at once on several cores
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=min(len(todo), os.cpu_count() or 1, 8)) as pool:
+                problems = list(pool.map(lambda t: self._check_entry(t[0], deep=True), todo))
+        else:
+            problems = [self._check_entry(t[0], deep=True) for t in todo]
+        for (_, key, stamp), problem in zip(todo, problems, strict=True):
             if problem is not None:
                 raise StoreError(f"{problem}; {self._repair_hint()}")
             self._verified[key] = stamp

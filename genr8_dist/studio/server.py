@@ -132,7 +132,13 @@ class Studio:
                         island=None if island in (None, "") else int(_number(island, "island")))
         else:
             raise ConfigError(f"unknown action {action!r}")
-        result = apply_edit(self.run_dir, edit, source="studio")
+        try:
+            result = apply_edit(self.run_dir, edit, source="studio")
+        except ConfigError as exc:
+            if "use --generations N" not in str(exc):
+                raise
+            raise ConfigError(f"{action}: the run has no generation left to take it; add generations first "
+                              "(Steer → Length of the run → Go on)") from None
         if result.queued:
             message = (f"queued ({result.queued}); the run takes it at its next epoch, generation "
                        f"{result.effective_generation} or later")

@@ -183,3 +183,26 @@ def test_hand_fitness_makes_a_marked_individual_an_elite_of_the_next_generation(
     third = island.step(second, 2, hand=[(worst, 0.0)])
     assert [ind.parents for ind in third if ind.origin == "elite"] == [(worst.id,)]
     assert island.step(first, 1) != second
+
+
+def test_genr8_edit_and_resume_of_a_running_run(run_dir, capsys):
+    """With the run's lock held (what `genr8 run` holds), `genr8 edit` queues and says so, and a second
+    `genr8 resume` is refused in one line before Ray starts."""
+    from genr8_dist.cli import main
+
+    lock = RunStore.open(run_dir).lock("run")
+    assert lock.acquire()
+    try:
+        assert main(["edit", str(run_dir), "--favour", "0-0-1", "--hand-fitness", "1-0-2=0.5"]) == 0
+        out = capsys.readouterr().out
+        assert "the run is running; the edit is queued (0000000001.json)" in out
+        assert "inject favoured 0-0-1 into island 0" in out
+        (queued,) = RunStore.open(run_dir).queued()
+        assert queued.request["edit"]["hand_fitness"] == [["1-0-2", 0.5]]
+        assert main(["resume", str(run_dir)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("genr8: error:") and "is running already" in err and len(err.splitlines()) == 1
+        assert main(["edit", str(run_dir), "--hand-fitness", "1-0-2"]) == 2
+        assert "expected ID=FITNESS" in capsys.readouterr().err
+    finally:
+        lock.release()

@@ -279,3 +279,21 @@ def test_the_map_elites_archive_of_a_generation(tmp_path):
 
 def test_a_weighted_run_has_no_archive(studio):
     assert json.loads(get(studio, "/api/archive")[2]) is None
+
+
+def test_an_action_on_a_finished_run_says_to_add_generations_first(tmp_path):
+    toml = TOML.replace("generations = 4", "generations = 0")
+    path = tmp_path / "run"
+    store = RunStore.create(path, toml)
+    config = parse_config(toml, "t")
+    store.commit([ind for i in range(2) for ind in Island(config, i).initial()])
+    studio = Studio(str(path), port=0).start()
+    try:
+        status, answer = post(studio, {"action": "favour", "ids": ["0-0-1"]})
+        assert status == 400 and "add generations first" in answer["error"]
+        status, answer = post(studio, {"action": "generations", "generations": 3})
+        assert status == 200 and answer["effective_generation"] == 1
+        status, answer = post(studio, {"action": "favour", "ids": ["0-0-1"]})
+        assert status == 200 and answer["version"] == 3
+    finally:
+        studio.close()
