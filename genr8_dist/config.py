@@ -23,6 +23,7 @@ field with its default and meaning.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -504,8 +505,8 @@ def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
     raise _fail("environment", f"must be a table or a file name, got {value!r}")
 
 
-def load_config(path: str | Path) -> RunConfig:
+def load_config(path: str | os.PathLike[str]) -> RunConfig:
     """Read and validate the run configuration in the TOML file ``path``."""
-    path = Path(path)
-    data = read_toml(path, "configuration file")
-    return RunConfig.from_dict(data, source=str(path), base_dir=path.parent)
+    file = Path(path)
+    data = read_toml(file, "configuration file")
+    return RunConfig.from_dict(data, source=str(file), base_dir=file.parent)

@@ -9,6 +9,7 @@ the report only ever talk to a phenotype through this interface:
 
 ``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
+``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
@@ -86,6 +87,11 @@ class Phenotype:
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         raise NotImplementedError
 
+    def trivial(self, evaluation: Any) -> bool:
+        """Whether a valid evaluation (its stored counts and ``criteria``) is not worth a founder's
+        place in generation 0 (sensible initialisation redraws it); by default never."""
+        return False
+
     def describe(self, developed: Developed) -> str:
         """One line saying what was developed (``genr8 show``): its counts, else its kind."""
         parts = [f"{n} {k.removeprefix('n_')}" for k, n in developed.counts.items()]
@@ -148,6 +154,10 @@ class SurfacePhenotype(Phenotype):
         from genr8_dist.fitness import score_surface
 
         return score_surface(developed.value, config.environment, config.fitness.names)
+
+    def trivial(self, evaluation: Any) -> bool:
+        """At most one region: the axiom polygon as it was, or grown without a subdivision."""
+        return evaluation.n_regions <= 1
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("n_vertices") or not counts.get("n_edges"):

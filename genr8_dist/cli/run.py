@@ -58,7 +58,9 @@ def _run(args: argparse.Namespace) -> int:
         start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
         return 0
     from genr8_dist.cli.studio import start_studio, wait_for_interrupt
+    from genr8_dist.config import load_config
 
+    load_config(args.config)   # a wrong configuration is one line, before the studio says where it is
     studio = start_studio(args.run_dir, args.studio_host, args.studio_port, args.studio_token)
     try:
         start_run(args.config, args.run_dir, _options(args), out=sys.stdout)

@@ -123,7 +123,9 @@ def _map(args: argparse.Namespace) -> int:
         genome = parse_genome(args.genome)
     result = universe.map(genome, max_depth=args.max_depth, max_wraps=args.max_wraps)
     warnings: list[str] = []
-    if result.valid:
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+
+    if result.valid and phenotype_of(universe) is SURFACES:  # another phenotype reads its own texts
         from genr8_dist.errors import ParseError
         from genr8_dist.hemls import parse
 

@@ -354,6 +354,8 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
     consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    if config.universe_source.code_digest:  # consented now: read again, so its phenotype sets the criteria
+        config = load_config(config_path)
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the

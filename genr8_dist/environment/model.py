@@ -31,12 +31,17 @@ from genr8_dist.fields import (
 )
 from genr8_dist.tomlfile import read_toml
 
-__all__ = ["BRANCH_JOINS", "Environment", "SizeIncrease", "load_environment"]
+__all__ = ["BRANCH_JOINS", "BRANCH_TIES", "Environment", "SizeIncrease", "load_environment"]
 
 #: How two branches' orientations are compared when they join (docs/environment.md, docs/fidelity.md):
 #: "orientation" (the thesis: opposite within BranchAngle, facing each other), "cone" (each points at
 #: the other's vertex within BranchAngle).
 BRANCH_JOINS = ("orientation", "cone")
+
+#: What a region does when its best join ties with another (docs/environment.md): "first" joins the
+#: branch drawn first, "none" joins neither (mirror-image joins that cross keep a symmetric surface
+#: symmetric).
+BRANCH_TIES = ("first", "none")
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -97,6 +102,7 @@ class Environment:
     seed_masses: tuple[float, ...] | None = None
     branch_length: float = -1.0
     branch_join: str = "orientation"
+    branch_ties: str = "first"
     label_noise: float = 0.0
     position_noise: float = 0.0
     vertex_mass: float = 1.0
@@ -146,6 +152,7 @@ class Environment:
             raise fail(src, "branch_length", f"must be -1 (unlimited) or > 0, got {self.branch_length!r}")
         put(self, "branch_length", branch)
         read_choice(self.branch_join, src, "branch_join", BRANCH_JOINS)
+        read_choice(self.branch_ties, src, "branch_ties", BRANCH_TIES)
         put(self, "label_noise", read_float(self.label_noise, src, "label_noise", minimum=0.0, maximum=1.0))
         put(self, "position_noise", read_float(self.position_noise, src, "position_noise", minimum=0.0))
         put(self, "vertex_mass", read_float(self.vertex_mass, src, "vertex_mass", minimum=0.0,

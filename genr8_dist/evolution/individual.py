@@ -127,7 +127,8 @@ class Evaluation:
     n_regions: int = _col(0, arrow="int32", nullable=False, top=11)
     steps_done: int = _col(0, arrow="int32", nullable=False, top=12)
     capped: str | None = _col(arrow="string", top=13)     # which growth cap cut it short, if any
-    surface_digest: str | None = _col(arrow="string", top=15)  # blake2b of the final vertex array
+    # the phenotype's digest (a surface: blake2b of its final vertex array; a plugin's: its own)
+    surface_digest: str | None = _col(arrow="string", top=15)
     eval_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     map_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     grow_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)

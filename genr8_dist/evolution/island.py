@@ -114,10 +114,13 @@ def pareto_objectives(config: Any) -> tuple[str, ...]:
     return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
-def is_trivial(evaluation: Evaluation) -> bool:
-    """Whether an evaluation is not worth a founder's place: invalid, or a surface of at most one
-    region (the axiom polygon as it was, or grown without a subdivision)."""
-    return not evaluation.valid or evaluation.n_regions <= 1
+def is_trivial(evaluation: Evaluation, phenotype: Any = None) -> bool:
+    """Whether an evaluation is not worth a founder's place: invalid, or trivial as its universe's
+    ``phenotype`` says (default the surfaces': at most one region, the axiom polygon as it was or
+    grown without a subdivision)."""
+    from genr8_dist.phenotype import SURFACES
+
+    return not evaluation.valid or (phenotype or SURFACES).trivial(evaluation)
 
 
 def _keys(ind: Individual | Evaluation) -> set[str]:
@@ -458,6 +461,13 @@ class Island:
             placed.append(replace(p, extra=extra))
         return placed
 
+    @property
+    def phenotype(self) -> Any:
+        """The phenotype of this island's universe (``genr8_dist.phenotype``)."""
+        from genr8_dist.phenotype import phenotype_of
+
+        return phenotype_of(self.evaluator.universe)
+
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
         """A founder that is trivial or repeats an earlier founder's surface, drawn again."""
@@ -466,13 +476,13 @@ class Island:
             return genome, evaluation
         rng = None
         for _ in range(retries):
-            if not is_trivial(evaluation) and evaluation.surface_digest not in seen:
+            if not is_trivial(evaluation, self.phenotype) and evaluation.surface_digest not in seen:
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
             genome = tuple(self._founders(rng, 1, first=index)[0])
             evaluation = self.evaluate(genome)
             self.stats.founders_redrawn += 1
-        if is_trivial(evaluation) or evaluation.surface_digest in seen:
+        if is_trivial(evaluation, self.phenotype) or evaluation.surface_digest in seen:
             self.stats.unresolved += 1
         return genome, evaluation
 

@@ -10,7 +10,9 @@ code. Code runs only where the user said so:
 * code stored in a run directory runs only for the commands that continue the run (``run``,
   ``resume``, ``edit``), and only when its code digest is remembered, matches an installed plugin's,
   or the user passes ``--trust-hooks`` (which remembers it). History commands, ``show`` and the report
-  never run stored code.
+  never run stored code; they run an installed plugin's (or a remembered) code of the same digest,
+  which is the user's own, to regrow a phenotype plugin's individuals
+  (``genr8_dist.history._regrow.phenotype_for``).
 
 Consent is per process (:func:`consent`, :func:`may_run`) and travels to Ray hosts with the
 configuration the driver sends (see :class:`~genr8_dist.grammar.source.UniverseSource`); remembered

@@ -55,6 +55,10 @@ class TablesPhenotype(Phenotype):
         table = voxels.develop(text)
         return Developed(table, table.digest(), table.steps, table.capped)
 
+    def trivial(self, evaluation: Any) -> bool:
+        """A structure the paper's fitness scores 0 (flat, or nothing below its top layer)."""
+        return voxels.fitness(evaluation.criteria) == 0.0 if evaluation.criteria else True
+
     def describe(self, developed: Developed) -> str:
         table = developed.value
         return (f"{table.n_voxels} voxels from {table.commands} commands" +

@@ -142,3 +142,9 @@ def test_map_warns_about_a_rule_that_can_never_fire(capsys):
                            "one rule, or 'p =' on each)")
     code, out, _ = run(capsys, "map", "--random", "--seed", "14", "--json")
     assert json.loads(out)["warnings"] == [err.strip()[len("genr8: warning: "):]]
+
+
+def test_map_of_a_plugin_phenotypes_universe_prints_its_text_without_hemls_warnings(capsys):
+    code, out, err = run(capsys, "map", "--universe", "tables", "--random", "--seed", "2")
+    assert code == 0 and out.startswith("P0 ( ") and " iterations " in out.splitlines()[0]
+    assert err == ""
