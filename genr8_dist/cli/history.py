@@ -77,6 +77,8 @@ def register(subparsers: Any) -> None:
     p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
+    p.add_argument("--pareto", action="store_true",
+                   help="list the non-dominated surfaces over the Pareto objectives instead")
     p.set_defaults(handler=_top)
 
     p = subparsers.add_parser(
@@ -131,6 +133,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
     p.add_argument("--duplicates", action="store_true",
                    help="also show individuals whose surface equals a better one's (elites, copies)")
+    view = p.add_mutually_exclusive_group()
+    view.add_argument("--clusters", type=_int, metavar="K",
+                      help="instead: K kinds of form among the whole run's distinct surfaces "
+                           "(k-means over criteria and counts), the design nearest each centroid")
+    view.add_argument("--archive", action="store_true",
+                      help="instead: the MAP-Elites archive after the generation, as a map")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG to write")
     p.set_defaults(handler=_gallery)
 
@@ -179,6 +187,16 @@ def _top(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
 
+    if args.pareto:
+        if args.criterion:
+            raise history.HistoryError("--pareto and --criterion: give one of them")
+        table = history.pareto_front(args.run, generation=args.generation, island=args.island)
+        devs = [c for c in table.column_names if c.startswith("dev_")]
+        columns = [*_text.shown_columns(table.column_names), *devs]
+        headings = {name: _text.heading(name) for name in columns} | {d: d for d in devs}
+        _print(f"{table.num_rows} non-dominated surfaces (dev_: weighted deviation from the target)")
+        _print(_text.format_table(table, columns, headings=headings))
+        return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
                         criterion=args.criterion, systems=args.systems)
     columns = ["rank", *_text.shown_columns(table.column_names)]
@@ -286,9 +304,17 @@ def _query(args: argparse.Namespace) -> int:
 def _gallery(args: argparse.Namespace) -> int:
     from genr8_dist.history import pictures
 
-    info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
-                                island=args.island, per_island=args.per_island,
-                                distinct=not args.duplicates)
+    if args.clusters is not None:
+        fig, info = pictures.clusters_figure_of(args.run, args.clusters, generation=None,
+                                                island=args.island)
+        pictures.save_figure(fig, args.output)
+    elif args.archive:
+        fig, info = pictures.archive_figure_of(args.run, generation=args.generation)
+        pictures.save_figure(fig, args.output)
+    else:
+        info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
+                                    island=args.island, per_island=args.per_island,
+                                    distinct=not args.duplicates)
     _print(f"wrote {args.output}: {info}")
     return 0
 

@@ -38,7 +38,7 @@ def non_dominated_ranks(objectives: np.ndarray) -> np.ndarray:
     # dominates[i, j]: row i dominates row j (no worse in every objective, better in one)
     le = (f[:, None, :] <= f[None, :, :]).all(axis=2)
     lt = (f[:, None, :] < f[None, :, :]).any(axis=2)
-    dominates = le & lt
+    dominates = np.asarray(le & lt)
     count = dominates.sum(axis=0)             # how many rows dominate each row
     ranks = np.full(n, -1, dtype=np.int64)
     front = np.flatnonzero(count == 0)

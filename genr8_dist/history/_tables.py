@@ -236,7 +236,7 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
     if not chosen:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
     if not set(store.criteria) <= set(criterion_names(SURFACE)):
-        from genr8_dist.history._regrow import config_of, phenotype_for
+        from genr8_dist.history._run import config_of, phenotype_for
 
         config = config_of(store, version)
         phenotype = phenotype_for(store, config)
@@ -445,7 +445,7 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
     store = open_run(run)
     individuals = dataset(store)
     tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
-    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
         for name, table in tables.items():

@@ -169,7 +169,7 @@ def _check_range(value: Any) -> None:
 def file_entries(manifest: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     """Every file a manifest names, as ``(kind, entry)``: the kind is the manifest key listing it
     (``configs``, ``individuals``, ``events``, or any list a later feature adds the same way)."""
-    out = []
+    out: list[tuple[str, dict[str, Any]]] = []
     for key, value in manifest.items():
         if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
             out.extend((key, e) for e in value)
@@ -1205,8 +1205,9 @@ class RunStore:
             k = (e["path"], e["sha256"])
             if k not in cache:
                 cache[k] = self._check_entry(e, deep=True)
-            if cache[k] is not None:
-                bad.append((kind, e, cache[k]))
+            problem = cache[k]
+            if problem is not None:
+                bad.append((kind, e, problem))
         return bad
 
     def _config(self, entry: dict[str, Any]) -> ConfigVersion:
@@ -1341,7 +1342,7 @@ def _load_state(rfs: RunFS) -> tuple[dict[str, Any] | None, str | None]:
                 skipped.append(version)
             continue
         found = manifest.get("schema_version")
-        if not _is_int(found) or found > SCHEMA_VERSION:
+        if not isinstance(found, int) or not _is_int(found) or found > SCHEMA_VERSION:
             raise StoreError(
                 f"{rfs.show(_manifest_rel(version))}: schema version {found!r} is newer than this "
                 f"genr8_dist reads ({SCHEMA_VERSION}); upgrade genr8_dist"

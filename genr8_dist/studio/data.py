@@ -65,7 +65,7 @@ class RunView:
 
     def config(self, version: int | None = None) -> Any:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
-        from genr8_dist.history._regrow import config_of
+        from genr8_dist.history._run import config_of
 
         with self._lock:
             if version is not None and version in self._configs:

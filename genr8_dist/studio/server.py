@@ -243,7 +243,8 @@ class _Handler(BaseHTTPRequestHandler):
         view = self.studio.view
 
         def arg(name: str, default: str | None = None) -> str | None:
-            return (query.get(name) or [default])[0]
+            values = query.get(name)
+            return values[0] if values else default
 
         if path in ("/", "/index.html"):
             body = (STATIC / "index.html").read_bytes()
