@@ -187,14 +187,13 @@ def record_edit(store: Any, edit: Edit, *, source: str = "edit", request_id: str
 def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
     """Everything ``edit`` would record, checked: the new configuration, the event detail, the result."""
     from genr8_dist.config import RunConfig
-    from genr8_dist.distributed.session import latest_config
     from genr8_dist.store import RunStore
 
     committed = store.committed_generations()
     if not committed:
         raise StoreError(f"{store.path}: no generation is committed yet; there is nothing to edit")
     effective = max(committed.values()) + 1
-    current = latest_config(store)
+    current = store.config(store.configs()[-1])
     data = current.to_dict()
     changes: dict[str, Any] = {}
     for text in edit.assignments:
@@ -241,7 +240,7 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
     systems = [*edit.inject_systems, *((f"text {name}", _read_text(name)) for name in edit.inject_text)]
     if systems:
         from genr8_dist.evolution.evaluate import universe_for
-        from genr8_dist.grammar.trust import consent_for_stored
+        from genr8_dist.grammar.discovery import consent_for_stored
 
         consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks,
                            command=f"edit {store.path}")

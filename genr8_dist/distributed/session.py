@@ -337,18 +337,8 @@ def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
 
 
 def _history_commands(run_dir: str) -> list[str]:
-    """The ``genr8`` commands that show a run's results, among those this install has."""
-    from genr8_dist.cli import build_parser
-
-    try:
-        parser = build_parser()
-        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-        names = set(sub.choices)
-    except (StopIteration, ImportError):
-        return []
-    wanted = [("top", f"genr8 top {run_dir}"), ("report", f"genr8 report {run_dir}"),
-              ("history", f"genr8 history {run_dir}")]
-    return [line for name, line in wanted if name in names]
+    """The ``genr8`` commands that show a run's results."""
+    return [f"genr8 top {run_dir}", f"genr8 report {run_dir}", f"genr8 history {run_dir}"]
 
 
 def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOptions,
@@ -356,12 +346,12 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     """``genr8 run``: a new run of the configuration in ``config_path`` in the new ``run_dir``."""
     from genr8_dist.config import load_config
     from genr8_dist.distributed.hosts import HostPool
-    from genr8_dist.grammar.trust import consent_for_new_run
+    from genr8_dist.grammar.discovery import consent_for_new_run
     from genr8_dist.grammar.universe import build_universe
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
-    config = load_config(config_path)
+    config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
     consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
     if config.universe_source.code_digest:  # consented now: read again, so its phenotype sets the criteria
@@ -397,7 +387,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation (on
     ``hosts``, a ``HostPool`` of an earlier run, rebound to this one, when given)."""
     from genr8_dist.distributed.hosts import HostPool
-    from genr8_dist.grammar.trust import consent_for_stored
+    from genr8_dist.grammar.discovery import consent_for_stored
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout

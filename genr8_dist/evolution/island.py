@@ -340,13 +340,13 @@ class Island:
             if crossed:
                 within = min(used_a, used_b) if ea.within_used and min(used_a, used_b) > 0 else None
                 children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome, within=within)
-                lineage = ((a, b), (b, a))
+                lineage: tuple[tuple[int, ...], ...] = ((a, b), (b, a))
                 used = (max(used_a, used_b),) * 2
             else:
                 children = (pool[a].genome, pool[b].genome)
                 lineage = ((a,), (b,))
                 used = (used_a, used_b)
-            for child, parents, codons in zip(children, lineage, used, strict=True):
+            for child, picked, codons in zip(children, lineage, used, strict=True):
                 if len(births) >= ea.population:
                     break
                 within = codons if ea.within_used and codons > 0 else None
@@ -355,7 +355,7 @@ class Island:
                 origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
                 avoid: set[str] = set()
                 if unique:
-                    for i in parents:
+                    for i in picked:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
@@ -368,7 +368,7 @@ class Island:
                             origin = "crossover+mutation"
                     texts.add(text)
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
+                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -417,16 +417,16 @@ class Island:
             self.stats = IslandStats(generation=generation)
         before, self._bred_at = self._bred_at or self._counters(), None
         fresh = dict(evaluated or {})
-        for genome, evaluation in fresh.items():
+        for genome, made in fresh.items():
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
-                self.evaluator.adopt(genome, evaluation)
+                self.evaluator.adopt(genome, made)
         population = []
         seen: set[str] = set()   # the surfaces of this generation so far
         for index, birth in enumerate(births):
-            evaluation = birth.evaluation
-            if evaluation is None:
-                # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
-                evaluation = fresh.pop(birth.genome, None) or self.evaluate(birth.genome)
+            kept = birth.evaluation
+            # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
+            evaluation = kept if kept is not None else (
+                fresh.pop(birth.genome) if birth.genome in fresh else self.evaluate(birth.genome))
             genome, origin = birth.genome, birth.origin
             if generation == 0 and origin == "random":
                 genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)
