@@ -60,9 +60,10 @@ def open_run(run: RunLike) -> RunStore:
     return RunStore.open(text)
 
 
-def dataset(store: RunStore) -> pads.Dataset:
-    """The committed individuals of ``store`` as a dataset; a run with none is a ``StoreError``."""
-    data = store.dataset()
+def dataset(store: RunStore, generations: tuple[int, int] | None = None) -> pads.Dataset:
+    """The committed individuals of ``store`` (only the files holding ``generations=(lo, hi)``, when
+    given) as a dataset; a run with none is a ``StoreError``."""
+    data = store.dataset() if generations is None else store.dataset(generations)
     if next(iter(data.get_fragments()), None) is None:
         raise StoreError(f"{_label(store)}: the run has no committed generation yet")
     return data

@@ -261,7 +261,8 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
 def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Table:
     """The row of individual ``id`` (all columns, or ``columns``) as a one-row table."""
     store = open_run(run)
-    data = dataset(store)
+    parsed = parse_id(str(id))   # an id names its generation: only the files holding it are read
+    data = dataset(store, None if parsed is None else (parsed[1], parsed[1]))
     if columns is not None and "id" not in columns:
         columns = ["id", *columns]
     rows = _rows_by_ids(data, [str(id)], columns or data.schema.names)
@@ -303,10 +304,10 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     if depth is not None and depth < 0:
         raise HistoryError(f"depth: must be 0 or more generations back, got {depth}")
     store = open_run(run)
-    data = dataset(store)
     start = individual(store, id, ["generation"])
     g0 = int(start["generation"][0].as_py())
     lowest = 0 if depth is None else max(0, g0 - int(depth))
+    data = dataset(store, (lowest, g0))
     columns = ["id", "generation", "island", "index", "origin", "parents", "fitness", "valid"]
     filt = (pc.field("generation") <= g0) & (pc.field("generation") >= lowest)
     table = data.to_table(columns=columns, filter=filt)

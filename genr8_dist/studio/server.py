@@ -85,10 +85,15 @@ class Studio:
         """Serve in a background thread (``genr8 run --studio``)."""
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="genr8-studio", daemon=True)
         self._thread.start()
+        self._warm()
         return self
 
     def serve_forever(self) -> None:
+        self._warm()
         self.httpd.serve_forever()
+
+    def _warm(self) -> None:
+        threading.Thread(target=self.view.warm, name="genr8-studio-warm", daemon=True).start()
 
     def close(self) -> None:
         self.httpd.shutdown()
