@@ -65,6 +65,10 @@ def dataset(store: RunStore, generations: tuple[int, int] | None = None) -> pads
     given) as a dataset; a run with none is a ``StoreError``."""
     data = store.dataset() if generations is None else store.dataset(generations)
     if next(iter(data.get_fragments()), None) is None:
+        if generations is not None and store.committed_generations():
+            lo, hi = generations
+            raise HistoryError(f"{_label(store)}: no committed generation in {lo}..{hi}"
+                               if lo != hi else f"{_label(store)}: generation {lo} is not committed")
         raise StoreError(f"{_label(store)}: the run has no committed generation yet")
     return data
 
