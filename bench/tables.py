@@ -72,6 +72,21 @@ def _quartiles(values: list[float]) -> tuple[float, float, float]:
     return q[0], statistics.median(values), q[2]
 
 
+def _pictures(by: dict[str, list[dict]], folder: Path, args: argparse.Namespace) -> None:
+    """The final best table of each encoding's median seed, drawn by the tables phenotype."""
+    from genr8_dist.grammar import load_universe
+
+    phenotype = load_universe("tables").hooks.PHENOTYPE
+    folder.mkdir(parents=True, exist_ok=True)
+    for u, runs in by.items():
+        ranked = sorted(runs, key=lambda r: r["best"][-1])
+        r = ranked[len(ranked) // 2]
+        path = folder / f"{u}.png"
+        phenotype.preview(phenotype.develop(r["text"], None), path, config=None,
+                          title=f"{u}: seed {r['seed']}'s best after {args.generations} generations")
+        print(f"  wrote {path} (seed {r['seed']}, fitness {r['best'][-1]:.4g})")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
@@ -80,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--length", type=int, default=300, help="codons per genome (both encodings)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--every", type=int, default=5, help="print every N-th generation")
+    parser.add_argument("--pictures", metavar="DIR", help="draw each encoding's final best table of "
+                        "the seed with the median final fitness into DIR/<universe>.png")
     args = parser.parse_args(argv)
 
     jobs = [(u, seed, args.population, args.generations, args.length)
@@ -110,6 +127,9 @@ def main(argv: list[str] | None = None) -> int:
         secs = [r["seconds"] for r in by[u]]
         print(f"  {u:<14} voxels median {statistics.median(vox):.0f} (range {vox[0]}..{vox[-1]}), "
               f"reuse median {statistics.median(reuse):.1f}, {statistics.median(secs):.1f} s/run")
+
+    if args.pictures:
+        _pictures(by, Path(args.pictures), args)
 
     gen_final = [r["best"][-1] for r in by["tables"]]
     dir_final = [r["best"][-1] for r in by["tables_direct"]]

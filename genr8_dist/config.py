@@ -23,13 +23,14 @@ field with its default and meaning.
 
 from __future__ import annotations
 
-import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError, Genr8Error
+from genr8_dist.fields import fail, read_bool, read_choice, read_float, read_int
 from genr8_dist.fitness import SURFACE, FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
@@ -52,53 +53,36 @@ SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
 EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
 
+# The field validators are genr8_dist.fields' (one family for every configuration file); a run
+# configuration's messages name the field alone, the caller adds the file.
 def _fail(path: str, message: str) -> ConfigError:
-    return ConfigError(f"field '{path}': {message}")
+    return fail("", path, message)
 
 
 def _int(value: Any, path: str, minimum: int | None = None, maximum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        try:
-            import numpy as np
-
-            if isinstance(value, np.integer):
-                value = int(value)
-        except ImportError:  # pragma: no cover - numpy is a hard dependency
-            pass
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise _fail(path, f"must be an integer, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise _fail(path, f"must be >= {minimum}, got {value}")
-    if maximum is not None and value > maximum:
-        raise _fail(path, f"must be <= {maximum}, got {value}")
-    return int(value)
+    return read_int(value, "", path, minimum=minimum, maximum=maximum)
 
 
 def _rate(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    value = float(value)
-    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    return value
+    try:
+        return read_float(value, "", path, minimum=0.0, maximum=1.0)
+    except ConfigError:
+        raise _fail(path, f"must be a number in [0, 1], got {value!r}") from None
 
 
 def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:
-    if not isinstance(value, str) or value not in allowed:
-        raise _fail(path, f"must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
-    return value
+    return read_choice(value, "", path, allowed)
 
 
 def _bool(value: Any, path: str) -> bool:
-    if not isinstance(value, bool):
-        raise _fail(path, f"must be true or false, got {value!r}")
-    return value
+    return read_bool(value, "", path)
 
 
 def _number(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(path, f"must be a finite number, got {value!r}")
-    return float(value)
+    try:
+        return read_float(value, "", path)
+    except ConfigError:
+        raise _fail(path, f"must be a finite number, got {value!r}") from None
 
 
 def _set(obj: Any, name: str, value: Any) -> None:
@@ -521,8 +505,8 @@ def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
     raise _fail("environment", f"must be a table or a file name, got {value!r}")
 
 
-def load_config(path: str | Path) -> RunConfig:
+def load_config(path: str | os.PathLike[str]) -> RunConfig:
     """Read and validate the run configuration in the TOML file ``path``."""
-    path = Path(path)
-    data = read_toml(path, "configuration file")
-    return RunConfig.from_dict(data, source=str(path), base_dir=path.parent)
+    file = Path(path)
+    data = read_toml(file, "configuration file")
+    return RunConfig.from_dict(data, source=str(file), base_dir=file.parent)

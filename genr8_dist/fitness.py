@@ -48,6 +48,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
+from genr8_dist.fields import read_float
 
 __all__ = [
     "CRITERIA",
@@ -108,7 +109,7 @@ def _neighbour_pairs(edges: Any) -> np.ndarray:
     e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     e = e[e[:, 0] != e[:, 1]]
     if not len(e):
-        return e
+        return np.asarray(e)
     lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
     n = int(hi.max()) + 1
     keys = np.sort(lo * n + hi)  # one int per unordered pair; sorted, repeats are neighbours
@@ -195,7 +196,7 @@ def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
 
     first, second = angle(b - a, c - a), angle(a - b, c - b)
     third = np.clip(180.0 - first - second, 0.0, 180.0)
-    return np.minimum(np.minimum(first, second), third)
+    return np.asarray(np.minimum(np.minimum(first, second), third))
 
 
 def slivers(surface: Any) -> float:
@@ -345,12 +346,7 @@ def score_surface(surface: _SurfaceLike, env: Any = None, criteria: Sequence[str
 
 
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"field '{where}': must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"field '{where}': must be finite, got {value!r}")
-    return value
+    return read_float(value, "", where)
 
 
 @dataclass(frozen=True, slots=True)

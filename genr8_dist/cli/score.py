@@ -46,38 +46,34 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     """Grow ``system`` (a ``RewriteSystem``, or its text) in ``env`` and score it under ``spec``: the
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
-    from genr8_dist.evolution.evaluate import regions_of, steps_of
-    from genr8_dist.fitness import score_surface
-    from genr8_dist.hemls import grow, parse
+    from genr8_dist.config import RunConfig
+    from genr8_dist.errors import GrowthError
+    from genr8_dist.evolution.evaluate import evaluate_text
+    from genr8_dist.hemls import parse
 
     if isinstance(system, str):
         system = parse(system, source=name)
-    result = grow(system, env)
-    surface = result.surface
-    raw = score_surface(surface, env, spec.names)
+    text = system.to_text() if hasattr(system, "to_text") else str(system)
+    judged = evaluate_text(text, RunConfig(fitness=spec, environment=env))  # as a run evaluates it
+    if not judged.criteria:
+        raise GrowthError(f"{name}: {judged.error}")
+    raw = judged.criteria
     deviations = spec.deviations(raw)
     total = spec.evaluate(raw)
-    capped = result.capped if isinstance(result.capped, str) or not result.capped else "cap"
-    n_vertices, n_edges = len(surface.vertices), len(surface.edges)
-    problem = None
-    if capped:
-        problem = f"growth capped ({capped}) in derivation step {steps_of(result)}"
-    elif not n_vertices or not n_edges or not math.isfinite(total):
-        problem = "degenerate surface"
     return {
         "system": name,
-        "text": system.to_text() if hasattr(system, "to_text") else str(system),
-        "vertices": n_vertices,
-        "edges": n_edges,
-        "regions": regions_of(surface),
-        "steps": steps_of(result),
-        "capped": capped or None,
+        "text": text,
+        "vertices": judged.n_vertices,
+        "edges": judged.n_edges,
+        "regions": judged.n_regions,
+        "steps": judged.steps_done,
+        "capped": judged.capped,
         "criteria": {key: {"raw": _finite(raw[key]), "target": spec[key].target,
                            "weight": spec[key].weight, "deviation": _finite(deviations[key])}
                      for key in spec.names},
         "total": _finite(total),
-        "valid": problem is None,
-        "problem": problem,
+        "valid": judged.valid,
+        "problem": judged.error,
     }
 
 

@@ -130,7 +130,7 @@ def _map(args: argparse.Namespace) -> int:
         from genr8_dist.hemls import parse
 
         try:
-            warnings = parse(result.text, source="mapped").warnings()
+            warnings = parse(result.text or "", source="mapped").warnings()
         except ParseError as exc:  # a universe whose texts the HEMLS parser does not take
             warnings = [f"the rewrite system does not parse: {exc}"]
     if args.json:
@@ -144,7 +144,7 @@ def _map(args: argparse.Namespace) -> int:
         return 1
     for warning in warnings:
         print(f"genr8: warning: {warning}", file=sys.stderr)
-    sys.stdout.write(result.text)
+    sys.stdout.write(result.text or "")
     return 0
 
 

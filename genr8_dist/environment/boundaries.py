@@ -37,7 +37,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment._meshgeom import TriangleMesh
+from genr8_dist.errors import ConfigError, GrowthError
+from genr8_dist.fields import (
     fail,
     read_choice,
     read_float,
@@ -45,8 +47,6 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment._meshgeom import TriangleMesh
-from genr8_dist.errors import ConfigError, GrowthError
 
 __all__ = [
     "BEHAVIOURS",
@@ -122,7 +122,7 @@ class Boundary(abc.ABC):
     allowed_inside: bool | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        read_choice(self.behaviour, self._where(), "behaviour", BEHAVIOURS)
+        read_choice(self.behaviour, self._where(), "behaviour", tuple(BEHAVIOURS))
         read_optional_bool(self.inside, self._where(), "inside")
         if self.allowed_inside is None and self.inside is not None:
             object.__setattr__(self, "allowed_inside", self.inside)

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from genr8_dist.environment._fields import fail, read_choice, read_float, read_vec3, reject_unknown
+from genr8_dist.fields import fail, read_choice, read_float, read_vec3, reject_unknown
 
 __all__ = ["LAWS", "PointForce", "point_force_displacement", "repelling_displacement"]
 

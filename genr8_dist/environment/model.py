@@ -12,11 +12,15 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
+from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
+from genr8_dist.environment.physics import SizeIncrease, increase_size, repair
+from genr8_dist.errors import ConfigError
+from genr8_dist.fields import (
     fail,
     read_bool,
     read_choice,
@@ -25,9 +29,6 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
-from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
-from genr8_dist.errors import ConfigError
 from genr8_dist.tomlfile import read_toml
 
 __all__ = ["BRANCH_JOINS", "BRANCH_TIES", "Environment", "SizeIncrease", "load_environment"]
@@ -43,13 +44,6 @@ BRANCH_JOINS = ("orientation", "cone")
 BRANCH_TIES = ("first", "none")
 
 _AXES = {"x": 0, "y": 1, "z": 2}
-
-
-class SizeIncrease(NamedTuple):
-    """What ``Environment.increase_size`` returns: the moved positions and the cumulative stop mask."""
-
-    positions: np.ndarray
-    stopped: np.ndarray
 
 
 def _read_gravity(value: Any, source: str) -> tuple[float, float, float]:
@@ -286,8 +280,6 @@ class Environment:
     def increase_size(self, positions: np.ndarray, *, step: int, masses: np.ndarray, stopped: np.ndarray,
                       perimeter: np.ndarray, edges: np.ndarray, rng: np.random.Generator) -> SizeIncrease:
         """Move every vertex for derivation step ``step`` (1-based); see genr8_dist.environment.physics."""
-        from genr8_dist.environment.physics import increase_size
-
         return increase_size(self, positions, step=step, masses=masses, stopped=stopped, perimeter=perimeter,
                              edges=edges, rng=rng)
 
@@ -306,8 +298,6 @@ class Environment:
         curved wall lie inside it). Against a cut-off wall the vertex also stops. Returns the new
         positions and the cumulative stop mask; inputs are not modified.
         """
-        from genr8_dist.environment.physics import repair
-
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         mask = np.asarray(stopped, dtype=bool).copy()
         if not self.boundaries or len(points) == 0:

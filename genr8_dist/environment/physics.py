@@ -26,16 +26,23 @@ hand it such vertices.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from genr8_dist.errors import GrowthError
 
 if TYPE_CHECKING:
-    from genr8_dist.environment.model import Environment, SizeIncrease
+    from genr8_dist.environment.model import Environment
 
-__all__ = ["increase_size", "mean_edge_length", "neighbour_average", "relax_cells", "repair"]
+__all__ = ["SizeIncrease", "increase_size", "mean_edge_length", "neighbour_average", "relax_cells", "repair"]
+
+
+class SizeIncrease(NamedTuple):
+    """What ``Environment.increase_size`` returns: the moved positions and the cumulative stop mask."""
+
+    positions: np.ndarray
+    stopped: np.ndarray
 
 
 def mean_edge_length(positions: np.ndarray, edges: np.ndarray, fallback: float) -> float:
@@ -73,7 +80,6 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
     Inputs are not modified. ``positions`` (V, 3), ``masses`` (V,), ``stopped`` and ``perimeter``
     bool (V,), ``edges`` (E, 2) vertex indices.
     """
-    from genr8_dist.environment.model import SizeIncrease
 
     p = np.asarray(positions, dtype=np.float64)
     n = len(p)

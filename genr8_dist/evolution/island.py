@@ -52,7 +52,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
@@ -66,6 +66,9 @@ from genr8_dist.evolution.operators import (
     tournament_select,
 )
 from genr8_dist.rng import stream
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
@@ -106,7 +109,7 @@ _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
 
 
-def pareto_objectives(config: Any) -> tuple[str, ...]:
+def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
     """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
     with a weight above 0."""
     if config.search.objectives:
@@ -135,7 +138,7 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
 class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
-    def __init__(self, config: Any, island_index: int, config_version: int = 1, *,
+    def __init__(self, config: RunConfig, island_index: int, config_version: int = 1, *,
                  evaluator: Evaluator | None = None,
                  config_of: Callable[[int], Any] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:
@@ -340,13 +343,13 @@ class Island:
             if crossed:
                 within = min(used_a, used_b) if ea.within_used and min(used_a, used_b) > 0 else None
                 children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome, within=within)
-                lineage = ((a, b), (b, a))
+                lineage: tuple[tuple[int, ...], ...] = ((a, b), (b, a))
                 used = (max(used_a, used_b),) * 2
             else:
                 children = (pool[a].genome, pool[b].genome)
                 lineage = ((a,), (b,))
                 used = (used_a, used_b)
-            for child, parents, codons in zip(children, lineage, used, strict=True):
+            for child, picked, codons in zip(children, lineage, used, strict=True):
                 if len(births) >= ea.population:
                     break
                 within = codons if ea.within_used and codons > 0 else None
@@ -355,7 +358,7 @@ class Island:
                 origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
                 avoid: set[str] = set()
                 if unique:
-                    for i in parents:
+                    for i in picked:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
@@ -368,7 +371,7 @@ class Island:
                             origin = "crossover+mutation"
                     texts.add(text)
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
+                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -417,16 +420,16 @@ class Island:
             self.stats = IslandStats(generation=generation)
         before, self._bred_at = self._bred_at or self._counters(), None
         fresh = dict(evaluated or {})
-        for genome, evaluation in fresh.items():
+        for genome, made in fresh.items():
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
-                self.evaluator.adopt(genome, evaluation)
+                self.evaluator.adopt(genome, made)
         population = []
         seen: set[str] = set()   # the surfaces of this generation so far
         for index, birth in enumerate(births):
-            evaluation = birth.evaluation
-            if evaluation is None:
-                # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
-                evaluation = fresh.pop(birth.genome, None) or self.evaluate(birth.genome)
+            kept = birth.evaluation
+            # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
+            evaluation = kept if kept is not None else (
+                fresh.pop(birth.genome) if birth.genome in fresh else self.evaluate(birth.genome))
             genome, origin = birth.genome, birth.origin
             if generation == 0 and origin == "random":
                 genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)

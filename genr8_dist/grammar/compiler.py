@@ -28,6 +28,7 @@ import re
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
+from typing import Any
 
 from genr8_dist.errors import UniverseError, located
 
@@ -341,7 +342,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
             if bad:
                 raise ctx.fail(f"numeric terminal {name}: its pattern /{value[1]}/ does not match the "
                                f"value {bad[0]} of its '//@ number' range", name, define=True)
-            kind = ("num", numbers[name], name)
+            kind: tuple[Any, ...] = ("num", numbers[name], name)
         elif bound or pred or labelled or context:
             if value is None or value[0] != "re":
                 raise ctx.fail(f"edge terminal {name} must be defined by a regular expression "

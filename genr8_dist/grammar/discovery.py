@@ -24,17 +24,19 @@ from __future__ import annotations
 
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from genr8_dist.errors import UniverseError
 from genr8_dist.grammar.source import UniverseSource
-from genr8_dist.grammar.trust import consent
+from genr8_dist.grammar.trust import consent, may_run, remember, remembered, require_trust
 from genr8_dist.grammar.universe import Universe, build_universe
 from genr8_dist.resources import grammars_dir, plugins_dir
 
-__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "find_source", "installed_code_digest", "list_universes",
-           "load_universe"]
+__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "consent_for_history", "consent_for_new_run",
+           "consent_for_stored", "find_source",
+           "installed_code_digest", "list_universes", "load_universe"]
 
 ENTRY_POINT_GROUP = "genr8_dist.universes"
 _NOT_UNIVERSES = {"hemls"}
@@ -97,7 +99,8 @@ def _entry_point_infos() -> list[UniverseInfo]:
         return []
     infos = []
     for ep in eps:
-        dist = ep.dist.name if getattr(ep, "dist", None) is not None else "?"
+        found = getattr(ep, "dist", None)
+        dist = found.name if found is not None else "?"
         origin = f"entry point:{dist}"
         value = ep.value.strip()
         try:
@@ -232,3 +235,39 @@ def load_universe(name: str | os.PathLike[str]) -> Universe:
     source, origin = find_source(name)
     consent(source.code_digest)
     return build_universe(source, origin=origin)
+
+
+def consent_for_history(source: UniverseSource) -> bool:
+    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
+    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
+    digest this machine already trusted (the user's own code either way). Never anything else."""
+    digest = source.code_digest
+    if may_run(digest):
+        return True
+    if digest in remembered() or installed_code_digest(source.name) == digest:
+        consent(digest)
+        return True
+    return False
+
+
+def consent_for_new_run(source, notify: Callable[[str], None]) -> None:
+    """Consent to the code of a universe a run configuration names (``genr8 run``).
+
+    An installed plugin's code runs silently; code named by a path or carried in the TOML runs after
+    ``notify`` is given a one-line notice, the first time this machine sees its digest."""
+    digest = source.code_digest
+    if may_run(digest):
+        return
+    if installed_code_digest(source.name) != digest and digest not in remembered():
+        modules = ", ".join(f"{m}.py" for m in source.modules)
+        notify(f"genr8: note: universe '{source.name}' runs Python code ({modules} from "
+               f"{source.folder}, sha256 {digest[:16]}...); this machine trusts "
+               "it from now on (the trust rule: docs/run-store.md)")
+        remember(digest, f"universe {source.name} ({source.folder})")
+    consent(digest)
+
+
+def consent_for_stored(sources, *, trust_flag: bool, command: str) -> None:
+    """:func:`require_trust` for every universe a run stores (one per configuration version)."""
+    for source in sources:
+        require_trust(source, trust_flag=trust_flag, command=command, installed=installed_code_digest)

@@ -29,17 +29,7 @@ from pathlib import Path
 
 from genr8_dist.errors import UniverseError
 
-__all__ = [
-    "consent",
-    "consent_for_history",
-    "consent_for_new_run",
-    "consent_for_stored",
-    "may_run",
-    "remember",
-    "remembered",
-    "require_trust",
-    "trust_file",
-]
+__all__ = ["consent", "may_run", "remember", "remembered", "require_trust", "trust_file"]
 
 _CONSENTED: set[str] = set()
 _LOCK = threading.Lock()
@@ -110,45 +100,3 @@ def require_trust(source, *, trust_flag: bool, command: str,
         f"{source.origin or 'the run'}: universe '{source.name}' carries Python code ({modules}, sha256 "
         f"{digest[:16]}...) that this machine has not trusted; read it (the [stored_universe] table of the "
         f"run's configs/*.toml), then run `genr8 {command} --trust-hooks`")
-
-
-def consent_for_history(source) -> bool:
-    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
-    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
-    digest this machine already trusted (the user's own code either way). Never anything else."""
-    digest = source.code_digest
-    if may_run(digest):
-        return True
-    from genr8_dist.grammar.discovery import installed_code_digest
-
-    if digest in remembered() or installed_code_digest(source.name) == digest:
-        consent(digest)
-        return True
-    return False
-
-
-def consent_for_new_run(source, notify: Callable[[str], None]) -> None:
-    """Consent to the code of a universe a run configuration names (``genr8 run``).
-
-    An installed plugin's code runs silently; code named by a path or carried in the TOML runs after
-    ``notify`` is given a one-line notice, the first time this machine sees its digest."""
-    digest = source.code_digest
-    if may_run(digest):
-        return
-    from genr8_dist.grammar.discovery import installed_code_digest
-
-    if installed_code_digest(source.name) != digest and digest not in remembered():
-        modules = ", ".join(f"{m}.py" for m in source.modules)
-        notify(f"genr8: note: universe '{source.name}' runs Python code ({modules} from "
-               f"{source.folder}, sha256 {digest[:16]}...); this machine trusts "
-               "it from now on (the trust rule: docs/run-store.md)")
-        remember(digest, f"universe {source.name} ({source.folder})")
-    consent(digest)
-
-
-def consent_for_stored(sources, *, trust_flag: bool, command: str) -> None:
-    """:func:`require_trust` for every universe a run stores (one per configuration version)."""
-    from genr8_dist.grammar.discovery import installed_code_digest
-
-    for source in sources:
-        require_trust(source, trust_flag=trust_flag, command=command, installed=installed_code_digest)

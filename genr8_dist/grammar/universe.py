@@ -313,6 +313,7 @@ class Universe:
         occurring = set(range(2, count))
         occurring.update(k for k in (0, 1) if any(table[k] in out for table in m.distinct))
         acc: list[str] = []
+        assert m.repair is not None and self._repair_hook is not None  # a universe that repairs
         grow_one = m.repair(nxt, acc, count)
 
         def expand() -> list[str]:
@@ -323,9 +324,7 @@ class Universe:
         get = m.labels.get
 
         def labels_in(tokens: list[str]) -> set[int]:
-            found = set(map(get, tokens))
-            found.discard(None)
-            return found
+            return {label for label in map(get, tokens) if label is not None}
 
         template = self._pred_template
         ctx = RepairContext(text=text, expand=expand, occurring=occurring, has_rule=has,
@@ -360,6 +359,7 @@ class Universe:
         end = len(text) if end < 0 else end + 1
         get = m.labels.get
         acc: list[str] = []
+        assert m.repair is not None  # a universe that repairs
         expand = m.repair(nxt, acc, count)
         edges = m.tables[self._pred_index]
         new = []

@@ -594,7 +594,7 @@ class _Grower:
                 break
             ok = free.copy()
             if rule.condition is not None:
-                ok &= rule.condition.holds(m.age[idx])
+                ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
             if rule.left is not None:
                 ok[ok] = self._context_ok(idx[ok], 0, rule.left)
             if rule.right is not None:
@@ -702,15 +702,15 @@ class _Grower:
                    + hd[None, :, 2, None] * up[:, None, :])
         corner = np.full((n, nb), -1, dtype=np.int64)
         side = tpl.branch_side
-        for b in range(nb):
-            if side[b] == LEFT:
-                corner[:, b] = fwd[:, j[b]]
-            elif side[b] == RIGHT:
-                corner[:, b] = bwd[:, j[b] - 1]
-            elif side[b] == AT_END:
-                start_half = fwd[:, 0] if j[b] == 0 else bwd[:, k - 1]
+        for br in range(nb):
+            if side[br] == LEFT:
+                corner[:, br] = fwd[:, j[br]]
+            elif side[br] == RIGHT:
+                corner[:, br] = bwd[:, j[br] - 1]
+            elif side[br] == AT_END:
+                start_half = fwd[:, 0] if j[br] == 0 else bwd[:, k - 1]
                 for r in range(n):
-                    corner[r, b] = self._corner_at(int(start_half[r]), heading[r, b], up[r])
+                    corner[r, br] = self._corner_at(int(start_half[r]), heading[r, br], up[r])
         blabels = self._noisy(np.broadcast_to(tpl.branch_labels, (n, nb)).ravel())
         bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
                                     tpl.branch_ages), 0).ravel()

@@ -797,7 +797,8 @@ def _parse_lark(text: str, source: str, name: str) -> RewriteSystem:
     try:
         tree = _parser().parse(text)
     except UnexpectedCharacters as exc:
-        ch = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
+        at = exc.pos_in_stream if exc.pos_in_stream is not None else -1
+        ch = text[at] if 0 <= at < len(text) else "?"
         raise _located_error(f"unexpected character {ch!r}; expected {_expected(exc.allowed or ())}",
                              source, exc.line, exc.column, text) from None
     except UnexpectedToken as exc:

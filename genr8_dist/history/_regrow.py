@@ -15,14 +15,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from genr8_dist.errors import ConfigError
 from genr8_dist.history._run import (
     HistoryError,
     RunLike,
     atomic_write,
+    config_of,
     open_run,
+    phenotype_for,
     run_directory_holding,
-    run_label,
 )
 
 __all__ = ["EXPORT_FORMATS", "Regrown", "check_export_path", "config_of", "export", "export_formats",
@@ -49,16 +49,6 @@ class Regrown:
     def surface(self) -> Any:
         """The developed phenotype itself (a ``Surface`` for HEMLS universes), ``None`` if none."""
         return self.developed.value if self.developed is not None else None
-
-
-def config_of(store: Any, version: int) -> Any:
-    """The ``RunConfig`` of configuration ``version`` of ``store``."""
-    if int(version) not in {int(cv.version) for cv in store.configs()}:
-        raise HistoryError(f"{run_label(store)}: no configuration version {version}")
-    try:
-        return store.config(int(version))
-    except ConfigError as exc:
-        raise HistoryError(str(exc)) from None
 
 
 def regrow(run: RunLike, id: str) -> Regrown:
@@ -97,29 +87,6 @@ def regrow(run: RunLike, id: str) -> Regrown:
             f"(vertices, edges, regions, steps) {counts} vs {recorded}; was the run made by another version "
             f"of genr8_dist?")
     return Regrown(row, config, phenotype, developed, developed.steps, digest, text_matches)
-
-
-def phenotype_for(store: Any, config: Any) -> Any:
-    """The phenotype of ``config``'s universe (a configuration of ``store``).
-
-    History runs no stored code (:mod:`genr8_dist.grammar.trust`) but the code of an installed plugin
-    with the same digest, or one this machine remembers, is the user's own: a phenotype plugin's
-    individuals are regrown with it. A run whose criteria are the surface criteria regrows surfaces
-    without running any code; any other run whose code may not run is a ``HistoryError``."""
-    from genr8_dist.evolution.evaluate import universe_for
-    from genr8_dist.fitness import SURFACE, criterion_names
-    from genr8_dist.grammar.trust import consent_for_history
-    from genr8_dist.phenotype import SURFACES, phenotype_of
-
-    source = config.universe_source
-    digest = source.code_digest
-    if consent_for_history(source):
-        return phenotype_of(universe_for(config))
-    if set(store.criteria) <= set(criterion_names(SURFACE)):
-        return SURFACES
-    raise HistoryError(f"{run_label(store)}: universe '{source.name}' develops its texts with Python code "
-                       f"this machine has not trusted (sha256 {digest[:16]}...); install the plugin, or "
-                       f"continue the run once with `genr8 resume --trust-hooks`, to regrow its individuals")
 
 
 def phenotype_of_run(run: RunLike, id: str) -> Any:
@@ -187,7 +154,9 @@ def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
     import numpy as np
 
     try:
-        import rhino3dm
+        import importlib
+
+        rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
     except ImportError:
         raise HistoryError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
     vertices = np.asarray(surface.vertices, dtype=np.float64)

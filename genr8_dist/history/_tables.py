@@ -236,7 +236,7 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
     if not chosen:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
     if not set(store.criteria) <= set(criterion_names(SURFACE)):
-        from genr8_dist.history._regrow import config_of, phenotype_for
+        from genr8_dist.history._run import config_of, phenotype_for
 
         config = config_of(store, version)
         phenotype = phenotype_for(store, config)
@@ -261,7 +261,8 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
 def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Table:
     """The row of individual ``id`` (all columns, or ``columns``) as a one-row table."""
     store = open_run(run)
-    data = dataset(store)
+    parsed = parse_id(str(id))   # an id names its generation: only the files holding it are read
+    data = dataset(store, None if parsed is None else (parsed[1], parsed[1]))
     if columns is not None and "id" not in columns:
         columns = ["id", *columns]
     rows = _rows_by_ids(data, [str(id)], columns or data.schema.names)
@@ -303,10 +304,10 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     if depth is not None and depth < 0:
         raise HistoryError(f"depth: must be 0 or more generations back, got {depth}")
     store = open_run(run)
-    data = dataset(store)
     start = individual(store, id, ["generation"])
     g0 = int(start["generation"][0].as_py())
     lowest = 0 if depth is None else max(0, g0 - int(depth))
+    data = dataset(store, (lowest, g0))
     columns = ["id", "generation", "island", "index", "origin", "parents", "fitness", "valid"]
     filt = (pc.field("generation") <= g0) & (pc.field("generation") >= lowest)
     table = data.to_table(columns=columns, filter=filt)
@@ -444,7 +445,7 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
     store = open_run(run)
     individuals = dataset(store)
     tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
-    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
         for name, table in tables.items():

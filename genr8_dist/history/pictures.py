@@ -261,7 +261,8 @@ def lineage_figure(table: pa.Table, id: str) -> Any:
     width = max(r["index"] for r in rows) + 1
     pos = {r["id"]: (r["generation"], band[r["island"]] + (r["index"] + 0.5) / width * 0.8 + 0.1)
            for r in rows}
-    links, main = [], []
+    links: list[Any] = []
+    main: list[Any] = []
     line = {r["id"] for r in rows if r["main_line"]}
     for r in rows:
         for parent in r["parents"] or ():
@@ -453,7 +454,7 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     else:
         ids = list(_best_ids(store, k, generation, island, distinct))
         row_labels, columns = None, None
-    tiles = []
+    tiles: list[tuple[str, Any]] = []
     count = 0
     noun = "surface"
     for ident in ids:

@@ -105,7 +105,7 @@ def _section(title: str, body: str) -> str:
 
 def _phenotype(store: Any, configs: list) -> Any:
     """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
-    from genr8_dist.history._regrow import phenotype_for
+    from genr8_dist.history._run import phenotype_for
     from genr8_dist.phenotype import SURFACES
 
     try:

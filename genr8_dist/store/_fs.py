@@ -106,7 +106,7 @@ class RunFS:
             with open(self._local(rel), "rb") as fh:
                 return fh.read()
         with self.fs.open_input_stream(self.full(rel)) as fh:
-            return fh.read()
+            return bytes(fh.read())
 
     # --- writes ------------------------------------------------------------------------------
     def makedirs(self, rel: str = "") -> None:
@@ -142,7 +142,7 @@ class RunFS:
         info = self.fs.get_file_info(self.full(rel))
         if info.type != pafs.FileType.File or info.mtime is None:
             return None
-        return info.mtime.timestamp()
+        return float(info.mtime.timestamp())
 
     def _put_exclusive(self, rel: str, data: bytes | memoryview) -> None:
         if self.local_root is None:

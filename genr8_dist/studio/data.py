@@ -17,13 +17,16 @@ import time
 from collections import OrderedDict
 from typing import Any
 
-from genr8_dist.errors import StoreError
+from genr8_dist.errors import ConfigError, StoreError
 
 __all__ = ["MAX_FACES", "RunView"]
 
 MAX_FACES = 20_000          # a surface with more triangles is decimated before it is sent
 MAX_EDGES = 30_000          # scaffold edges sent with a surface (every k-th one past this)
 GLB_CACHE = 256             # surfaces kept in memory
+GENERATION_CACHE = 32       # generations' rows (and their kinds of form) kept in memory
+KINDS = 12                  # kinds of form shown (Biomorpher shows 12)
+MAX_KINDS = 36
 LINEAGE_DEPTH = 12          # generations of the main line shown for a design
 
 
@@ -46,6 +49,8 @@ class RunView:
         self._curves: dict[str, Any] | None = None
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
+        self._generations: OrderedDict[int, list[dict[str, Any]]] = OrderedDict()
+        self._kinds: OrderedDict[tuple[int, int, int | None], dict[str, Any]] = OrderedDict()
         self._configs: dict[int, Any] = {}
         self._seen: tuple[float, int] | None = None   # (time, individuals) when the newest commit was seen
 
@@ -63,7 +68,7 @@ class RunView:
 
     def config(self, version: int | None = None) -> Any:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
-        from genr8_dist.history._regrow import config_of
+        from genr8_dist.history._run import config_of
 
         with self._lock:
             if version is not None and version in self._configs:
@@ -76,6 +81,18 @@ class RunView:
             if found is None:
                 found = self._configs[version] = config_of(store, version)
             return found
+
+    def warm(self) -> None:
+        """Read what the page asks for first (the state, the newest generation, then the curves) while
+        the designer opens it; a run not created yet is left to the page's polls."""
+        from genr8_dist.errors import Genr8Error
+
+        try:
+            self.state()
+            self.generation()
+            self.curves()
+        except (Genr8Error, OSError):
+            pass
 
     # -- progress -----------------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
@@ -238,13 +255,18 @@ class RunView:
             return {"generation": -1, "individuals": []}
         newest = min(committed.values())
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        with self._lock:
+            rows = self._generations.get(g)
+            if rows is not None:
+                self._generations.move_to_end(g)
+                return {"generation": g, "newest": newest, "individuals": rows}
         crits = [f"crit_{c}" for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
                    "config_version", *crits]
-        import pyarrow as pa
+        import pyarrow.compute as pc
 
-        parts = [store.generation_table(i, g, columns) for i in sorted(committed) if committed[i] >= g]
-        table = pa.concat_tables(parts)
+        # one read of the files holding generation g (only they are checked against their sha256)
+        table = store.dataset((g, g)).to_table(columns=columns, filter=pc.field("generation") == g)
         front = self._pareto(table, store.criteria)
         table = table.drop_columns(crits)
         rows = table.to_pylist()
@@ -254,15 +276,20 @@ class RunView:
                                  r["island"], r["index"]))
         for r in rows:
             r["fitness"] = _finite(r["fitness"])
+        if g <= newest:   # every island committed it: its rows and its front never change
+            with self._lock:
+                self._generations[g] = rows
+                while len(self._generations) > GENERATION_CACHE:
+                    self._generations.popitem(last=False)
         return {"generation": g, "newest": newest, "individuals": rows}
 
     def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
         """Which rows are on the Pareto front of their generation (all islands together): the
         non-dominated valid ones over the weighted deviations of the Pareto objectives (the search's
-        own ``pareto_objectives``, ``objectives_of`` and ``non_dominated_ranks``), under the newest
+        own ``pareto_objectives``, ``objectives_of`` and ``non_dominated``), under the newest
         configuration version among them."""
         from genr8_dist.evolution.island import pareto_objectives
-        from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+        from genr8_dist.evolution.pareto import non_dominated, objectives_of
 
         if table.num_rows == 0:
             return []
@@ -273,8 +300,53 @@ class RunView:
         raws = [{n: (math.nan if r[f"crit_{n}"] is None else r[f"crit_{n}"]) for n in names}
                 for r in table.select([f"crit_{n}" for n in names]).to_pylist()]
         valid = table["valid"].to_pylist()
-        ranks = non_dominated_ranks(objectives_of(raws, valid, config.fitness, names))
-        return [bool(ok) and int(r) == 0 for ok, r in zip(valid, ranks, strict=True)]
+        front = non_dominated(objectives_of(raws, valid, config.fitness, names))
+        return [bool(ok) and bool(on) for ok, on in zip(valid, front, strict=True)]
+
+    def clusters(self, generation: int | None = None, k: int = KINDS, island: int | None = None
+                 ) -> dict[str, Any]:
+        """The kinds of form of ``generation`` (default: the newest), as Biomorpher shows them: its
+        distinct valid surfaces (of ``island``, or all) in ``k`` clusters by k-means over their
+        criteria and counts (``history.clusters``), one representative per cluster (the design
+        nearest its centre) with the cluster's size, largest first. Without scikit-learn:
+        ``unavailable`` says which extra to install."""
+        from genr8_dist.errors import HistoryError
+        from genr8_dist.history import clusters
+
+        store = self.store()
+        committed = store.committed_generations()
+        if not committed:
+            return {"generation": -1, "k": k, "representatives": []}
+        newest = min(committed.values())
+        g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        if not 1 <= k <= MAX_KINDS:
+            raise ConfigError(f"k {k}: the studio shows 1 to {MAX_KINDS} kinds of form")
+        try:
+            import sklearn.cluster  # noqa: F401  (the search extra)
+        except ImportError:
+            return {"generation": g, "k": k, "representatives": [],
+                    "unavailable": "kinds of form need scikit-learn: pip install 'genr8_dist[search]'"}
+        key = (g, k, island)
+        with self._lock:
+            found = self._kinds.get(key)
+        if found is not None:
+            return found
+        try:
+            table = clusters(store, k, generation=g, island=island)
+            rows = [{"id": r["id"], "cluster": r["cluster"], "members": r["members"], "island": r["island"],
+                     "fitness": _finite(r["fitness"]), "n_regions": r["n_regions"]}
+                    for r in table.select(["id", "cluster", "members", "island", "fitness", "n_regions"])
+                    .to_pylist()]
+            answer: dict[str, Any] = {"generation": g, "k": k, "representatives": rows,
+                                      "surfaces": sum(r["members"] for r in rows)}
+        except HistoryError as exc:   # no valid design in it: nothing to cluster
+            answer = {"generation": g, "k": k, "representatives": [], "message": str(exc)}
+        if g <= newest:
+            with self._lock:
+                self._kinds[key] = answer
+                while len(self._kinds) > GENERATION_CACHE:
+                    self._kinds.popitem(last=False)
+        return answer
 
     def archive(self, generation: int | None = None) -> dict[str, Any] | None:
         """The MAP-Elites archive of ``generation`` (default: the newest) when the run searches in

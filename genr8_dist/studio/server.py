@@ -85,10 +85,15 @@ class Studio:
         """Serve in a background thread (``genr8 run --studio``)."""
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="genr8-studio", daemon=True)
         self._thread.start()
+        self._warm()
         return self
 
     def serve_forever(self) -> None:
+        self._warm()
         self.httpd.serve_forever()
+
+    def _warm(self) -> None:
+        threading.Thread(target=self.view.warm, name="genr8-studio-warm", daemon=True).start()
 
     def close(self) -> None:
         self.httpd.shutdown()
@@ -238,7 +243,8 @@ class _Handler(BaseHTTPRequestHandler):
         view = self.studio.view
 
         def arg(name: str, default: str | None = None) -> str | None:
-            return (query.get(name) or [default])[0]
+            values = query.get(name)
+            return values[0] if values else default
 
         if path in ("/", "/index.html"):
             body = (STATIC / "index.html").read_bytes()
@@ -255,6 +261,11 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/generation":
             g = arg("g")
             self._json(view.generation(None if g in (None, "") else int(_number(g, "g"))))
+        elif path == "/api/clusters":
+            g, k, island = arg("g"), arg("k"), arg("island")
+            self._json(view.clusters(None if g in (None, "") else int(_number(g, "g")),
+                                     12 if k in (None, "") else int(_number(k, "k")),
+                                     None if island in (None, "") else int(_number(island, "island"))))
         elif path == "/api/archive":
             g = arg("g")
             self._json(view.archive(None if g in (None, "") else int(_number(g, "g"))))

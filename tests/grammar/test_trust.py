@@ -8,7 +8,7 @@ import pickle
 import pytest
 
 from genr8_dist.errors import UniverseError
-from genr8_dist.grammar import build_universe, find_source, trust
+from genr8_dist.grammar import build_universe, discovery, find_source, trust
 from genr8_dist.grammar.source import UniverseSource, load_modules
 
 
@@ -29,15 +29,15 @@ def altered(source: UniverseSource, marker: str) -> UniverseSource:
 def test_the_installed_plugins_own_code_is_trusted_an_altered_copy_is_not(machine):
     timed, origin = find_source("timed")
     assert origin.startswith("plugin:") and timed.modules == ("hooks",)
-    assert trust.consent_for_history(timed)
+    assert discovery.consent_for_history(timed)
     assert build_universe(timed).hooks is not None
     other = altered(timed, "changed")
     assert other.code_digest != timed.code_digest
-    assert not trust.consent_for_history(other)
+    assert not discovery.consent_for_history(other)
     with pytest.raises(UniverseError, match=r"refusing to run its Python code \(hooks.py, sha256 "):
         load_modules(other)
     with pytest.raises(UniverseError) as info:
-        trust.consent_for_stored([other], trust_flag=False, command="resume runs/r")
+        discovery.consent_for_stored([other], trust_flag=False, command="resume runs/r")
     assert str(info.value) == (
         f"stored in a copied run: universe 'timed' carries Python code (hooks.py, sha256 "
         f"{other.code_digest[:16]}...) that this machine has not trusted; read it (the [stored_universe] "
@@ -48,10 +48,10 @@ def test_the_installed_plugins_own_code_is_trusted_an_altered_copy_is_not(machin
 def test_trust_hooks_is_remembered_outside_the_run_and_lasts(machine, monkeypatch):
     timed, _ = find_source("timed")
     other = altered(timed, "mine")
-    trust.consent_for_stored([other], trust_flag=True, command="resume r")
+    discovery.consent_for_stored([other], trust_flag=True, command="resume r")
     assert machine.read_text().split()[0] == other.code_digest
     monkeypatch.setattr(trust, "_CONSENTED", set())          # a later command on the same machine
-    trust.consent_for_stored([other], trust_flag=False, command="resume r")
+    discovery.consent_for_stored([other], trust_flag=False, command="resume r")
     assert trust.may_run(other.code_digest)
 
 

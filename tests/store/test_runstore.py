@@ -426,6 +426,22 @@ def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
     assert problems == [f"{victim}: corrupt: its sha256 differs from the one the manifest recorded"]
 
 
+def test_a_dataset_of_some_generations_checks_only_the_files_it_reads(store: RunStore) -> None:
+    store.commit(epoch(range(3)))
+    store.commit(epoch(range(3, 6)))
+    store.commit(epoch(range(6, 9)))
+    victim = Path(store.path) / store.manifest["individuals"][0]["path"]   # generations 0..2
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    victim.write_bytes(bytes(data))
+    reader = RunStore.open(store.path)
+    late = reader.dataset((4, 7)).to_table(columns=["generation"])
+    assert sorted(set(late["generation"].to_pylist())) == [3, 4, 5, 6, 7, 8] and late.num_rows == 60
+    for span in ((2, 4), None):   # any read that touches the damaged file is refused, naming it
+        with pytest.raises(StoreError, match=re.escape(str(victim)) + ": corrupt"):
+            reader.dataset() if span is None else reader.dataset(span)
+
+
 def test_a_missing_individuals_file_is_named_by_every_reader(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
