@@ -12,7 +12,9 @@
    split into four every step has 4**5 = 1,024 regions when every join is made;
 3. symmetric share: random genomes (seed 0, 50-150 codons) of the symmetric universes grown 4 steps
    in the empty environment; the share of grown (uncapped) surfaces with a mirror line
-   (``Surface.mirror_line``: a vertical plane through the centre mapping every vertex onto one).
+   (``Surface.mirror_line``: a vertical plane through the centre mapping every vertex onto one), with
+   ties between joins going to the branch drawn first (the default) and, for ``symmetric``, with
+   ``branch_ties = "none"``; ``regions`` is the mean number of regions of the grown surfaces.
 
 ``--pictures DIR`` draws four_sided_tiles in examples/environments/box_corner*.toml (slide, cut-off,
 reflect: thesis Figs 2-13 and 2-14) side by side into DIR/boundary_behaviours.png.
@@ -62,14 +64,15 @@ def regions_kept() -> None:
 
 
 def symmetric_share(n_genomes: int) -> None:
-    env = Environment(max_edges=20_000, max_seconds=10.0)
     names = [u.name for u in list_universes() if u.name.startswith("symmetric")]
     print(f"\nsymmetric share: {n_genomes} random genomes per universe, grown 4 steps, empty environment")
-    print(f"{'universe':>20} {'mapped':>6} {'grown':>6} {'capped':>6} {'mirror':>6} {'share':>7} {'s':>6}")
-    for name in names:
+    print(f"{'universe':>20} {'ties':>5} {'mapped':>6} {'grown':>6} {'capped':>6} {'mirror':>6} {'share':>7} "
+          f"{'regions':>7} {'s':>6}")
+    for name, ties in [(n, "first") for n in names] + [("symmetric", "none")]:
+        env = Environment(max_edges=20_000, max_seconds=10.0, branch_ties=ties)
         universe = load_universe(name)
         rng = stream(0, "bench", "fidelity", name)
-        mapped = grown = capped = mirror = 0
+        mapped = grown = capped = mirror = regions = 0
         t0 = time.perf_counter()
         for _ in range(n_genomes):
             result = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
@@ -82,9 +85,10 @@ def symmetric_share(n_genomes: int) -> None:
                 continue
             grown += 1
             mirror += growth.surface.mirror_line() is not None
+            regions += growth.surface.n_regions
         share = mirror / grown if grown else float("nan")
-        print(f"{name:>20} {mapped:>6} {grown:>6} {capped:>6} {mirror:>6} {share:>7.1%} "
-              f"{time.perf_counter() - t0:>6.1f}")
+        print(f"{name:>20} {ties:>5} {mapped:>6} {grown:>6} {capped:>6} {mirror:>6} {share:>7.1%} "
+              f"{regions / max(grown, 1):>7.1f} {time.perf_counter() - t0:>6.1f}")
 
 
 BOXES = (("slide", "box_corner.toml"), ("cut-off", "box_corner_cutoff.toml"),

@@ -19,7 +19,9 @@ figures are the engine's, not the cluster's. Sections:
    until the best reaches the single population's median final best, and how many islands' best
    surfaces are distinct at the end.
 
-An *evaluation* is an individual born in the run (elites and migrants are copies, not counted).
+An *evaluation* is a genome the run evaluated (mapped and, if new text, grown): every founder redrawn
+and offspring re-varied counts, elites, migrants and cache hits do not. The random sample gets as
+many plain random genomes.
 Medians are over seeds, with [min, max] beside them.
 """
 
@@ -42,15 +44,17 @@ def trivial(ind: Any) -> bool:
     return not ind.valid or ind.n_regions <= 1
 
 
-def run_islands(config: Any, generations: int) -> list[list[list[Any]]]:
+def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], list[int]]:
     """Generations 0..``generations`` of every island of ``config``, migrating as a run does:
-    ``history[g][i]`` is island i's generation g."""
+    ``history[g][i]`` is island i's generation g; ``spent[g]`` the genomes evaluated up to it (every
+    founder redraw and re-variation included, cache hits not)."""
     from genr8_dist.distributed.migration import is_migration_generation, plan_migration
     from genr8_dist.evolution import Island
 
     n = config.islands.count
     islands = [Island(config, i) for i in range(n)]
     history = [[isl.initial() for isl in islands]]
+    spent = [sum(isl.evaluator.evaluations for isl in islands)]
     for g in range(1, generations + 1):
         previous = history[-1]
         migrants: dict[int, list[Any]] = {i: [] for i in range(n)}
@@ -60,17 +64,19 @@ def run_islands(config: Any, generations: int) -> list[list[list[Any]]]:
                                       config.islands.migrants, config.seed, g - 1,
                                       *((choice,) if choice else ()))
         history.append([isl.step(previous[i], g, migrants[i]) for i, isl in enumerate(islands)])
-    return history
+        spent.append(sum(isl.evaluator.evaluations for isl in islands))
+    return history, spent
 
 
-def describe(history: list[list[list[Any]]], tiles: float) -> dict[str, Any]:
+def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict[str, Any]:
     """The per-run figures of one run's history."""
+    history, spent = run
     by_id = {}
     trivial_share, distinct_share, copy_share = [], [], []
     curve = []   # (evaluations so far, best so far)
     evaluations, best = 0, math.inf
     reach = None
-    for gen in history:
+    for g, gen in enumerate(history):
         pops = [ind for pop in gen for ind in pop]
         trivial_share.append(sum(map(trivial, pops)) / len(pops))
         distinct = [len({ind.surface_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
@@ -84,13 +90,10 @@ def describe(history: list[list[list[Any]]], tiles: float) -> dict[str, Any]:
                 copies += 1
         if offspring:
             copy_share.append(copies / len(offspring))
-        for ind in pops:
-            if ind.origin in COPIES and ind.generation > 0:
-                continue
-            evaluations += 1
-            best = min(best, ind.fitness)
-            if reach is None and best <= tiles + 1e-12:
-                reach = evaluations
+        best = min(best, min(ind.fitness for ind in pops))
+        evaluations = spent[g]
+        if reach is None and best <= tiles + 1e-12:
+            reach = evaluations
         curve.append((evaluations, best))
         by_id.update({ind.id: ind for ind in pops})
     last = history[-1]
@@ -105,11 +108,14 @@ def describe(history: list[list[list[Any]]], tiles: float) -> dict[str, Any]:
 
 
 def random_best(config: Any, evaluations: int) -> float:
-    """The best fitness among ``evaluations`` random genomes (one generation 0 of that size)."""
+    """The best fitness among ``evaluations`` random genomes (one generation 0 of that size, no
+    founder redrawn: every evaluation a random genome)."""
     from genr8_dist.evolution import Island
 
-    one = config.replace(ea={"population": max(2, evaluations), "elites": 0, "tournament": 1},
-                         islands={"count": 1, "migrants": 0})
+    ea = {"population": max(2, evaluations), "elites": 0, "tournament": 1}
+    if "founder_retries" in getattr(config.ea, "__dataclass_fields__", {}):
+        ea |= {"founder_retries": 0, "init": "random"}
+    one = config.replace(ea=ea, islands={"count": 1, "migrants": 0})
     return min(ind.fitness for ind in Island(one, 0).initial())
 
 

@@ -88,7 +88,10 @@ cmd_start() {
   echo "address: 127.0.0.1:$PORT"
   echo "run on it:  genr8 run CONFIG --run-dir DIR --address 127.0.0.1:$PORT"
   if [[ "${GENR8_DASHBOARD:-0}" == 1 ]]; then
-    echo "or submit:  ray job submit --address http://127.0.0.1:$DASHBOARD_PORT --runtime-env cluster/runtime_env.yaml -- python -m genr8_dist.cli run CONFIG --run-dir /abs/DIR"
+    # `ray job submit` must use the cluster's authentication mode too: print it in the line to copy
+    local auth=""
+    if [[ -n "${RAY_AUTH_MODE:-}" ]]; then auth="RAY_AUTH_MODE=$RAY_AUTH_MODE "; fi
+    echo "or submit:  ${auth}ray job submit --address http://127.0.0.1:$DASHBOARD_PORT --runtime-env cluster/runtime_env.yaml -- python -m genr8_dist.cli run CONFIG --run-dir /abs/DIR"
   fi
   echo "stop it:    $0 stop"
 }

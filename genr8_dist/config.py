@@ -23,14 +23,15 @@ field with its default and meaning.
 
 from __future__ import annotations
 
-import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError, Genr8Error
-from genr8_dist.fitness import FitnessSpec
+from genr8_dist.fields import fail, read_bool, read_choice, read_float, read_int
+from genr8_dist.fitness import SURFACE, FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
 __all__ = [
@@ -52,53 +53,36 @@ SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
 EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
 
+# The field validators are genr8_dist.fields' (one family for every configuration file); a run
+# configuration's messages name the field alone, the caller adds the file.
 def _fail(path: str, message: str) -> ConfigError:
-    return ConfigError(f"field '{path}': {message}")
+    return fail("", path, message)
 
 
 def _int(value: Any, path: str, minimum: int | None = None, maximum: int | None = None) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        try:
-            import numpy as np
-
-            if isinstance(value, np.integer):
-                value = int(value)
-        except ImportError:  # pragma: no cover - numpy is a hard dependency
-            pass
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise _fail(path, f"must be an integer, got {value!r}")
-    if minimum is not None and value < minimum:
-        raise _fail(path, f"must be >= {minimum}, got {value}")
-    if maximum is not None and value > maximum:
-        raise _fail(path, f"must be <= {maximum}, got {value}")
-    return int(value)
+    return read_int(value, "", path, minimum=minimum, maximum=maximum)
 
 
 def _rate(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    value = float(value)
-    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}")
-    return value
+    try:
+        return read_float(value, "", path, minimum=0.0, maximum=1.0)
+    except ConfigError:
+        raise _fail(path, f"must be a number in [0, 1], got {value!r}") from None
 
 
 def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:
-    if not isinstance(value, str) or value not in allowed:
-        raise _fail(path, f"must be one of {', '.join(repr(a) for a in allowed)}, got {value!r}")
-    return value
+    return read_choice(value, "", path, allowed)
 
 
 def _bool(value: Any, path: str) -> bool:
-    if not isinstance(value, bool):
-        raise _fail(path, f"must be true or false, got {value!r}")
-    return value
+    return read_bool(value, "", path)
 
 
 def _number(value: Any, path: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise _fail(path, f"must be a finite number, got {value!r}")
-    return float(value)
+    try:
+        return read_float(value, "", path)
+    except ConfigError:
+        raise _fail(path, f"must be a finite number, got {value!r}") from None
 
 
 def _set(obj: Any, name: str, value: Any) -> None:
@@ -170,14 +154,15 @@ class IslandSettings:
         _set(self, "emigrants", _choice(self.emigrants, "islands.emigrants", EMIGRANTS))
 
 
-def _names(value: Any, path: str, allowed: tuple[str, ...], low: int, high: int) -> tuple[str, ...]:
+def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, high: int
+           ) -> tuple[str, ...]:
     if isinstance(value, str) or not isinstance(value, (list, tuple)):
         raise _fail(path, f"must be a list of names, got {value!r}")
     if not low <= len(value) <= high:
         raise _fail(path, f"must name {low} to {high} values, got {len(value)}")
     for name in value:
-        if not isinstance(name, str) or name not in allowed:
-            raise _fail(path, f"{name!r} is not one of {', '.join(allowed)}")
+        if not isinstance(name, str) or (allowed is not None and name not in allowed):
+            raise _fail(path, f"{name!r} is not one of {', '.join(allowed or ())}")
     if len(set(value)) != len(value):
         raise _fail(path, f"names a value twice: {list(value)!r}")
     return tuple(value)
@@ -196,15 +181,11 @@ class SearchSettings:
     offspring: float = 0.5                 # map-elites: the least share of a generation bred anew
 
     def __post_init__(self) -> None:
-        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
-        from genr8_dist.fitness import CRITERIA
-
         _set(self, "mode", _choice(self.mode, "search.mode", SEARCH_MODES))
-        _set(self, "objectives", _names(self.objectives, "search.objectives", CRITERIA, 0, len(CRITERIA)))
+        _set(self, "objectives", _names(self.objectives, "search.objectives", None, 0, 100))
         if self.mode == "pareto" and len(self.objectives) == 1:
             raise _fail("search.objectives", "a Pareto search needs at least 2 objectives")
-        _set(self, "descriptors", _names(self.descriptors, "search.descriptors",
-                                         CRITERIA + DESCRIPTOR_COUNTS, 1, 3))
+        _set(self, "descriptors", _names(self.descriptors, "search.descriptors", None, 1, 3))
         n = len(self.descriptors)
         if isinstance(self.ranges, str) or not isinstance(self.ranges, (list, tuple)) \
                 or len(self.ranges) != n:
@@ -230,7 +211,8 @@ class SearchSettings:
 
 _SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings,
                               "search": SearchSettings}
-_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "search")
+_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "search",
+             "stored_universe")
 
 
 def _section(cls: type, data: Any, name: str) -> Any:
@@ -252,25 +234,61 @@ def _default_environment() -> Any:
     return Environment()
 
 
-def _known_universes() -> list[str]:
-    from genr8_dist import grammar
-
-    return [info.name for info in grammar.list_universes()]
-
-
-def _check_universe(name: Any) -> str:
+def _resolve_universe(name: Any, base_dir: Path | None) -> tuple[str, Any]:
+    """The universe ``name`` (a name, or a path resolved against ``base_dir``) read into a source and
+    checked (no plugin code runs): ``(its name, its UniverseSource)``."""
     if not isinstance(name, str) or not name:
-        raise _fail("universe", f"must be a universe name, got {name!r}")
-    from genr8_dist.grammar import load_universe
+        raise _fail("universe", f"must be a universe name or path, got {name!r}")
+    from genr8_dist.grammar.discovery import find_source
 
     try:
-        load_universe(name)
+        source, _origin = find_source(name, base_dir)
+        _check_source(source)
+        if not source.code_digest:  # code-free: parse a sample of derivations now (no code runs)
+            from genr8_dist.grammar.universe import build_universe
+
+            build_universe(source, check=True)
     except Genr8Error as exc:
-        message = str(exc)
-        if "known" not in message:
-            message += f" (known: {', '.join(_known_universes())})"
-        raise _fail("universe", message) from None
-    return name
+        raise _fail("universe", str(exc)) from None
+    return source.name, source
+
+
+def _check_source(source: Any) -> None:
+    """Compile the grammar and check the hook names of ``source`` (cached per digest; runs no code)."""
+    from genr8_dist.grammar.compiler import compile_grammar
+
+    if source.digest in _CHECKED:
+        return
+    source.check_hook_names()
+    compile_grammar(source.grammar_text, source.where(source.grammar_file))
+    _CHECKED.add(source.digest)
+
+
+_CHECKED: set[str] = set()
+
+
+def phenotype_kind(source: Any) -> str:
+    """The name of the phenotype the universe ``source`` (a ``UniverseSource``; ``None``: the default
+    universe) develops into, under which its criteria are registered: ``surface`` for HEMLS.
+
+    Only a universe's code can say, and code runs only where the trust rule lets it
+    (:mod:`genr8_dist.grammar.trust`): an installed plugin's or a remembered digest is consented to
+    here; other code is not run and the kind read as ``surface`` (``genr8 run`` reads its file again
+    once the user's universe is consented to)."""
+    digest = getattr(source, "code_digest", "") if source is not None else ""
+    if not digest:
+        return SURFACE
+    from genr8_dist.grammar.discovery import installed_code_digest
+    from genr8_dist.grammar.trust import consent, may_run, remembered
+
+    if not may_run(digest):
+        if installed_code_digest(source.name) != digest and digest not in remembered():
+            return SURFACE
+        consent(digest)
+    from genr8_dist.grammar.universe import build_universe
+    from genr8_dist.phenotype import phenotype_of
+
+    return phenotype_of(build_universe(source, check=False)).name
 
 
 @dataclass(frozen=True, slots=True)
@@ -281,18 +299,38 @@ class RunConfig:
     seed: int = 0
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
-    fitness: FitnessSpec = field(default_factory=FitnessSpec)
+    fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
     environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
     islands: IslandSettings = field(default_factory=IslandSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
+    universe_source: Any = None  # the universe's files (a grammar.UniverseSource; None: look it up)
 
     def __post_init__(self) -> None:
-        _set(self, "universe", _check_universe(self.universe))
+        source = self.universe_source
+        if source is None:
+            name, source = _resolve_universe(self.universe, None)
+            _set(self, "universe", name)
+            _set(self, "universe_source", source)
+        else:
+            from genr8_dist.grammar.source import UniverseSource
+
+            if not isinstance(source, UniverseSource):
+                raise _fail("stored_universe", f"must be a UniverseSource, got {type(source).__name__}")
+            if self.universe != source.name:
+                raise _fail("universe", f"names {self.universe!r} but the stored universe is "
+                                        f"{source.name!r}")
+            try:
+                _check_source(source)
+            except Genr8Error as exc:
+                raise _fail("stored_universe", str(exc)) from None
         _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
-        if isinstance(self.fitness, Mapping):
-            _set(self, "fitness", FitnessSpec.from_dict(self.fitness))
+        if self.fitness is None:
+            _set(self, "fitness", FitnessSpec(phenotype=phenotype_kind(self.universe_source)))
+        elif isinstance(self.fitness, Mapping):
+            kind = phenotype_kind(self.universe_source)
+            _set(self, "fitness", FitnessSpec.from_dict(self.fitness, phenotype=kind))
         elif not isinstance(self.fitness, FitnessSpec):
             raise _fail("fitness", f"must be a table, got {self.fitness!r}")
         if self.environment is None:
@@ -303,6 +341,12 @@ class RunConfig:
             _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
         elif not hasattr(self.environment, "to_dict"):
             raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
+        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
+
+        criteria = tuple(self.fitness.names)
+        _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
+        if self.search.mode == "map-elites":
+            _names(self.search.descriptors, "search.descriptors", criteria + DESCRIPTOR_COUNTS, 1, 3)
         if self.islands.migrants >= self.ea.population:
             raise _fail(
                 "islands.migrants",
@@ -319,7 +363,9 @@ class RunConfig:
         ``criteria`` (a run's; default every registered criterion). Errors name ``source`` and the
         field."""
         try:
-            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else Path.cwd(),
+            # no base_dir: relative paths stay relative (the working directory is never asked for:
+            # a Ray job's may be gone by the time its stored configurations are read)
+            return cls._from_dict(data, source, Path(base_dir) if base_dir is not None else None,
                                   criteria)
         except ConfigError as exc:
             message = str(exc)
@@ -341,19 +387,32 @@ class RunConfig:
         return cls.from_dict(data, source=source, criteria=criteria)
 
     @classmethod
-    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path,
+    def _from_dict(cls, data: Mapping[str, Any], source: str, base_dir: Path | None,
                    criteria: Sequence[str] | None = None) -> RunConfig:
         if not isinstance(data, Mapping):
             raise ConfigError(f"the configuration must be a table, got {data!r}")
         for key in data:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
-        kwargs: dict[str, Any] = {k: data[k] for k in ("universe", "seed") if k in data}
+        kwargs: dict[str, Any] = {k: data[k] for k in ("seed",) if k in data}
+        if "stored_universe" in data:
+            from genr8_dist.grammar.source import UniverseSource
+
+            try:
+                stored = UniverseSource.from_dict(data["stored_universe"], f"{source} [stored_universe]")
+            except Genr8Error as exc:
+                raise _fail("stored_universe", str(exc)) from None
+            kwargs["universe"] = data.get("universe", stored.name)
+            kwargs["universe_source"] = stored
+        elif "universe" in data:
+            kwargs["universe"], kwargs["universe_source"] = _resolve_universe(data["universe"], base_dir)
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
         if "fitness" in data or criteria is not None:
-            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria)
+            # a run's stored configuration names its criteria and sets each in full: no defaults
+            kind = phenotype_kind(kwargs.get("universe_source")) if criteria is None else SURFACE
+            kwargs["fitness"] = FitnessSpec.from_dict(data.get("fitness"), names=criteria, phenotype=kind)
         if "environment" in data:
             kwargs["environment"] = _read_environment(data["environment"], source, base_dir)
         return cls(**kwargs)
@@ -369,13 +428,14 @@ class RunConfig:
             out[name] = {f.name: _lists(getattr(section, f.name)) for f in fields(section)}
         out["fitness"] = self.fitness.to_dict()
         out["environment"] = _drop_none(self.environment.to_dict())
+        out["stored_universe"] = self.universe_source.to_dict()
         return out
 
     def to_toml(self) -> str:
         """The configuration as TOML text that ``load_config`` reads back to an equal configuration."""
         import tomli_w
 
-        return tomli_w.dumps(self.to_dict())
+        return tomli_w.dumps(self.to_dict(), multiline_strings=True)
 
     def replace(self, **changes: Any) -> RunConfig:
         """A validated copy with ``changes`` merged in: top-level values (``seed=3``), or per section a
@@ -385,6 +445,8 @@ class RunConfig:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
         kwargs: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
+        if "universe" in changes and changes["universe"] != self.universe:
+            kwargs["universe_source"] = None    # another universe: look it up and store it anew
         for key, value in changes.items():
             current = kwargs[key]
             if key in _SECTIONS and isinstance(value, Mapping):
@@ -428,13 +490,13 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _read_environment(value: Any, source: str, base_dir: Path) -> Any:
+def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
     from genr8_dist.environment import Environment, load_environment
 
     if isinstance(value, str):
         path = Path(value)
         if not path.is_absolute():
-            path = base_dir / path
+            path = base_dir / path if base_dir is not None else path
         if not path.is_file():
             raise _fail("environment", f"environment file not found: {path}")
         return load_environment(path)
@@ -443,8 +505,8 @@ def _read_environment(value: Any, source: str, base_dir: Path) -> Any:
     raise _fail("environment", f"must be a table or a file name, got {value!r}")
 
 
-def load_config(path: str | Path) -> RunConfig:
+def load_config(path: str | os.PathLike[str]) -> RunConfig:
     """Read and validate the run configuration in the TOML file ``path``."""
-    path = Path(path)
-    data = read_toml(path, "configuration file")
-    return RunConfig.from_dict(data, source=str(path), base_dir=path.parent)
+    file = Path(path)
+    data = read_toml(file, "configuration file")
+    return RunConfig.from_dict(data, source=str(file), base_dir=file.parent)

@@ -17,8 +17,6 @@ renamed, so a crash or a bad argument never leaves half a file.
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -26,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
+from genr8_dist.files import replacing
 
 if TYPE_CHECKING:
     from genr8_dist.environment import Environment
@@ -72,15 +71,8 @@ def _atomic(path: Path) -> Iterator[Path]:
     folder = path.parent if str(path.parent) else Path(".")
     if not folder.is_dir():
         raise ConfigError(f"{path}: folder '{folder}' does not exist")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        yield tmp_path
-        os.replace(tmp_path, path)
-    finally:
-        if tmp_path.exists():
-            tmp_path.unlink()
+    with replacing(path) as tmp:
+        yield tmp
 
 
 def _write_bytes(path: Path, data: bytes | str) -> None:

@@ -48,6 +48,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
+from genr8_dist.fields import read_float
 
 __all__ = [
     "CRITERIA",
@@ -108,7 +109,7 @@ def _neighbour_pairs(edges: Any) -> np.ndarray:
     e = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
     e = e[e[:, 0] != e[:, 1]]
     if not len(e):
-        return e
+        return np.asarray(e)
     lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
     n = int(hi.max()) + 1
     keys = np.sort(lo * n + hi)  # one int per unordered pair; sorted, repeats are neighbours
@@ -167,6 +168,43 @@ def symmetry(vertices: Any) -> float:
         tol = 1e-9 * max(1.0, hi - lo, abs(lo), abs(hi))
         out.append(_balance(v, (lo + hi) / 2.0, tol))
     return (out[0] + out[1]) / 2.0
+
+
+def cells(surface: Any) -> float:
+    """The number of regions (cells) of the surface's map (0 for a surface-like without regions)."""
+    n = getattr(surface, "n_regions", None)
+    if n is None:
+        n = len(getattr(surface, "regions", ()))
+    return float(n)
+
+
+SLIVER_DEGREES = 10.0
+
+
+def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
+    """The smallest angle (degrees) of each triangle ``(T, 3)`` of ``vertices``; 0 for a degenerate one."""
+    p = _positions(vertices)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if not len(t):
+        return np.zeros(0)
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+
+    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+        cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
+        return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 0.0)
+
+    first, second = angle(b - a, c - a), angle(a - b, c - b)
+    third = np.clip(180.0 - first - second, 0.0, 180.0)
+    return np.asarray(np.minimum(np.minimum(first, second), third))
+
+
+def slivers(surface: Any) -> float:
+    """The share of the surface's exported triangles (``surface.triangles()``) whose smallest angle is
+    below ``SLIVER_DEGREES``; 0 when it has none (no region, or a surface-like without triangles)."""
+    triangles = surface.triangles() if hasattr(surface, "triangles") else ()
+    angles = triangle_min_angles(surface.vertices, triangles)
+    return float(np.mean(angles < SLIVER_DEGREES)) if len(angles) else 0.0
 
 
 def soft_boundary(vertices: Any, env: Any = None) -> float:
@@ -308,12 +346,7 @@ def score_surface(surface: _SurfaceLike, env: Any = None, criteria: Sequence[str
 
 
 def _number(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"field '{where}': must be a number, got {value!r}")
-    value = float(value)
-    if not math.isfinite(value):
-        raise ConfigError(f"field '{where}': must be finite, got {value!r}")
-    return value
+    return read_float(value, "", where)
 
 
 @dataclass(frozen=True, slots=True)
@@ -381,10 +414,16 @@ for _info in (
                               "is balanced"),
     CriterionInfo("soft_boundary", lambda s, env: soft_boundary(s.vertices, env), 0.0, heading="soft",
                   description="vertices on the wrong side of the environment's soft boundaries"),
+    CriterionInfo("cells", lambda s, env: cells(s), 16.0, weight=0.0, heading="cells",
+                  description="regions (cells) of the map: keeps counting as branches join, where "
+                              "`V / E` levels off (four-sided tiles after 3 steps: 64)"),
+    CriterionInfo("slivers", lambda s, env: slivers(s), 0.0, weight=0.0, heading="sliver",
+                  description="share of the exported triangles whose smallest angle is below 10 "
+                              "degrees: 0 for clean cells, near 1 for a crumpled strip"),
 ):
     register_criterion(_info)
 
-# The built-in surface criteria (what runs created before the registry store).
+# The built-in surface criteria (runs created before the registry store the first six).
 CRITERIA: tuple[str, ...] = criterion_names(SURFACE)
 
 

@@ -9,12 +9,16 @@ the report only ever talk to a phenotype through this interface:
 
 ``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
+``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
+``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
                                            returns its negation and says so in ``direction``)
 ``export(developed, path, config)``        a file a CAD tool or a 3D printer reads (suffix decides)
 ``preview(developed, path, title, config)`` a PNG picture
 ``draw(ax, developed)``                    the same picture on a matplotlib 3D axes (gallery tiles)
+``parse(text)`` (optional)                 read a text; when given, a universe is checked at load by
+                                           parsing a sample of its derivations
 
 Development is a pure function of (text, configuration); ``Developed.digest`` identifies the result,
 so regrowing an individual checks it is bit-identical to what the run scored.
@@ -50,22 +54,29 @@ class Developed:
 class Phenotype:
     """The interface a universe's phenotype implements (subclass it, or write the same attributes).
 
-    ``name``: shown by ``genr8 universes``; ``criteria``: the names of the raw values ``measure``
-    returns, in display order (they are the run's ``crit_<name>`` columns); ``headings``: short column
-    headings for ``genr8 top``; ``direction``: ``"minimise"`` when ``fitness`` is the paper's own
-    measure, ``"maximise"`` when it is the negated score of a paper that maximises; ``capped_is_invalid``:
-    whether a development that hit a cap fails the individual; ``export_formats``: suffixes ``export``
-    writes; ``stage``: the name of the failing stage when ``develop`` raises.
+    ``name``: the phenotype kind; its criteria are those registered under it
+    (``genr8_dist.fitness.register_criterion(CriterionInfo(..., phenotype=name))``: name, heading,
+    description, default target and weight), and ``measure`` returns a raw value for each criterion
+    of the run (``config.fitness.names``, the run's ``crit_<name>`` columns). ``direction``:
+    ``"minimise"`` when ``fitness`` is the paper's own measure, ``"maximise"`` when it is the negated
+    score of a paper that maximises; ``noun``: what one is called in titles; ``capped_is_invalid``:
+    whether a development that hit a cap fails the individual; ``export_formats``: suffixes
+    ``export`` writes; ``stage``: the name of the failing stage when ``develop`` raises.
     """
 
     name: str = "phenotype"
-    criteria: tuple[str, ...] = ()
-    headings: Mapping[str, str] = {}
-    descriptions: Mapping[str, str] = {}
+    noun: str = "phenotype"  # what one is called in titles: "surface", "table"
     direction: str = "minimise"
     capped_is_invalid: bool = True
     export_formats: tuple[str, ...] = ()
     stage: str = "grow"
+
+    @property
+    def criteria(self) -> tuple[str, ...]:
+        """The criteria registered for this phenotype, in registration order."""
+        from genr8_dist.fitness import criterion_names
+
+        return criterion_names(self.name)
 
     def develop(self, text: str, config: Any) -> Developed:
         raise NotImplementedError
@@ -75,6 +86,23 @@ class Phenotype:
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         raise NotImplementedError
+
+    def trivial(self, evaluation: Any) -> bool:
+        """Whether a valid evaluation (its stored counts and ``criteria``) is not worth a founder's
+        place in generation 0 (sensible initialisation redraws it); by default never."""
+        return False
+
+    def describe(self, developed: Developed) -> str:
+        """One line saying what was developed (``genr8 show``): its counts, else its kind."""
+        parts = [f"{n} {k.removeprefix('n_')}" for k, n in developed.counts.items()]
+        return ", ".join(parts) if parts else f"a {self.name} phenotype"
+
+    def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
+        """Why a measured phenotype cannot be scored (``None``: it can), from its stored ``counts``
+        (``n_vertices``, ``n_edges``, ``n_regions``, ``steps_done``) and raw values; by default, raw
+        values that are not finite."""
+        bad = [name for name, value in raw.items() if not math.isfinite(value)]
+        return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
 
     def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
         raise NotImplementedError(f"phenotype {self.name} exports nothing")
@@ -90,15 +118,18 @@ class SurfacePhenotype(Phenotype):
     """The built-in phenotype: HEMLS rewrite systems grown into surfaces (thesis ch. 2, 4.3)."""
 
     name = "surface"
+    noun = "surface"
     direction = "minimise"
     capped_is_invalid = True
     stage = "grow"
 
-    @property
-    def criteria(self) -> tuple[str, ...]:  # type: ignore[override]
-        from genr8_dist.fitness import SURFACE, criterion_names
+    def parse(self, text: str) -> Any:
+        """Read a derived text (a rewrite system); raises for a text no individual could grow from.
+        Optional for a phenotype: when present, a universe is checked at load by parsing a sample of
+        its derivations (genr8_dist.grammar.universe.Universe.check_sample)."""
+        from genr8_dist.hemls import parse
 
-        return criterion_names(SURFACE)
+        return parse(text)
 
     def develop(self, text: str, config: Any) -> Developed:
         from genr8_dist.hemls import grow, parse
@@ -122,13 +153,16 @@ class SurfacePhenotype(Phenotype):
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
         from genr8_dist.fitness import score_surface
 
-        if not developed.counts.get("n_vertices") or not developed.counts.get("n_edges"):
-            raise ValueError("degenerate surface: no vertices or no edges")
-        raw = score_surface(developed.value, config.environment, config.fitness.names)
-        bad = [name for name, value in raw.items() if not math.isfinite(value)]
-        if bad:
-            raise ValueError(f"degenerate surface: {', '.join(bad)} not finite")
-        return raw
+        return score_surface(developed.value, config.environment, config.fitness.names)
+
+    def trivial(self, evaluation: Any) -> bool:
+        """At most one region: the axiom polygon as it was, or grown without a subdivision."""
+        return evaluation.n_regions <= 1
+
+    def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
+        if not counts.get("n_vertices") or not counts.get("n_edges"):
+            return "degenerate surface: no vertices or no edges"
+        return super().problem(counts, raw)
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)

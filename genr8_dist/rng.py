@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+from typing import Any
 
 import numpy as np
 
@@ -39,7 +40,7 @@ def seed_sequence(seed: int, *keys: int | str) -> np.random.SeedSequence:
 
 
 @functools.lru_cache(maxsize=1024)
-def _initial_state(seed: int, keys: tuple[int | str, ...]) -> dict:
+def _initial_state(seed: int, keys: tuple[int | str, ...]) -> Any:
     return np.random.PCG64(seed_sequence(seed, *keys)).state
 
 

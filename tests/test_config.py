@@ -158,3 +158,35 @@ def test_a_configuration_survives_pickling_for_ray_actors():
     config = load_config(EXAMPLES / "long.toml")
     again = pickle.loads(pickle.dumps(config))
     assert again == config and again.to_toml() == config.to_toml()
+
+
+def test_a_stored_configuration_needs_neither_its_mesh_nor_its_universe_files(tmp_path, monkeypatch):
+    """Paths in a run TOML are resolved against its folder; what they name is stored in the run."""
+    import shutil
+
+    import trimesh
+
+    from genr8_dist.hemls import grow, parse
+
+    folder = tmp_path / "project"
+    (folder / "meshes").mkdir(parents=True)
+    trimesh.creation.icosphere(subdivisions=1, radius=3.0).export(folder / "meshes" / "ball.obj")
+    plugin = folder / "plugins" / "mine"
+    plugin.mkdir(parents=True)
+    (plugin / "mine.lark").write_text((Path(__file__).parents[1] / "grammars" / "default.lark").read_text())
+    toml = folder / "run.toml"
+    toml.write_text('universe = "plugins/mine"\n[environment]\nsteps = 2\nstart_position = [0, 0, 0]\n'
+                    '[[environment.boundaries]]\nkind = "mesh"\npath = "meshes/ball.obj"\n')
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)          # the paths are the TOML folder's, not the working directory's
+    config = load_config(toml)
+    stored = config.to_toml()
+    shutil.rmtree(folder)
+    again = RunConfig.from_toml(stored, source="stored")
+    assert again == config
+    assert again.universe == "mine" and again.universe_source.grammar_file == "mine.lark"
+    system = parse("Edge0 + Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 [ + Edge1 ] Edge0\nAngle 30\n"
+                   "BranchAngle 30\n")
+    digests = {grow(system, c.environment).surface.digest() for c in (config, again)}
+    assert len(digests) == 1

@@ -46,9 +46,12 @@ class SoftPlane:
         return int(np.count_nonzero(np.asarray(positions)[:, 2] > self.level))
 
 
-def test_criteria_are_the_six_in_order():
-    assert CRITERIA == ("size", "smoothness", "undulation", "subdivisions", "symmetry", "soft_boundary")
+def test_criteria_are_the_thesis_six_then_cells_and_slivers_in_order():
+    assert CRITERIA == ("size", "smoothness", "undulation", "subdivisions", "symmetry", "soft_boundary",
+                        "cells", "slivers")
     assert tuple(FitnessSpec().to_dict()) == CRITERIA
+    # the two added ones weigh nothing unless a configuration says so: old fitnesses are unchanged
+    assert FitnessSpec()["cells"].weight == FitnessSpec()["slivers"].weight == 0.0
 
 
 @pytest.mark.parametrize("n", [0, 1, 2, 3, 4])
@@ -120,10 +123,11 @@ def test_total_is_the_weighted_sum_of_normalised_deviations():
         "soft_boundary": {"target": 0, "weight": 1},
     })
     raw = {"size": 12, "smoothness": 0.25, "undulation": 99, "subdivisions": 0.75, "symmetry": 0.9,
-           "soft_boundary": 2}
+           "soft_boundary": 2, "cells": 40, "slivers": 0.5}
     dev = spec.deviations(raw)
     assert dev == pytest.approx({"size": 2 * 2 / 10, "smoothness": 0.25, "undulation": 0.0,
-                                 "subdivisions": 3 * 0.25, "symmetry": 0.1 / 0.5, "soft_boundary": 2.0})
+                                 "subdivisions": 3 * 0.25, "symmetry": 0.1 / 0.5, "soft_boundary": 2.0,
+                                 "cells": 0.0, "slivers": 0.0})
     assert spec.evaluate(raw) == pytest.approx(sum(dev.values()))
     met = {name: spec[name].target for name in CRITERIA}
     assert spec.evaluate(met) == 0.0
@@ -231,3 +235,18 @@ def test_spec_round_trips_and_total_is_never_negative(tables):
     total = spec.evaluate(raw)
     assert total >= 0.0
     assert total == pytest.approx(sum(spec[n].weight / spec[n].unit for n in CRITERIA))
+
+
+def test_cells_count_regions_and_slivers_the_thin_triangles():
+    from types import SimpleNamespace
+
+    from genr8_dist.fitness import cells, slivers, triangle_min_angles
+
+    vertices = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [10, 0.1, 0]]
+    square = SimpleNamespace(vertices=vertices, n_regions=1, triangles=lambda: [[0, 1, 2], [0, 2, 3]])
+    sliver = SimpleNamespace(vertices=vertices, n_regions=2,
+                             triangles=lambda: [[0, 1, 2], [0, 4, 1]])
+    assert cells(square) == 1.0 and cells(sliver) == 2.0
+    assert triangle_min_angles(vertices, [[0, 1, 2]]) == pytest.approx([45.0])
+    assert slivers(square) == 0.0
+    assert slivers(sliver) == 0.5          # [0, 4, 1] has an angle of about 0.6 degrees

@@ -51,8 +51,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         return 0
     except OSError as exc:
+        # name the file: from the exception, else from its message (pyarrow's errors carry the path
+        # only there), never a bare "No such file or directory"
         where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-        print(f"genr8: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        text = (exc.strerror or str(exc)) if where else (str(exc).strip() or exc.strerror or repr(exc))
+        print(f"genr8: error: {where}{text.splitlines()[0]}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("genr8: interrupted", file=sys.stderr)

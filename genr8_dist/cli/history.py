@@ -20,16 +20,27 @@ def _run_arg(parser: argparse.ArgumentParser) -> None:
 
 def _generation(text: str) -> int:
     try:
-        return int(text)
+        value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a generation number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
 
 
-def _count(text: str) -> int:
+def _int(text: str) -> int:
+    """A whole number that fits the run store's 32-bit columns."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
+
+
+def _count(text: str) -> int:
+    value = _int(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value}: must be 0 or more")
     return value
@@ -52,7 +63,7 @@ def register(subparsers: Any) -> None:
         description="Per generation and island: best, median and worst total fitness of the valid "
                     "individuals and each criterion's value closest to its target.")
     _run_arg(p)
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--png", metavar="OUT.png", help="also draw the fitness curves to this PNG")
     p.add_argument("--csv", metavar="OUT.csv", help="write the table as CSV instead of printing it")
     p.set_defaults(handler=_history)
@@ -61,11 +72,13 @@ def register(subparsers: Any) -> None:
         "top", help="the best individuals, with their criteria (and rewrite systems)",
         description="The k best valid individuals of the run, a generation or an island.")
     _run_arg(p)
-    p.add_argument("-k", type=int, default=10, help="how many (default 10)")
+    p.add_argument("-k", type=_int, default=10, help="how many (default 10)")
     p.add_argument("--generation", type=_generation, help="only this generation (-1: the last)")
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
+    p.add_argument("--pareto", action="store_true",
+                   help="list the non-dominated surfaces over the Pareto objectives instead")
     p.set_defaults(handler=_top)
 
     p = subparsers.add_parser(
@@ -74,7 +87,7 @@ def register(subparsers: Any) -> None:
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
     p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
-    p.add_argument("--depth", type=int, help="only this many generations back")
+    p.add_argument("--depth", type=_int, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
     p.add_argument("--png", metavar="OUT.png", help="also draw the ancestry to this PNG")
@@ -114,12 +127,18 @@ def register(subparsers: Any) -> None:
                     "side by side, each tile labelled with its id and fitness.")
     _run_arg(p)
     p.add_argument("--generation", type=_generation, default=-1, help="the generation (default -1: the last)")
-    p.add_argument("-k", type=int, default=12,
+    p.add_argument("-k", type=_int, default=12,
                    help="how many surfaces (default 12; per island with --per-island)")
-    p.add_argument("--island", type=int, help="only this island")
+    p.add_argument("--island", type=_int, help="only this island")
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
     p.add_argument("--duplicates", action="store_true",
                    help="also show individuals whose surface equals a better one's (elites, copies)")
+    view = p.add_mutually_exclusive_group()
+    view.add_argument("--clusters", type=_int, metavar="K",
+                      help="instead: K kinds of form among the whole run's distinct surfaces "
+                           "(k-means over criteria and counts), the design nearest each centroid")
+    view.add_argument("--archive", action="store_true",
+                      help="instead: the MAP-Elites archive after the generation, as a map")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG to write")
     p.set_defaults(handler=_gallery)
 
@@ -130,8 +149,8 @@ def register(subparsers: Any) -> None:
                     "Images are embedded; it needs no network to view.")
     _run_arg(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.html", help="the HTML file to write")
-    p.add_argument("-k", type=int, default=10, help="individuals in the table (default 10)")
-    p.add_argument("--gallery", type=int, default=12, metavar="K",
+    p.add_argument("-k", type=_int, default=10, help="individuals in the table (default 10)")
+    p.add_argument("--gallery", type=_int, default=12, metavar="K",
                    help="surfaces in the gallery (default 12)")
     p.set_defaults(handler=_report)
 
@@ -168,6 +187,16 @@ def _top(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
 
+    if args.pareto:
+        if args.criterion:
+            raise history.HistoryError("--pareto and --criterion: give one of them")
+        table = history.pareto_front(args.run, generation=args.generation, island=args.island)
+        devs = [c for c in table.column_names if c.startswith("dev_")]
+        columns = [*_text.shown_columns(table.column_names), *devs]
+        headings = {name: _text.heading(name) for name in columns} | {d: d for d in devs}
+        _print(f"{table.num_rows} non-dominated surfaces (dev_: weighted deviation from the target)")
+        _print(_text.format_table(table, columns, headings=headings))
+        return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
                         criterion=args.criterion, systems=args.systems)
     columns = ["rank", *_text.shown_columns(table.column_names)]
@@ -203,19 +232,16 @@ def _lineage(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from genr8_dist.history import HistoryError, _text
     from genr8_dist.history import _regrow as regrow
     from genr8_dist.store.schema import criterion_of
 
-    for path in args.output:  # refuse a bad name before anything is grown or written
-        suffix = Path(path).suffix.lower().lstrip(".")
-        if suffix not in regrow.EXPORT_FORMATS:
-            raise HistoryError(f"{path}: unknown format '{Path(path).suffix or '(no suffix)'}'; use one "
-                               "of " + ", ".join(f".{s}" for s in regrow.EXPORT_FORMATS))
     if args.png and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
+    if args.output:  # refuse a bad name before anything is grown or written
+        phenotype = regrow.phenotype_of_run(args.run, args.id)
+        for path in args.output:
+            regrow.check_export_path(path, phenotype)
     result = regrow.regrow(args.run, args.id)
     row = result.row
     crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
@@ -229,13 +255,12 @@ def _show(args: argparse.Namespace) -> int:
     _print("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
         _print(f"    {statement}")
-    if row["text"] and not result.text_matches:
+    if row["text"] and result.text_matches is False:
         _print("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
-    if result.surface is not None:
-        s = result.surface
-        _print(f"regrown: {len(s.vertices)} vertices, {len(s.edges)} edges, {len(s.regions)} regions "
-               f"after {result.steps} derivation steps; digest {result.digest} matches the recorded one")
+    if result.developed is not None:
+        _print(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
+               f"derivation steps; digest {result.digest} matches the recorded one")
     for path in args.output:
         regrow.export(result, path)
         _print(f"wrote {path}")
@@ -279,9 +304,17 @@ def _query(args: argparse.Namespace) -> int:
 def _gallery(args: argparse.Namespace) -> int:
     from genr8_dist.history import pictures
 
-    info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
-                                island=args.island, per_island=args.per_island,
-                                distinct=not args.duplicates)
+    if args.clusters is not None:
+        fig, info = pictures.clusters_figure_of(args.run, args.clusters, generation=None,
+                                                island=args.island)
+        pictures.save_figure(fig, args.output)
+    elif args.archive:
+        fig, info = pictures.archive_figure_of(args.run, generation=args.generation)
+        pictures.save_figure(fig, args.output)
+    else:
+        info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
+                                    island=args.island, per_island=args.per_island,
+                                    distinct=not args.duplicates)
     _print(f"wrote {args.output}: {info}")
     return 0
 

@@ -14,6 +14,16 @@ import sys
 __all__ = ["register"]
 
 
+def _int32(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if not -(2**31) <= value < 2**31:
+        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
+    return value
+
+
 def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--address", metavar="ADDRESS", default=None,
                         help="a Ray cluster to run on: 'auto' (the one on this machine), HOST:PORT or "
@@ -21,6 +31,14 @@ def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cpus", type=int, default=None, metavar="N",
                         help="CPUs of the local Ray (default: all of this machine's); ignored with --address")
     parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
+    _trust_option(parser)
+
+
+def _trust_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--trust-hooks", action="store_true",
+                        help="run the Python code (hooks.py) of the universe the run directory carries; "
+                             "needed once per code digest on a machine that has not trusted it "
+                             "(docs/run-store.md: the trust rule)")
 
 
 def _options(args: argparse.Namespace):
@@ -29,7 +47,8 @@ def _options(args: argparse.Namespace):
 
     if args.cpus is not None and args.cpus < 1:
         raise ConfigError(f"--cpus {args.cpus}: must be >= 1")
-    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet)
+    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet,
+                      trust_hooks=bool(getattr(args, "trust_hooks", False)))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -39,7 +58,9 @@ def _run(args: argparse.Namespace) -> int:
         start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
         return 0
     from genr8_dist.cli.studio import start_studio, wait_for_interrupt
+    from genr8_dist.config import load_config
 
+    load_config(args.config)   # a wrong configuration is one line, before the studio says where it is
     studio = start_studio(args.run_dir, args.studio_host, args.studio_port, args.studio_token)
     try:
         start_run(args.config, args.run_dir, _options(args), out=sys.stdout)
@@ -90,7 +111,7 @@ def _edit(args: argparse.Namespace) -> int:
     edit = Edit(assignments=args.set or (), inject_copy=args.inject_copy or (),
                 inject_text=args.inject_text or (), inject_from=args.inject_from or (),
                 island=args.island, generations=args.generations, favour=args.favour or (),
-                hand_fitness=hand)
+                hand_fitness=hand, trust_hooks=args.trust_hooks)
     result = apply_edit(args.run_dir, edit)
     what = [f"{k} = {v!r}" for k, v in result.changes.items()]
     what += [f"inject {item['source']} into island {item['island']}" for item in result.injected]
@@ -166,8 +187,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--hand-fitness", action="append", metavar="ID=FITNESS",
                    help="give individual ID this fitness (lower is better) when the next generation's "
                         "elites and parents are chosen (interactive evolution; repeatable)")
-    p.add_argument("--island", type=int, default=None, metavar="N",
+    p.add_argument("--island", type=_int32, default=None, metavar="N",
                    help="the island injected individuals go to (default: a copy's own island, else 0)")
-    p.add_argument("--generations", type=int, default=None, metavar="N",
+    p.add_argument("--generations", type=_int32, default=None, metavar="N",
                    help="go on for N more generations after the last committed one")
+    _trust_option(p)
     p.set_defaults(handler=_edit)

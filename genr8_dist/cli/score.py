@@ -5,6 +5,7 @@ The way to check what a fitness specification rewards before a long run::
     genr8 score four-sided-tiles
     genr8 score my-system.hemls --env env.toml --fitness examples/quick.toml
     echo "Edge0 + Edge0 + Edge0 ..." | genr8 score - --json
+    genr8 score table.txt --fitness examples/tables.toml    # a plugin phenotype's text (tables)
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import json
 import math
 from typing import Any
 
-__all__ = ["register", "score_system"]
+__all__ = ["register", "score_phenotype", "score_system"]
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -45,38 +46,34 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     """Grow ``system`` (a ``RewriteSystem``, or its text) in ``env`` and score it under ``spec``: the
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
-    from genr8_dist.evolution.evaluate import regions_of, steps_of
-    from genr8_dist.fitness import score_surface
-    from genr8_dist.hemls import grow, parse
+    from genr8_dist.config import RunConfig
+    from genr8_dist.errors import GrowthError
+    from genr8_dist.evolution.evaluate import evaluate_text
+    from genr8_dist.hemls import parse
 
     if isinstance(system, str):
         system = parse(system, source=name)
-    result = grow(system, env)
-    surface = result.surface
-    raw = score_surface(surface, env, spec.names)
+    text = system.to_text() if hasattr(system, "to_text") else str(system)
+    judged = evaluate_text(text, RunConfig(fitness=spec, environment=env))  # as a run evaluates it
+    if not judged.criteria:
+        raise GrowthError(f"{name}: {judged.error}")
+    raw = judged.criteria
     deviations = spec.deviations(raw)
     total = spec.evaluate(raw)
-    capped = result.capped if isinstance(result.capped, str) or not result.capped else "cap"
-    n_vertices, n_edges = len(surface.vertices), len(surface.edges)
-    problem = None
-    if capped:
-        problem = f"growth capped ({capped}) in derivation step {steps_of(result)}"
-    elif not n_vertices or not n_edges or not math.isfinite(total):
-        problem = "degenerate surface"
     return {
         "system": name,
-        "text": system.to_text() if hasattr(system, "to_text") else str(system),
-        "vertices": n_vertices,
-        "edges": n_edges,
-        "regions": regions_of(surface),
-        "steps": steps_of(result),
-        "capped": capped or None,
+        "text": text,
+        "vertices": judged.n_vertices,
+        "edges": judged.n_edges,
+        "regions": judged.n_regions,
+        "steps": judged.steps_done,
+        "capped": judged.capped,
         "criteria": {key: {"raw": _finite(raw[key]), "target": spec[key].target,
                            "weight": spec[key].weight, "deviation": _finite(deviations[key])}
                      for key in spec.names},
         "total": _finite(total),
-        "valid": problem is None,
-        "problem": problem,
+        "valid": judged.valid,
+        "problem": judged.error,
     }
 
 
@@ -102,16 +99,57 @@ def _print_table(report: dict[str, Any]) -> None:
         print(f"note: in a run this individual is invalid (fitness inf): {report['problem']}")
 
 
+def score_phenotype(text: str, config: Any, *, name: str = "<text>") -> dict[str, Any]:
+    """Develop ``text`` with the phenotype of ``config``'s universe (a plugin's, e.g. tables) and
+    score it as a run would: the report ``genr8 score`` prints for such a universe (JSON-ready)."""
+    from genr8_dist.evolution.evaluate import evaluate_text
+
+    ev = evaluate_text(text, config)
+    return {"system": name, "universe": config.universe, "text": text, "steps": ev.steps_done,
+            "capped": ev.capped, "criteria": {k: _finite(v) for k, v in ev.criteria.items()},
+            "fitness": _finite(ev.fitness), "valid": ev.valid,
+            "problem": None if ev.valid else f"{ev.stage}: {ev.error}"}
+
+
+def _print_phenotype(report: dict[str, Any]) -> None:
+    print(f"{report['system']} (universe {report['universe']}): {report['steps']} derivation steps"
+          + (f", capped ({report['capped']})" if report["capped"] else ""))
+    for name, value in report["criteria"].items():
+        print(f"{name:<14} {_fmt(value):>12}")
+    print(f"{'fitness':<14} {_fmt(report['fitness']):>12}   (lower is better)")
+    if report["problem"]:
+        print(f"note: in a run this individual is invalid (fitness inf): {report['problem']}")
+
+
 def _handle(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
     from genr8_dist.config import load_config
     from genr8_dist.environment import Environment, load_environment
+    from genr8_dist.errors import Genr8Error
+    from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.fitness import FitnessSpec
     from genr8_dist.hemls import load_system
+    from genr8_dist.phenotype import SURFACES, phenotype_of
 
     spec, env = FitnessSpec(), None
     if args.fitness:
         config = load_config(args.fitness)
         spec, env = config.fitness, config.environment
+        if phenotype_of(universe_for(config)) is not SURFACES:
+            name = "<stdin>" if args.system == "-" else args.system
+            try:
+                import sys
+
+                text = sys.stdin.read() if args.system == "-" else Path(args.system).read_text("utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                raise Genr8Error(f"{args.system}: cannot read the text: {exc}") from None
+            report = score_phenotype(text, config, name=name)
+            if args.json:
+                print(json.dumps(report, indent=2))
+            else:
+                _print_phenotype(report)
+            return 0
     if args.env:
         env = load_environment(args.env)
     if env is None:

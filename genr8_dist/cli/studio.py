@@ -6,6 +6,10 @@ import argparse
 import signal
 import sys
 import threading
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from genr8_dist.studio import Studio
 
 __all__ = ["add_server_options", "register", "start_studio", "wait_for_interrupt"]
 
@@ -22,7 +26,7 @@ def add_server_options(parser: argparse.ArgumentParser, prefix: str = "") -> Non
                              "not 127.0.0.1)")
 
 
-def start_studio(run_dir: str, host: str, port: int, token: str | None) -> object:
+def start_studio(run_dir: str, host: str, port: int, token: str | None) -> Studio:
     """The studio over ``run_dir``, serving in a background thread; prints its URL."""
     from genr8_dist.errors import ConfigError
     from genr8_dist.studio import Studio

@@ -26,8 +26,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``genr8 universes``, ``genr8 map`` and ``genr8 invert``."""
     p = subparsers.add_parser(
         "universes", help="list the universes (built-in, plugins, entry points) and where each is from",
-        description="List every universe discovery finds: the built-ins, plugin folders (./plugins, "
-        "GENR8_PLUGINS), and installed packages' 'genr8_dist.universes' entry points.")
+        description="List every universe discovery finds: the built-ins, the shipped plugins, plugin "
+        "folders in GENR8_PLUGINS, and installed packages' 'genr8_dist.universes' entry points; a broken "
+        "plugin is listed as BROKEN with its one-line error.")
     p.add_argument("--json", action="store_true", help="print a JSON list")
     p.set_defaults(handler=_universes)
 
@@ -87,12 +88,13 @@ def _universes(args: argparse.Namespace) -> int:
     infos = list_universes()
     if args.json:
         print(json.dumps([{"name": i.name, "origin": i.origin, "path": str(i.path),
-                           "description": i.description} for i in infos], indent=2))
+                           "description": i.description, "error": i.error} for i in infos], indent=2))
         return 0
     width = max((len(i.name) for i in infos), default=4)
     owidth = max((len(i.origin) for i in infos), default=6)
     for info in infos:
-        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {info.description or info.path}")
+        about = f"BROKEN: {info.error}" if info.error else info.description or info.path
+        print(f"{info.name:<{width}}  {info.origin:<{owidth}}  {about}")
     return 0
 
 
@@ -106,6 +108,11 @@ def _map(args: argparse.Namespace) -> int:
             raise ConfigError(f"{name} must be >= {low}, got {value}")
     if args.max_depth > 100:
         raise ConfigError(f"--max-depth must be <= 100, got {args.max_depth}")
+    for name, value, high in (("--max-wraps", args.max_wraps, 1000), ("--length", args.length, 1_000_000)):
+        if value > high:
+            raise ConfigError(f"{name} must be <= {high}, got {value}")
+    if args.max_codon > 2**31 - 1:
+        raise ConfigError(f"--max-codon must be <= {2**31 - 1} (codons are 32-bit), got {args.max_codon}")
     universe = load_universe(args.universe)
     if args.random:
         from genr8_dist.rng import stream
@@ -116,12 +123,14 @@ def _map(args: argparse.Namespace) -> int:
         genome = parse_genome(args.genome)
     result = universe.map(genome, max_depth=args.max_depth, max_wraps=args.max_wraps)
     warnings: list[str] = []
-    if result.valid:
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+
+    if result.valid and phenotype_of(universe) is SURFACES:  # another phenotype reads its own texts
         from genr8_dist.errors import ParseError
         from genr8_dist.hemls import parse
 
         try:
-            warnings = parse(result.text, source="mapped").warnings()
+            warnings = parse(result.text or "", source="mapped").warnings()
         except ParseError as exc:  # a universe whose texts the HEMLS parser does not take
             warnings = [f"the rewrite system does not parse: {exc}"]
     if args.json:
@@ -135,7 +144,7 @@ def _map(args: argparse.Namespace) -> int:
         return 1
     for warning in warnings:
         print(f"genr8: warning: {warning}", file=sys.stderr)
-    sys.stdout.write(result.text)
+    sys.stdout.write(result.text or "")
     return 0
 
 

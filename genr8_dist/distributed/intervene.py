@@ -52,6 +52,7 @@ class Edit:
     inject_from: Sequence[str] = ()            # "OTHER_RUN:ID"
     island: int | None = None                  # island the injections go to (default: see apply_edit)
     generations: int | None = None             # this many more generations after the last committed
+    trust_hooks: bool = False                  # run the universe's stored Python code (--inject-text)
     inject_systems: Sequence[tuple[str, str]] = ()   # (label, rewrite-system text) written by hand
     favour: Sequence[str] = ()                 # ids whose copies join the next generation (studio)
     hand_fitness: Sequence[tuple[str, float]] = ()   # (id, fitness the designer gives it)
@@ -186,14 +187,13 @@ def record_edit(store: Any, edit: Edit, *, source: str = "edit", request_id: str
 def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
     """Everything ``edit`` would record, checked: the new configuration, the event detail, the result."""
     from genr8_dist.config import RunConfig
-    from genr8_dist.distributed.session import latest_config
     from genr8_dist.store import RunStore
 
     committed = store.committed_generations()
     if not committed:
         raise StoreError(f"{store.path}: no generation is committed yet; there is nothing to edit")
     effective = max(committed.values()) + 1
-    current = latest_config(store)
+    current = store.config(store.configs()[-1])
     data = current.to_dict()
     changes: dict[str, Any] = {}
     for text in edit.assignments:
@@ -203,10 +203,18 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
             raise ConfigError(f"--set {key}: cannot change during a run (it has {current.islands.count} "
                               "islands); start a new run instead")
         _assign(data, path, value)
+        if key == "universe":
+            data.pop("stored_universe", None)  # another universe: looked up now, then stored
         changes[key] = value
     if edit.generations is not None:
         if edit.generations < 1:
             raise ConfigError(f"--generations {edit.generations}: must be >= 1")
+        clash = [key for key in changes if key in ("ea", "ea.generations")]
+        if clash:
+            raise ConfigError(f"--set {clash[0]} and --generations {edit.generations} both set the run's "
+                              "length; give one of them")
+        if not isinstance(data.get("ea"), dict):
+            raise ConfigError("ea: must be a table of settings")
         data["ea"]["generations"] = effective - 1 + edit.generations
         changes["ea.generations"] = data["ea"]["generations"]
     config = RunConfig.from_dict(data, source="--set", criteria=store.criteria)
@@ -231,9 +239,12 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
                          "source": f"favoured {source.id}", "favoured": True})
     systems = [*edit.inject_systems, *((f"text {name}", _read_text(name)) for name in edit.inject_text)]
     if systems:
-        from genr8_dist.grammar import load_universe
+        from genr8_dist.evolution.evaluate import universe_for
+        from genr8_dist.grammar.discovery import consent_for_stored
 
-        universe = load_universe(config.universe)
+        consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks,
+                           command=f"edit {store.path}")
+        universe = universe_for(config)
         for label, text in systems:
             genome = universe.invert(text, max_depth=config.genome.max_depth)
             injected.append({"island": edit.island or 0, "genome": [int(c) for c in genome],
@@ -260,6 +271,9 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
             raise ConfigError(f"hand fitness {value!r} for {ident}: a fitness is a finite number >= 0 "
                               "(lower is better)")
         source = _individual(store, ident, "hand fitness")
+        if not source.valid:
+            raise ConfigError(f"hand fitness for {ident}: it failed at {source.stage} ({source.error}) "
+                              "and has no surface to judge; favour or score a valid design")
         hand.append({"id": source.id, "island": source.island % n, "fitness": float(value),
                      "computed": float(source.fitness)})
 

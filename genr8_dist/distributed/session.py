@@ -24,12 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TextIO
 
-from genr8_dist.errors import RunError, StoreError
+from genr8_dist.errors import Genr8Error, RunError, StoreError
 
 if TYPE_CHECKING:
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
 
-__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run"]
+__all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
+           "stored_universes"]
 
 CONNECT_TIMEOUT = 5.0
 
@@ -43,6 +44,7 @@ class RunOptions:
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
+    trust_hooks: bool = False             # run the Python code a run directory carries (resume)
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -91,6 +93,22 @@ def _token_auth_like_ray_start() -> None:
                                                                    "auth_token")
     if "RAY_AUTH_MODE" not in os.environ and (os.environ.get("RAY_AUTH_TOKEN") or os.path.isfile(token)):
         os.environ["RAY_AUTH_MODE"] = "token"
+
+
+def _signal_handlers() -> dict[int, Any]:
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _restore_signal_handlers(handlers: dict[int, Any]) -> None:
+    import signal
+
+    for sig, handler in handlers.items():
+        signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
 
 def _preload() -> None:
@@ -143,17 +161,26 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         if address is not None and address != "auto" and "://" not in address:
             _probe(address)
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
+    handlers = _signal_handlers()
     helper = _meanwhile(meanwhile)
     try:
         if address is None:
-            # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file)
+            # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file);
+            # its processes end with this one, even when it is killed (distributed/reaper.py)
+            from genr8_dist.distributed.reaper import start_reaper
+
+            start_reaper()
             ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)
         else:
             ray.init(address=address, **kwargs)
     except (ConnectionError, TimeoutError, RuntimeError) as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+    except SystemExit:  # SIGTERM while Ray starts: its own handler exits; nothing is written yet
+        ray.shutdown()
+        raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
     finally:
+        _restore_signal_handlers(handlers)  # ray.init installs a SIGTERM handler that exits at once
         if helper is not None:
             helper.join()
     try:
@@ -187,6 +214,24 @@ def _check_new_run_dir(run_dir: str) -> None:
                          "--run-dir")
     if state == "foreign":
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
+
+
+def stored_universes(store: Any) -> list[Any]:
+    """The universe of every configuration version of the run that can be read (a damaged version is
+    left to ``repair``), without running any of their code."""
+    sources: list[Any] = []
+    try:
+        versions = store.configs()
+    except StoreError:  # a damaged version: the one the run was created with, until repair
+        versions = [store.config_for(0)]
+    for version in versions:
+        try:
+            config = store.config(version)
+        except Genr8Error:  # a damaged version: verify() reports it, repair() drops it
+            continue
+        if config.universe_source not in sources:
+            sources.append(config.universe_source)
+    return sources
 
 
 def latest_config(store: Any) -> Any:
@@ -252,6 +297,19 @@ def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
             hosts.shutdown()
 
 
+def _stop_request(given: Any) -> Any:
+    from genr8_dist.distributed.coordinator import StopRequest
+
+    return given if given is not None else StopRequest()
+
+
+def _signals_stop(stop: Any, out: TextIO) -> Any:
+    """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``)."""
+    from genr8_dist.distributed.interrupts import stop_on_signals
+
+    return stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True))
+
+
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
     from genr8_dist.distributed.progress import format_duration
 
@@ -270,24 +328,17 @@ def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
     else:
         spread = sorted(set(committed.values()))
         at = f"generation {low}" if len(spread) == 1 else f"generations {spread[0]}..{spread[-1]}"
-        print(f"interrupted: islands committed up to {at}; {timing}", file=out)
+        if low < 0 and len(spread) <= 1:
+            print(f"interrupted before generation 0 was committed; {timing}", file=out)
+        else:
+            print(f"interrupted: islands committed up to {at}; {timing}", file=out)
         print(f"resume with: genr8 resume {run_dir}", file=out)
     out.flush()
 
 
 def _history_commands(run_dir: str) -> list[str]:
-    """The ``genr8`` commands that show a run's results, among those this install has."""
-    from genr8_dist.cli import build_parser
-
-    try:
-        parser = build_parser()
-        sub = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-        names = set(sub.choices)
-    except (StopIteration, ImportError):
-        return []
-    wanted = [("top", f"genr8 top {run_dir}"), ("report", f"genr8 report {run_dir}"),
-              ("history", f"genr8 history {run_dir}")]
-    return [line for name, line in wanted if name in names]
+    """The ``genr8`` commands that show a run's results."""
+    return [f"genr8 top {run_dir}", f"genr8 report {run_dir}", f"genr8 history {run_dir}"]
 
 
 def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOptions,
@@ -295,17 +346,27 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     """``genr8 run``: a new run of the configuration in ``config_path`` in the new ``run_dir``."""
     from genr8_dist.config import load_config
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.discovery import consent_for_new_run
+    from genr8_dist.grammar.universe import build_universe
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
-    config = load_config(config_path)
+    config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
-    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
+    consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    if config.universe_source.code_digest:  # consented now: read again, so its phenotype sets the criteria
+        config = load_config(config_path)
+    build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
+    # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
+    # run before its first epoch, one after the last commit changes nothing (the run is complete)
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
-            store = RunStore.create(run_dir, config.to_toml())
+            store = RunStore.create(run_dir, config.to_toml(), criteria=config.fitness.names)
             stack.enter_context(hold_run_lock(store))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
@@ -326,11 +387,14 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     """``genr8 resume``: go on with the run in ``run_dir`` from its last committed generation (on
     ``hosts``, a ``HostPool`` of an earlier run, rebound to this one, when given)."""
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.grammar.discovery import consent_for_stored
     from genr8_dist.store import RunStore
 
     out = out if out is not None else sys.stdout
     store = RunStore.open(run_dir)
     problems = store.verify()
+    consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                       command=f"resume {run_dir}")
     # A damaged run is repaired once Ray and the hosts are up (nothing is written before); until then
     # its newest configuration may be the damaged file, so read the one the run was created with
     # (islands.count cannot change during a run). Damage to that one leaves nothing to fall back to,
@@ -346,7 +410,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
-    with connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
+    hooks["stop"] = stop = _stop_request(hooks.get("stop"))
+    with _signals_stop(stop, out), hold_run_lock(store), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
@@ -359,6 +425,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                     print(f"damaged: {problem}", file=out, flush=True)
                 store.repair()
                 print(f"repaired: {store.last_repair}", file=out, flush=True)
+                consent_for_stored(stored_universes(store), trust_flag=options.trust_hooks,
+                                   command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
             committed = store.committed_generations()

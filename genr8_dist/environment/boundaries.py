@@ -37,7 +37,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment._meshgeom import TriangleMesh
+from genr8_dist.errors import ConfigError, GrowthError
+from genr8_dist.fields import (
     fail,
     read_choice,
     read_float,
@@ -45,8 +47,6 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment._meshgeom import TriangleMesh
-from genr8_dist.errors import ConfigError, GrowthError
 
 __all__ = [
     "BEHAVIOURS",
@@ -122,7 +122,7 @@ class Boundary(abc.ABC):
     allowed_inside: bool | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
-        read_choice(self.behaviour, self._where(), "behaviour", BEHAVIOURS)
+        read_choice(self.behaviour, self._where(), "behaviour", tuple(BEHAVIOURS))
         read_optional_bool(self.inside, self._where(), "inside")
         if self.allowed_inside is None and self.inside is not None:
             object.__setattr__(self, "allowed_inside", self.inside)
@@ -205,7 +205,8 @@ class Boundary(abc.ABC):
             value = getattr(self, f.name)
             if value is None:
                 continue
-            out[f.name] = list(value) if isinstance(value, tuple) else value
+            out[f.name] = [list(v) if isinstance(v, tuple) else v for v in value] \
+                if isinstance(value, tuple) else value
         return out
 
 
@@ -325,30 +326,45 @@ class MeshBoundary(Boundary):
     path: str = ""
     scale: float = 1.0
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # The mesh as read (before scale and translate), filled in from ``path`` when the boundary is
+    # built; a run stores them, so it no longer needs the file (given, ``path`` is not read).
+    vertices: tuple[tuple[float, float, float], ...] | None = field(default=None, repr=False)
+    faces: tuple[tuple[int, int, int], ...] | None = field(default=None, repr=False)
     _mesh: TriangleMesh | None = field(default=None, init=False, compare=False, repr=False)
     _watertight: bool = field(default=False, init=False, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         super().__post_init__()
         where = self._where()
-        if not isinstance(self.path, (str, Path)) or not str(self.path):
+        inline = self.vertices is not None or self.faces is not None
+        if not isinstance(self.path, (str, Path)) or not (str(self.path) or inline):
             raise fail(where, "path", f"must be the file name of a mesh, got {self.path!r}")
         object.__setattr__(self, "path", str(self.path))
         object.__setattr__(self, "scale", read_float(self.scale, where, "scale", minimum=0.0,
                                                      strict_minimum=True))
         object.__setattr__(self, "translate", read_vec3(self.translate, where, "translate"))
+        if inline:
+            try:
+                vertices = np.asarray(self.vertices, dtype=np.float64)
+                faces = np.asarray(self.faces, dtype=np.int64)
+            except (TypeError, ValueError):
+                raise fail(where, "vertices", "vertices must be [[x, y, z], ...] and faces "
+                                              "[[i, j, k], ...]") from None
+            if vertices.ndim != 2 or vertices.shape[1:] != (3,) or faces.ndim != 2 \
+                    or faces.shape[1:] != (3,) or not len(faces) or faces.min() < 0 \
+                    or faces.max() >= len(vertices) or not np.isfinite(vertices).all():
+                raise fail(where, "faces", f"must index the {len(vertices)} vertices in triples "
+                                           "[[i, j, k], ...]")
         self._load()
 
     def _load(self) -> None:
         import trimesh
 
-        path = Path(self.path)
-        if not path.is_file():
-            raise GrowthError(f"{self.path}: boundary mesh file not found")
-        try:
-            mesh = trimesh.load(str(path), force="mesh")
-        except Exception as exc:  # trimesh raises many kinds for unreadable files
-            raise GrowthError(f"{self.path}: cannot read boundary mesh: {exc}") from None
+        if self.vertices is not None and self.faces is not None:
+            mesh = trimesh.Trimesh(np.asarray(self.vertices, dtype=np.float64),
+                                   np.asarray(self.faces, dtype=np.int64), process=False)
+        else:
+            mesh = self._read_file(trimesh)
         faces = getattr(mesh, "faces", None)
         if faces is None or len(faces) == 0:
             raise GrowthError(f"{self.path}: boundary mesh has no triangles")
@@ -358,11 +374,23 @@ class MeshBoundary(Boundary):
             raise GrowthError(f"{self.path}: boundary mesh has only degenerate triangles")
         watertight = bool(mesh.is_watertight)
         faces = np.asarray(mesh.faces, dtype=np.int64)
+        object.__setattr__(self, "vertices", tuple(map(tuple, np.asarray(mesh.vertices, dtype=np.float64)
+                                                       .tolist())))
+        object.__setattr__(self, "faces", tuple(map(tuple, faces.tolist())))
         if watertight and float(mesh.volume) < 0.0:
             faces = faces[:, ::-1]  # normals pointed inwards
         vertices = np.asarray(mesh.vertices, dtype=np.float64) * self.scale + np.asarray(self.translate)
         object.__setattr__(self, "_mesh", TriangleMesh(vertices, faces))
         object.__setattr__(self, "_watertight", watertight)
+
+    def _read_file(self, trimesh: Any) -> Any:
+        path = Path(self.path)
+        if not path.is_file():
+            raise GrowthError(f"{self.path}: boundary mesh file not found")
+        try:
+            return trimesh.load(str(path), force="mesh")
+        except Exception as exc:  # trimesh raises many kinds for unreadable files
+            raise GrowthError(f"{self.path}: cannot read boundary mesh: {exc}") from None
 
     @property
     def mesh(self) -> TriangleMesh:

@@ -8,9 +8,10 @@ for a vertex of mass ``m`` at distance ``d`` the displacement's magnitude is
 
 - ``law = "inverse"`` (Genr8's default): ``f = c · d^-e / m``, singular at ``d = 0``; with the
   default ``e = 2`` it is the inverse-square law of the journal;
-- ``law = "bounded"`` (the thesis's variant without the singularity): ``f = c · d^-e / m`` for
-  ``d > 1`` and ``f = c · d / m`` for ``d <= 1``, so it rises linearly from 0 at the charge to
-  ``c / m`` at distance 1 and is continuous there.
+- ``law = "bounded"`` (thesis 2.7.1's function without the singularity): ``f = c · d^-e / m`` for
+  ``d > 1`` and ``f = c · d`` for ``d <= 1`` (the mass is not in the near part, as the thesis writes
+  it), so it rises linearly from 0 at the charge to ``c`` at distance 1; it is continuous there when
+  ``m = 1`` (the default vertex mass).
 
 An attractor moves the vertex towards itself, a repeller away from itself. Gravity is a uniform
 displacement vector, the same for every vertex whatever its mass or position.
@@ -19,12 +20,13 @@ displacement vector, the same for every vertex whatever its mass or position.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from genr8_dist.environment._fields import fail, read_choice, read_float, read_vec3, reject_unknown
+from genr8_dist.fields import fail, read_choice, read_float, read_vec3, reject_unknown
 
 __all__ = ["LAWS", "PointForce", "point_force_displacement", "repelling_displacement"]
 
@@ -53,7 +55,7 @@ class PointForce:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             far = self.constant * np.power(d, -self.exponent) / mass
             if self.law == "bounded":
-                return np.where(d > 1.0, far, self.constant * d / mass)
+                return np.where(d > 1.0, far, self.constant * d * np.ones_like(mass))
             return np.where(d > 0.0, far, 0.0)
 
     def to_dict(self) -> dict[str, Any]:
@@ -105,24 +107,42 @@ def _pairs_within(points: np.ndarray, radius: float) -> tuple[np.ndarray, np.nda
     return pairs[close, 0], pairs[close, 1]
 
 
-def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: float, radius: float,
-                           length: float) -> np.ndarray:
-    """Repelling points: every pair of vertices closer than ``radius`` pushes apart.
+def _push(delta: np.ndarray, length: float, radius: float) -> np.ndarray:
+    """Each pair's push (L/d)^2 - (L/R)^2 along ``delta`` (from j to i), as a vector; 0 at d = 0."""
+    d2 = np.einsum("ij,ij->i", delta, delta)
+    ok = d2 > 0.0
+    safe = np.where(ok, d2, 1.0)
+    tail = 0.0 if math.isinf(radius) else (length / radius) ** 2
+    magnitude = np.where(ok, length * length / safe - tail, 0.0)
+    return (magnitude / np.sqrt(safe))[:, None] * delta
 
-    The displacement of vertex i is ``strength · length · Σ_j (1 - d_ij / radius) · û_ij / m_i`` over
-    the vertices j within ``radius`` (û_ij the unit vector from j to i): a short-range, linear
-    soft-contact push, local (pairs from a k-d tree) so it costs about O(V log V).
+
+def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: float, radius: float,
+                           length: float, block: int = 2_000_000) -> np.ndarray:
+    """Repelling points (thesis 2.7.2): every vertex pushes every other vertex away.
+
+    The displacement of vertex i is ``strength · L · Σ_j ((L / d_ij)^2 - (L / R)^2) · û_ij / m_i``
+    (û_ij the unit vector from j to i, L the mean edge length): an inverse-square push, over every
+    other vertex when ``radius`` R is infinite (the thesis; all pairs, ``block`` at a time, O(V^2)),
+    else over the vertices closer than R (a k-d tree, about O(V log V)), shifted so that it
+    falls to 0 at R instead of stopping short.
     """
     out = np.zeros_like(points)
+    n = len(points)
+    if n < 2:
+        return out
+    if math.isinf(radius):
+        rows = max(1, block // n)
+        for r0 in range(0, n, rows):
+            delta = points[r0:r0 + rows, None, :] - points[None, :, :]  # (rows, n, 3): from j to i
+            flat = _push(delta.reshape(-1, 3), length, radius).reshape(delta.shape)
+            out[r0:r0 + rows] = flat.sum(axis=1)
+        return strength * length * out / masses[:, None]
     i, j = _pairs_within(points, radius)
     if len(i) == 0:
         return out
-    delta = points[i] - points[j]
-    d = np.linalg.norm(delta, axis=1)
-    ok = d > 0
-    i, j, delta, d = i[ok], j[ok], delta[ok], d[ok]
-    push = (strength * length * (1.0 - d / radius) / d)[:, None] * delta
+    push = _push(points[i] - points[j], length, radius)
     for axis in range(3):
-        out[:, axis] += np.bincount(i, weights=push[:, axis], minlength=len(points))
-        out[:, axis] -= np.bincount(j, weights=push[:, axis], minlength=len(points))
-    return out / masses[:, None]
+        out[:, axis] += np.bincount(i, weights=push[:, axis], minlength=n)
+        out[:, axis] -= np.bincount(j, weights=push[:, axis], minlength=n)
+    return strength * length * out / masses[:, None]

@@ -12,11 +12,15 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
-from genr8_dist.environment._fields import (
+from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
+from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
+from genr8_dist.environment.physics import SizeIncrease, increase_size, repair
+from genr8_dist.errors import ConfigError
+from genr8_dist.fields import (
     fail,
     read_bool,
     read_choice,
@@ -25,26 +29,21 @@ from genr8_dist.environment._fields import (
     read_vec3,
     reject_unknown,
 )
-from genr8_dist.environment.boundaries import Boundary, boundary_from_dict
-from genr8_dist.environment.forces import PointForce, point_force_displacement, repelling_displacement
-from genr8_dist.errors import ConfigError
 from genr8_dist.tomlfile import read_toml
 
-__all__ = ["BRANCH_JOINS", "Environment", "SizeIncrease", "load_environment"]
+__all__ = ["BRANCH_JOINS", "BRANCH_TIES", "Environment", "SizeIncrease", "load_environment"]
 
 #: How two branches' orientations are compared when they join (docs/environment.md, docs/fidelity.md):
 #: "orientation" (the thesis: opposite within BranchAngle, facing each other), "cone" (each points at
 #: the other's vertex within BranchAngle).
 BRANCH_JOINS = ("orientation", "cone")
 
+#: What a region does when its best join ties with another (docs/environment.md): "first" joins the
+#: branch drawn first, "none" joins neither (mirror-image joins that cross keep a symmetric surface
+#: symmetric).
+BRANCH_TIES = ("first", "none")
+
 _AXES = {"x": 0, "y": 1, "z": 2}
-
-
-class SizeIncrease(NamedTuple):
-    """What ``Environment.increase_size`` returns: the moved positions and the cumulative stop mask."""
-
-    positions: np.ndarray
-    stopped: np.ndarray
 
 
 def _read_gravity(value: Any, source: str) -> tuple[float, float, float]:
@@ -103,6 +102,7 @@ class Environment:
     seed_masses: tuple[float, ...] | None = None
     branch_length: float = -1.0
     branch_join: str = "orientation"
+    branch_ties: str = "first"
     label_noise: float = 0.0
     position_noise: float = 0.0
     vertex_mass: float = 1.0
@@ -152,6 +152,7 @@ class Environment:
             raise fail(src, "branch_length", f"must be -1 (unlimited) or > 0, got {self.branch_length!r}")
         put(self, "branch_length", branch)
         read_choice(self.branch_join, src, "branch_join", BRANCH_JOINS)
+        read_choice(self.branch_ties, src, "branch_ties", BRANCH_TIES)
         put(self, "label_noise", read_float(self.label_noise, src, "label_noise", minimum=0.0, maximum=1.0))
         put(self, "position_noise", read_float(self.position_noise, src, "position_noise", minimum=0.0))
         put(self, "vertex_mass", read_float(self.vertex_mass, src, "vertex_mass", minimum=0.0,
@@ -165,8 +166,11 @@ class Environment:
         put(self, "uniform_iterations", read_int(self.uniform_iterations, src, "uniform_iterations",
                                                  minimum=1, maximum=1000))
         put(self, "repelling_points", read_float(self.repelling_points, src, "repelling_points", minimum=0.0))
-        put(self, "repelling_radius", read_float(self.repelling_radius, src, "repelling_radius", minimum=0.0,
-                                                 strict_minimum=True))
+        radius = read_float(self.repelling_radius, src, "repelling_radius")
+        if radius != -1.0 and radius <= 0.0:
+            raise fail(src, "repelling_radius",
+                       f"must be -1 (every vertex, the thesis) or > 0, got {self.repelling_radius!r}")
+        put(self, "repelling_radius", radius)
         put(self, "gravity", _read_gravity(self.gravity, src))
         for name in ("attractors", "repellers"):
             items = getattr(self, name)
@@ -276,10 +280,15 @@ class Environment:
     def increase_size(self, positions: np.ndarray, *, step: int, masses: np.ndarray, stopped: np.ndarray,
                       perimeter: np.ndarray, edges: np.ndarray, rng: np.random.Generator) -> SizeIncrease:
         """Move every vertex for derivation step ``step`` (1-based); see genr8_dist.environment.physics."""
-        from genr8_dist.environment.physics import increase_size
-
         return increase_size(self, positions, step=step, masses=masses, stopped=stopped, perimeter=perimeter,
                              edges=edges, rng=rng)
+
+    def relax_cells(self, positions: np.ndarray, *, edges: np.ndarray, perimeter: np.ndarray,
+                    stopped: np.ndarray) -> np.ndarray:
+        """Uniform cells at the end of a derivation step; see genr8_dist.environment.physics.relax_cells."""
+        from genr8_dist.environment.physics import relax_cells
+
+        return relax_cells(self, positions, edges=edges, perimeter=perimeter, stopped=stopped)
 
     def constrain(self, positions: np.ndarray, *, stopped: np.ndarray) -> SizeIncrease:
         """Bring vertices on the wrong side of a hard boundary to its nearest allowed point.
@@ -289,8 +298,6 @@ class Environment:
         curved wall lie inside it). Against a cut-off wall the vertex also stops. Returns the new
         positions and the cumulative stop mask; inputs are not modified.
         """
-        from genr8_dist.environment.physics import repair
-
         points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         mask = np.asarray(stopped, dtype=bool).copy()
         if not self.boundaries or len(points) == 0:
@@ -324,8 +331,8 @@ class Environment:
         """The repelling-points displacement (zero when ``repelling_points`` is 0)."""
         if self.repelling_points <= 0.0:
             return np.zeros_like(positions)
-        return repelling_displacement(positions, masses, self.repelling_points,
-                                      self.repelling_radius * length, length)
+        radius = math.inf if self.repelling_radius == -1.0 else self.repelling_radius * length
+        return repelling_displacement(positions, masses, self.repelling_points, radius, length)
 
 
 def load_environment(path: str | Path) -> Environment:

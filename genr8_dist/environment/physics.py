@@ -6,16 +6,14 @@ the per-axis scale ``s``, in this order:
 1. growth: ``r_i = (p_i - c) * (s - 1)`` (per axis; s < 1 shrinks);
 2. external forces: ``f_i`` = Σ attractors/repellers (``c·d^-e/m`` or the bounded law, measured at
    ``p_i``) + gravity (the same vector for every vertex);
-3. repelling points (if on): a short-range push between vertices closer than ``repelling_radius``
-   mean edge lengths;
+3. repelling points (if on): an inverse-square push between vertices closer than
+   ``repelling_radius`` mean edge lengths (every pair with -1, as the thesis);
 4. position noise (if on): a normal draw per axis, standard deviation ``position_noise`` x the mean
    edge length, from the growth's random generator;
 5. constraints: cut-off (stopped) vertices do not move at all; with ``fixed_perimeter`` neither do
    perimeter vertices; with ``fixed_centre`` the mean displacement is taken back from the moving
    vertices, so the centre of the surface stays where it was and forces stretch it instead of moving it;
-6. uniform cells (if on): the perimeter is held and each interior vertex is relaxed
-   ``uniform_iterations`` times halfway towards the mean of its edge neighbours, evening out the cells;
-7. boundaries, in the order listed, resolve the move ``p_i -> q_i`` (see environment.boundaries);
+6. boundaries, in the order listed, resolve the move ``p_i -> q_i`` (see environment.boundaries);
    a final pass puts any vertex still on the wrong side of a hard boundary back at ``p_i`` (when
    ``p_i`` was allowed), so no vertex this part moves crosses a hard boundary.
 
@@ -28,16 +26,23 @@ hand it such vertices.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
 from genr8_dist.errors import GrowthError
 
 if TYPE_CHECKING:
-    from genr8_dist.environment.model import Environment, SizeIncrease
+    from genr8_dist.environment.model import Environment
 
-__all__ = ["increase_size", "mean_edge_length", "neighbour_average", "repair"]
+__all__ = ["SizeIncrease", "increase_size", "mean_edge_length", "neighbour_average", "relax_cells", "repair"]
+
+
+class SizeIncrease(NamedTuple):
+    """What ``Environment.increase_size`` returns: the moved positions and the cumulative stop mask."""
+
+    positions: np.ndarray
+    stopped: np.ndarray
 
 
 def mean_edge_length(positions: np.ndarray, edges: np.ndarray, fallback: float) -> float:
@@ -75,7 +80,6 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
     Inputs are not modified. ``positions`` (V, 3), ``masses`` (V,), ``stopped`` and ``perimeter``
     bool (V,), ``edges`` (E, 2) vertex indices.
     """
-    from genr8_dist.environment.model import SizeIncrease
 
     p = np.asarray(positions, dtype=np.float64)
     n = len(p)
@@ -115,18 +119,29 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
             move[moving] -= move.sum(axis=0) / count
     q = p + move
 
-    if env.uniform_cells and len(edges):
-        free = ~(frozen | perimeter)
-        for _ in range(env.uniform_iterations):
-            average, degree = neighbour_average(q, edges)
-            relax = free & (degree > 0)
-            q[relax] += 0.5 * (average[relax] - q[relax])
-
     new_stopped = stopped.copy()
     if env.boundaries:
         q, new_stopped = _apply_boundaries(env, p, q, new_stopped)
     q[stopped] = p[stopped]
     return SizeIncrease(q, new_stopped)
+
+
+def relax_cells(env: Environment, positions: np.ndarray, *, edges: np.ndarray, perimeter: np.ndarray,
+                stopped: np.ndarray) -> np.ndarray:
+    """Uniform cells (thesis 2.7.2: "after each growth step, all the vertices on the perimeter are
+    fixed" and the others move to even out their cells): at the end of a derivation step, with the
+    perimeter and the stopped vertices held, each other vertex moves halfway towards the mean of its
+    edge neighbours, ``uniform_iterations`` times. Returns new positions (the input is not modified)."""
+    q = np.array(positions, dtype=np.float64, copy=True)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if not env.uniform_cells or len(edges) == 0:
+        return q
+    free = ~(np.asarray(perimeter, dtype=bool) | np.asarray(stopped, dtype=bool))
+    for _ in range(env.uniform_iterations):
+        average, degree = neighbour_average(q, edges)
+        relax = free & (degree > 0)
+        q[relax] += 0.5 * (average[relax] - q[relax])
+    return q
 
 
 def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:

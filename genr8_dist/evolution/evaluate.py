@@ -1,4 +1,4 @@
-"""Evaluate one genome: map it with the universe, parse the rewrite system, grow it, score the surface.
+"""Evaluate one genome: map it with the universe, develop the text into its phenotype, score it.
 
 Failure is data: whatever goes wrong (the genome wraps too often, the text does not parse, growth raises
 or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
@@ -22,12 +22,15 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.fitness import score_surface
+from genr8_dist.evolution.individual import Evaluation
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
 
 __all__ = [
     "Evaluation",
@@ -42,41 +45,20 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True, slots=True)
-class Evaluation:
-    """The evaluated fields of an ``Individual`` (same names), for one genome or text."""
+def universe_for(config: Any) -> Any:
+    """The universe of ``config`` (a ``RunConfig``), built from the files it carries (once per process),
+    never looked up again by name: a Ray host on any machine builds the driver's universe. A plain
+    name is looked up (the Python API's shorthand)."""
+    source = getattr(config, "universe_source", None)
+    if source is None:
+        return _named_universe(str(config))
+    from genr8_dist.grammar.universe import build_universe
 
-    text: str | None = None
-    valid: bool = False
-    stage: str | None = None
-    error: str | None = None
-    fitness: float = math.inf
-    criteria: dict[str, float] = field(default_factory=dict)
-    codons_used: int = 0
-    wraps: int = 0
-    n_vertices: int = 0
-    n_edges: int = 0
-    n_regions: int = 0
-    steps_done: int = 0
-    capped: str | None = None
-    surface_digest: str | None = None
-    eval_seconds: float = 0.0
-    map_seconds: float = 0.0
-    grow_seconds: float = 0.0
-    score_seconds: float = 0.0
-
-    def as_fields(self) -> dict[str, Any]:
-        """The fields as keyword arguments for ``Individual``."""
-        return {name: getattr(self, name) for name in self.__dataclass_fields__}
-
-    def untimed(self) -> Evaluation:
-        """This evaluation with every timing set to 0 (a cache hit costs nothing)."""
-        return replace(self, eval_seconds=0.0, map_seconds=0.0, grow_seconds=0.0, score_seconds=0.0)
+    return build_universe(source, check=False)
 
 
 @lru_cache(maxsize=16)
-def universe_for(name: str) -> Any:
-    """The loaded universe ``name`` (loaded once per process)."""
+def _named_universe(name: str) -> Any:
     from genr8_dist.grammar import load_universe
 
     return load_universe(name)
@@ -111,66 +93,60 @@ def regions_of(surface: Any) -> int:
     return int(n) if n is not None else len(surface.regions)
 
 
-def _grow_and_score(text: str, config: Any) -> Evaluation:
-    """Parse, grow and score ``text`` in ``config``'s environment (no mapping fields set).
+def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
+    """Develop ``text`` into the universe's phenotype and score it (no mapping fields set).
 
-    ``grow_seconds`` is the time to parse the text and grow it; ``score_seconds`` the criteria's."""
-    from genr8_dist.hemls import grow, parse
+    The phenotype (:func:`genr8_dist.phenotype.phenotype_of`: a HEMLS surface unless the universe
+    brings its own) develops the text, measures its criteria and combines them into the fitness.
+    ``grow_seconds`` is the time to develop the text (parsing included); ``score_seconds`` the
+    criteria's and the fitness's."""
+    from genr8_dist.phenotype import phenotype_of
 
+    phenotype = phenotype_of(universe_for(config))
     t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
-        system = parse(text)
-    except Exception as exc:  # failure is data: a text that does not parse is an invalid individual
-        return Evaluation(text=text, stage="parse", error=_describe(exc),
+        developed = phenotype.develop(text, config)
+    except Exception as exc:  # failure is data, whatever development raised
+        return Evaluation(text=text, stage=getattr(exc, "genr8_stage", phenotype.stage), error=_describe(exc),
                           grow_seconds=time.perf_counter() - t0)
-    try:
-        result = grow(system, config.environment)
-    except Exception as exc:  # failure is data, whatever growth raised
-        return Evaluation(text=text, stage="grow", error=_describe(exc),
-                          grow_seconds=time.perf_counter() - t0)
-    grow_seconds = time.perf_counter() - t0
-    surface = result.surface
-    capped = result.capped
-    capped = (capped if isinstance(capped, str) else "cap") if capped else None
-    steps_done = steps_of(result)
-    grown = {
-        "text": text,
-        "n_vertices": len(surface.vertices),
-        "n_edges": len(surface.edges),
-        "n_regions": regions_of(surface),
-        "steps_done": steps_done,
-        "capped": capped,
-        "grow_seconds": grow_seconds,
-    }
+    counts = developed.counts
+    grown = Evaluation(text=text, n_vertices=int(counts.get("n_vertices", 0)),
+                       n_edges=int(counts.get("n_edges", 0)), n_regions=int(counts.get("n_regions", 0)),
+                       steps_done=int(developed.steps), capped=developed.capped,
+                       grow_seconds=time.perf_counter() - t0, surface_digest=developed.digest)
     t1 = time.perf_counter()
     try:
-        grown["surface_digest"] = surface.digest()
-        criteria = score_surface(surface, config.environment, config.fitness.names)
+        criteria = phenotype.measure(developed, config)
     except Exception as exc:  # failure is data
-        return Evaluation(stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1,
-                          **grown)
-    grown["score_seconds"] = time.perf_counter() - t1
-    grown["criteria"] = criteria
-    return _judge(grown, config)
+        return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
+    return _judge(replace(grown, criteria=criteria, score_seconds=time.perf_counter() - t1), config)
 
 
-def _judge(grown: dict[str, Any], config: Any) -> Evaluation:
-    """The verdict on a grown and measured text (``grown``: the fields ``_grow_and_score`` found,
+def _judge(grown: Evaluation, config: RunConfig) -> Evaluation:
+    """The verdict on a developed and measured text (``grown``: what ``_grow_and_score`` found, its
     ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
-    fitness. A pure function of those stored fields: ``rescore`` calls it again after an edit."""
-    capped, criteria, steps_done = grown["capped"], grown["criteria"], grown["steps_done"]
-    if capped:
-        error = f"growth capped ({capped}) in derivation step {steps_done}"
-        return Evaluation(stage="grow", error=error, **grown)
-    if not grown["n_vertices"] or not grown["n_edges"]:
-        return Evaluation(stage="score", error="degenerate surface: no vertices or no edges", **grown)
-    bad = [name for name in criteria if not math.isfinite(criteria[name])]
-    if bad:
-        return Evaluation(stage="score", error=f"degenerate surface: {', '.join(bad)} not finite", **grown)
-    fitness = config.fitness.evaluate(criteria)
+    fitness, as the universe's phenotype decides; the rules that make an individual valid, in one
+    place (``genr8 score`` reports them too). A pure function of those stored fields: ``rescore``
+    calls it again after an edit."""
+    from genr8_dist.phenotype import phenotype_of
+
+    phenotype = phenotype_of(universe_for(config))
+    criteria = grown.criteria
+    if grown.capped and phenotype.capped_is_invalid:
+        error = f"growth capped ({grown.capped}) in derivation step {grown.steps_done}"
+        return replace(grown, stage=phenotype.stage, error=error)
+    counts = {"n_vertices": grown.n_vertices, "n_edges": grown.n_edges, "n_regions": grown.n_regions,
+              "steps_done": grown.steps_done}
+    problem = phenotype.problem(counts, criteria)
+    if problem:
+        return replace(grown, stage="score", error=problem)
+    try:
+        fitness = phenotype.fitness(criteria, config)
+    except Exception as exc:  # failure is data
+        return replace(grown, stage="score", error=_describe(exc))
     if not math.isfinite(fitness):
-        return Evaluation(stage="score", error="fitness is not finite", **grown)
-    return Evaluation(valid=True, fitness=fitness, **grown)
+        return replace(grown, stage="score", error="fitness is not finite")
+    return replace(grown, valid=True, fitness=fitness)
 
 
 # The grown and measured texts of this process, shared by its Evaluators: (development_key, text) ->
@@ -183,7 +159,7 @@ _GROWN_FIELDS = ("text", "n_vertices", "n_edges", "n_regions", "steps_done", "ca
                  "grow_seconds", "score_seconds")
 
 
-def development_key(config: Any) -> str:
+def development_key(config: RunConfig) -> str:
     """What growing and measuring a text depends on besides the text: the universe (whose phenotype
     it is) and the environment. Configurations with the same key grow every text into the same
     surface and measure the same raw criteria; their fitness may differ."""
@@ -193,7 +169,7 @@ def development_key(config: Any) -> str:
     return hashlib.blake2b(blob.encode(), digest_size=16).hexdigest()
 
 
-def rescore(evaluation: Evaluation, config: Any) -> Evaluation | None:
+def rescore(evaluation: Evaluation, config: RunConfig) -> Evaluation | None:
     """``evaluation`` of a text, made under a configuration with ``config``'s ``development_key``,
     judged again under ``config`` from its raw criteria, without growing the text; what evaluating it
     under ``config`` gives (timings aside). None when it lacks a raw value ``config`` asks for
@@ -203,9 +179,10 @@ def rescore(evaluation: Evaluation, config: Any) -> Evaluation | None:
     names = tuple(config.fitness.names)
     if not all(name in evaluation.criteria for name in names):
         return None
-    grown = {name: getattr(evaluation, name) for name in _GROWN_FIELDS}
+    grown: dict[str, Any] = {name: getattr(evaluation, name) for name in _GROWN_FIELDS}
     grown["criteria"] = {name: evaluation.criteria[name] for name in names}
-    return replace(_judge(grown, config), codons_used=evaluation.codons_used, wraps=evaluation.wraps,
+    return replace(_judge(Evaluation(**grown), config), codons_used=evaluation.codons_used,
+                   wraps=evaluation.wraps,
                    map_seconds=evaluation.map_seconds, eval_seconds=evaluation.eval_seconds)
 
 
@@ -214,9 +191,9 @@ class Evaluator:
     (bounded caches of ``cache_size`` entries, least recently used dropped first), and no text
     grown in this process for a configuration of the same ``development_key`` grown again."""
 
-    def __init__(self, config: Any, *, cache_size: int = 4096) -> None:
+    def __init__(self, config: RunConfig, *, cache_size: int = 4096) -> None:
         self.config = config
-        self.universe = universe_for(config.universe)
+        self.universe = universe_for(config)
         self.cache_size = cache_size
         self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
@@ -259,7 +236,7 @@ class Evaluator:
         self._remember(self._texts, text, judged)
         return judged
 
-    def _remember(self, cache: OrderedDict, key: Any, value: Evaluation) -> None:
+    def _remember(self, cache: OrderedDict[Any, Evaluation], key: Any, value: Evaluation) -> None:
         cache[key] = value
         if len(cache) > self.cache_size:
             cache.popitem(last=False)
@@ -298,14 +275,13 @@ class Evaluator:
             self._remember(self._genomes, key, result)
             return result
         map_seconds = time.perf_counter() - start
-        mapping = {"codons_used": int(mapped.codons_used), "wraps": int(mapped.wraps),
-                   "map_seconds": map_seconds}
         if not mapped.valid:
             result = Evaluation(text=mapped.text or None, stage="map",
-                                error=str(mapped.reason or "mapping failed"), **mapping)
+                                error=str(mapped.reason or "mapping failed"))
         else:
-            result = replace(self._grown(mapped.text), **mapping)
-        result = replace(result, eval_seconds=time.perf_counter() - start)
+            result = self._grown(mapped.text)
+        result = replace(result, codons_used=int(mapped.codons_used), wraps=int(mapped.wraps),
+                         map_seconds=map_seconds, eval_seconds=time.perf_counter() - start)
         self._remember(self._genomes, key, result)
         return result
 
@@ -319,7 +295,8 @@ class Evaluator:
         return replace(result, eval_seconds=time.perf_counter() - start)
 
 
-def evaluate_genome(genome: Sequence[int], config: Any, *, evaluator: Evaluator | None = None) -> Evaluation:
+def evaluate_genome(genome: Sequence[int], config: RunConfig, *,
+                    evaluator: Evaluator | None = None) -> Evaluation:
     """Map, parse, grow and score one genome under ``config`` (a ``RunConfig``); never raises for a
     sequence of non-negative ints (``GenomeError`` otherwise). Pass an ``Evaluator`` to share caches."""
     if evaluator is None or evaluator.config is not config:
@@ -327,7 +304,7 @@ def evaluate_genome(genome: Sequence[int], config: Any, *, evaluator: Evaluator 
     return evaluator.evaluate(genome)
 
 
-def evaluate_text(text: str, config: Any) -> Evaluation:
+def evaluate_text(text: str, config: RunConfig) -> Evaluation:
     """Grow and score a hand-written rewrite system under ``config`` (what ``genr8 score`` does)."""
     if not isinstance(text, str):
         raise Genr8Error(f"a rewrite system is text, got {type(text).__name__}")

@@ -127,7 +127,8 @@ class Evaluation:
     n_regions: int = _col(0, arrow="int32", nullable=False, top=11)
     steps_done: int = _col(0, arrow="int32", nullable=False, top=12)
     capped: str | None = _col(arrow="string", top=13)     # which growth cap cut it short, if any
-    surface_digest: str | None = _col(arrow="string", top=15)  # blake2b of the final vertex array
+    # the phenotype's digest (a surface: blake2b of its final vertex array; a plugin's: its own)
+    surface_digest: str | None = _col(arrow="string", top=15)
     eval_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     map_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     grow_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
@@ -143,7 +144,9 @@ class Evaluation:
 
     def untimed(self) -> Evaluation:
         """The evaluation with every timing set to 0 (a cache hit costs nothing)."""
-        return replace(self.evaluation(), **dict.fromkeys(timing_columns(), 0.0))
+        values = self.as_fields()
+        values.update(dict.fromkeys(timing_columns(), 0.0))
+        return Evaluation(**values)
 
 
 @dataclass(frozen=True, slots=True)
@@ -233,3 +236,10 @@ def registered_column(column: Column) -> Iterator[Column]:
         yield registered
     finally:
         unregister_column(column.name)
+
+
+# The search modes' columns, registered as a plugin's would be (values in ``Individual.extra``):
+# ``pareto_rank``, an individual's front among its island's generation over the Pareto objectives
+# (0: non-dominated; every mode); ``cell``, its MAP-Elites archive cell (``map-elites`` mode only).
+PARETO_RANK = register_column(Column("pareto_rank", "int32", top=16, shown=7, heading="front"))
+ARCHIVE_CELL = register_column(Column("cell", "int32", top=17))

@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from genr8_dist.errors import ConfigError
@@ -65,7 +65,6 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
-from genr8_dist.fitness import CRITERIA
 from genr8_dist.rng import stream
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
@@ -112,13 +111,16 @@ def pareto_objectives(config: Any) -> tuple[str, ...]:
     with a weight above 0."""
     if config.search.objectives:
         return tuple(config.search.objectives)
-    return tuple(name for name in CRITERIA if config.fitness[name].weight > 0)
+    return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
-def is_trivial(evaluation: Evaluation) -> bool:
-    """Whether an evaluation is not worth a founder's place: invalid, or a surface of at most one
-    region (the axiom polygon as it was, or grown without a subdivision)."""
-    return not evaluation.valid or evaluation.n_regions <= 1
+def is_trivial(evaluation: Evaluation, phenotype: Any = None) -> bool:
+    """Whether an evaluation is not worth a founder's place: invalid, or trivial as its universe's
+    ``phenotype`` says (default the surfaces': at most one region, the axiom polygon as it was or
+    grown without a subdivision)."""
+    from genr8_dist.phenotype import SURFACES
+
+    return not evaluation.valid or (phenotype or SURFACES).trivial(evaluation)
 
 
 def _keys(ind: Individual | Evaluation) -> set[str]:
@@ -338,13 +340,13 @@ class Island:
             if crossed:
                 within = min(used_a, used_b) if ea.within_used and min(used_a, used_b) > 0 else None
                 children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome, within=within)
-                lineage = ((a, b), (b, a))
+                lineage: tuple[tuple[int, ...], ...] = ((a, b), (b, a))
                 used = (max(used_a, used_b),) * 2
             else:
                 children = (pool[a].genome, pool[b].genome)
                 lineage = ((a,), (b,))
                 used = (used_a, used_b)
-            for child, parents, codons in zip(children, lineage, used, strict=True):
+            for child, picked, codons in zip(children, lineage, used, strict=True):
                 if len(births) >= ea.population:
                     break
                 within = codons if ea.within_used and codons > 0 else None
@@ -353,7 +355,7 @@ class Island:
                 origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
                 avoid: set[str] = set()
                 if unique:
-                    for i in parents:
+                    for i in picked:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
@@ -366,7 +368,7 @@ class Island:
                             origin = "crossover+mutation"
                     texts.add(text)
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in parents), None, frozenset(avoid)))
+                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -415,16 +417,16 @@ class Island:
             self.stats = IslandStats(generation=generation)
         before, self._bred_at = self._bred_at or self._counters(), None
         fresh = dict(evaluated or {})
-        for genome, evaluation in fresh.items():
+        for genome, made in fresh.items():
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
-                self.evaluator.adopt(genome, evaluation)
+                self.evaluator.adopt(genome, made)
         population = []
         seen: set[str] = set()   # the surfaces of this generation so far
         for index, birth in enumerate(births):
-            evaluation = birth.evaluation
-            if evaluation is None:
-                # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
-                evaluation = fresh.pop(birth.genome, None) or self.evaluate(birth.genome)
+            kept = birth.evaluation
+            # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
+            evaluation = kept if kept is not None else (
+                fresh.pop(birth.genome) if birth.genome in fresh else self.evaluate(birth.genome))
             genome, origin = birth.genome, birth.origin
             if generation == 0 and origin == "random":
                 genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)
@@ -434,7 +436,37 @@ class Island:
             if evaluation.valid and evaluation.surface_digest is not None:
                 seen.add(evaluation.surface_digest)
             population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
-        return self._finish(generation, population, before)
+        return self._finish(generation, self._placed(population), before)
+
+    def _placed(self, population: list[Individual]) -> list[Individual]:
+        """``population`` with each individual's Pareto front among it (over ``pareto_objectives``)
+        and, in ``map-elites`` mode, its archive cell."""
+        from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
+
+        names = pareto_objectives(self.config)
+        ranks = non_dominated_ranks(objectives_of([p.criteria for p in population],
+                                                  [p.valid for p in population], self.config.fitness,
+                                                  names)) if names else [0] * len(population)
+        grid = None
+        if self.config.search.mode == "map-elites":
+            from genr8_dist.evolution.archive import Grid
+
+            grid = Grid.from_settings(self.config.search)
+        placed = []
+        for p, r in zip(population, ranks, strict=True):
+            extra = {**p.extra, "pareto_rank": int(r)}
+            cell = grid.cell(p) if grid is not None else None
+            if cell is not None:
+                extra["cell"] = cell
+            placed.append(replace(p, extra=extra))
+        return placed
+
+    @property
+    def phenotype(self) -> Any:
+        """The phenotype of this island's universe (``genr8_dist.phenotype``)."""
+        from genr8_dist.phenotype import phenotype_of
+
+        return phenotype_of(self.evaluator.universe)
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
@@ -444,13 +476,13 @@ class Island:
             return genome, evaluation
         rng = None
         for _ in range(retries):
-            if not is_trivial(evaluation) and evaluation.surface_digest not in seen:
+            if not is_trivial(evaluation, self.phenotype) and evaluation.surface_digest not in seen:
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
             genome = tuple(self._founders(rng, 1, first=index)[0])
             evaluation = self.evaluate(genome)
             self.stats.founders_redrawn += 1
-        if is_trivial(evaluation) or evaluation.surface_digest in seen:
+        if is_trivial(evaluation, self.phenotype) or evaluation.surface_digest in seen:
             self.stats.unresolved += 1
         return genome, evaluation
 

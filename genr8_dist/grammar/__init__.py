@@ -9,15 +9,25 @@ text. ``grammars/README.md`` says how to write a universe.
 
 from __future__ import annotations
 
-from genr8_dist.grammar.discovery import ENTRY_POINT_GROUP, UniverseInfo, list_universes, load_universe
-from genr8_dist.grammar.universe import MapResult, Universe, check_genome
+from genr8_dist.grammar.discovery import (
+    ENTRY_POINT_GROUP,
+    UniverseInfo,
+    find_source,
+    list_universes,
+    load_universe,
+)
+from genr8_dist.grammar.source import UniverseSource
+from genr8_dist.grammar.universe import MapResult, Universe, build_universe, check_genome
 
 __all__ = [
     "ENTRY_POINT_GROUP",
     "MapResult",
     "Universe",
     "UniverseInfo",
+    "UniverseSource",
+    "build_universe",
     "check_genome",
+    "find_source",
     "list_universes",
     "load_universe",
 ]

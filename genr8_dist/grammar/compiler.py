@@ -28,6 +28,7 @@ import re
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
+from typing import Any
 
 from genr8_dist.errors import UniverseError, located
 
@@ -41,6 +42,7 @@ _LABELLED = re.compile(r"^EDGE(?:_\w+)?$")
 _HOLE = re.compile(r"(\[0-9\]\+|\\d\+)")
 _META = set(".^$*+?{}[]|()")
 MAX_MAX_DEPTH = 100
+MAX_NODES = 200_000   # grammar nodes (literals, edges, rule uses, groups) a universe may hold
 MAX_NUMBER_VALUES = 10_000
 
 
@@ -112,7 +114,8 @@ def _find(text: str, name: str) -> tuple[int, int]:
 
 def _find_definition(text: str, name: str) -> tuple[int, int]:
     """Line and column of the definition ``name: ...`` (rule or terminal) in ``text``."""
-    pattern = re.compile(r"^\s*[?!]?" + re.escape(name) + r"(?:\.-?\d+)?\s*(?:\{[^}]*\})?\s*:", re.MULTILINE)
+    pattern = re.compile(r"^[ \t]*[?!]?" + re.escape(name) + r"(?:\.-?\d+)?\s*(?:\{[^}]*\})?\s*:",
+                         re.MULTILINE)
     m = pattern.search(text)
     if not m:
         return 0, 0
@@ -121,20 +124,58 @@ def _find_definition(text: str, name: str) -> tuple[int, int]:
     return line, col
 
 
+_LARK_NAMES = {"_COLON": "':'", "_DOT": "'.'", "_OR": "'|'", "_LPAR": "'('", "_RPAR": "')'",
+               "_NL": "line break", "RULE": "rule name", "TOKEN": "terminal name",
+               "STRING": "string", "REGEXP": "regular expression", "OP": "operator",
+               "_LBRA": "'['", "_RBRA": "']'", "TERMINAL": "terminal name", "_LBRACE": "'{'",
+               "_RBRACE": "'}'", "_TO": "'->'", "NUMBER": "number"}
+
+
 def _lark_error(exc: Exception, ctx: _Ctx) -> UniverseError:
+    """Lark's error as one line of ours: ``file:line:column: what``, the location given once."""
     message = str(exc).strip()
     first = message.splitlines()[0] if message else type(exc).__name__
-    m = re.search(r"at line (\d+) column (\d+)", message)
-    if m:
-        first = re.sub(r",?\s*at line \d+ column \d+.*", "", first)
-        return UniverseError(located(first, ctx.source, int(m.group(1)), int(m.group(2))))
     line = getattr(exc, "line", 0) or 0
     column = getattr(exc, "column", 0) or 0
+    m = re.search(r"at line (\d+),? column (\d+)", message)
+    if m and not line:
+        line, column = int(m.group(1)), int(m.group(2))
+    first = re.sub(r",?\s*at line \d+,? column \d+.*", "", first).rstrip(" .:")
+    token = getattr(exc, "token", None)
+    if token is not None:
+        kind = _LARK_NAMES.get(getattr(token, "type", ""), "")
+        expected = sorted(_LARK_NAMES.get(e, e) for e in (getattr(exc, "expected", None) or ()))
+        first = f"syntax error: unexpected {kind + ' ' if kind else ''}{str(token)!r}"
+        if expected:
+            first += f"; expected {' or '.join(expected[:4])}"
+    elif first.startswith("Unexpected input"):
+        first = "syntax error: unexpected input (an unclosed string or a stray character?)"
+    elif first.startswith("Expecting a value"):
+        first = "syntax error: expected a value (a rule, terminal, string or group) here"
     if not line:
         m = re.search(r"'([A-Za-z_]\w*)'", first)
         if m:
             line, column = _find(ctx.text, m.group(1))
     return UniverseError(located(first, ctx.source, line, column))
+
+
+def find_literal(text: str, literal: str) -> tuple[str, int, int] | None:
+    """Where the string literal ``literal`` is written in grammar ``text``: (its rule or terminal,
+    line, column), or ``None``."""
+    quoted = [f'"{literal}"', f"'{literal}'"]
+    owner = "?"
+    for lineno, line in enumerate(text.splitlines(), 1):
+        code = line.split("//", 1)[0]
+        m = re.match(r"^\s*[?!]?([A-Za-z_]\w*)(?:\.-?\d+)?\s*:", code)
+        if m:
+            owner = m.group(1)
+        for q in quoted:
+            col = code.find(q)
+            if col >= 0:
+                terminal = owner.lstrip("_").isupper()
+                what = f"terminal {owner}" if terminal else f"rule {owner}"
+                return what, lineno, col + 1
+    return None
 
 
 def number_values(lo: str, hi: str, step: str = "1") -> tuple[str, ...]:
@@ -301,7 +342,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
             if bad:
                 raise ctx.fail(f"numeric terminal {name}: its pattern /{value[1]}/ does not match the "
                                f"value {bad[0]} of its '//@ number' range", name, define=True)
-            kind = ("num", numbers[name], name)
+            kind: tuple[Any, ...] = ("num", numbers[name], name)
         elif bound or pred or labelled or context:
             if value is None or value[0] != "re":
                 raise ctx.fail(f"edge terminal {name} must be defined by a regular expression "
@@ -402,6 +443,15 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
                          directive_line[f"number {name}"])
     if "start" not in rules:
         raise UniverseError(located("a universe needs a rule named 'start'", source, 1, 1))
+    _check_literals(rules, term_kind, ctx)
+    nodes = sum(1 for alts in rules.values() for alt in alts for _ in _nodes(alt))
+    if nodes > MAX_NODES:
+        raise UniverseError(located(f"the universe is too large: {nodes} grammar nodes in {len(rules)} "
+                                    f"rules (at most {MAX_NODES})", source))
+    try:  # what the inverse's Lark parser will need: optionals side by side can collide
+        grammar.compile(["start"], set())
+    except LarkError as exc:
+        raise _collision(exc, ctx) from None
 
     min_depth, need = _min_depths(rules, ctx)
     repair_depth = 0
@@ -415,6 +465,50 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     return CompiledGrammar(source=source, text=text, rules=rules, need=need, min_depth=min_depth,
                            templates=tuple(templates.values()), repair_rule=repair_rule,
                            repair_depth=repair_depth, description=description)
+
+
+def _nodes(node: tuple):
+    """Every IR node under ``node`` (iteratively: deep nesting is no problem)."""
+    stack = [node]
+    while stack:
+        cur = stack.pop()
+        yield cur
+        if cur[0] in ("seq", "choice"):
+            stack.extend(cur[1])
+        elif cur[0] in ("rep", "opt"):
+            stack.append(cur[1])
+
+
+def _check_literals(rules: dict[str, tuple], term_kind: dict[str, tuple], ctx: _Ctx) -> None:
+    """A literal must be one token of the text: tokens are separated by single spaces and read back
+    split at whitespace, so a literal holding whitespace (other than the line break "\\n") would come
+    back as several tokens."""
+    seen: set[str] = set()
+    literals = [n[1] for alts in rules.values() for alt in alts for n in _nodes(alt) if n[0] == "lit"]
+    literals += [k[1] for k in term_kind.values() if k[0] == "lit"]
+    for lit in literals:
+        if lit in seen or lit == "\n":
+            continue
+        seen.add(lit)
+        if lit == "" or any(c.isspace() for c in lit):
+            at = find_literal(ctx.text, lit)
+            what, line, col = at if at is not None else ("?", 0, 0)
+            problem = "is empty" if lit == "" else "holds whitespace"
+            raise UniverseError(located(
+                f"the literal {lit!r} in {what} {problem}: a literal is one token of the text (tokens "
+                "are separated by spaces); split it into several literals", ctx.source, line, col))
+
+
+def _collision(exc: Exception, ctx: _Ctx) -> UniverseError:
+    message = str(exc)
+    m = re.search(r"<(\w+)\s*:", message)
+    rule = m.group(1) if m else None
+    if "defined twice" in message and rule:
+        return ctx.fail(
+            f"rule {rule}: its optional parts ([...] or ?) side by side can expand to the same sequence "
+            "in two ways, so the parser the inverse mapping needs cannot be built; write them as one "
+            "repetition (x*) or give each optional part its own rule", rule, define=True)
+    return _lark_error(exc, ctx)
 
 
 def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dict[int, int]]:
@@ -443,10 +537,12 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
             if value < md[name]:
                 md[name] = value
                 changed = True
-    for name, value in md.items():
-        if value == math.inf:
-            raise ctx.fail(f"rule {name} can never finish: every alternative expands it again", name,
-                           define=True)
+    endless = [name for name, value in md.items() if value == math.inf]
+    if endless:
+        name = _recursing_rule(rules, set(endless))
+        raise ctx.fail(f"rule {name} can never finish: every alternative expands {name} again "
+                       "(directly or through other rules); give it an alternative without it", name,
+                       define=True)
 
     table: dict[int, int] = {}
 
@@ -463,6 +559,30 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
         for alt in alts:
             fill(alt)
     return {k: int(v) for k, v in md.items()}, table
+
+
+def _recursing_rule(rules: dict[str, tuple], endless: set[str]) -> str:
+    """Among rules that can never finish, the first (in file order) of a group that recurses on
+    itself and needs no other endless rule: the rule to fix, not the rules that merely use it."""
+    calls = {name: {n[1] for alt in rules[name] for n in _nodes(alt) if n[0] == "rule" and n[1] in endless}
+             for name in endless}
+
+    def reach(name: str) -> set[str]:
+        seen, stack = set(), list(calls[name])
+        while stack:
+            cur = stack.pop()
+            if cur not in seen:
+                seen.add(cur)
+                stack.extend(calls[cur])
+        return seen
+
+    reaches = {name: reach(name) for name in endless}
+    order = [name for name in rules if name in endless]
+    for name in order:
+        # a sink group: every endless rule it reaches reaches it back
+        if name in reaches[name] and all(name in reaches[other] for other in reaches[name]):
+            return name
+    return order[0]
 
 
 def _reach_depth(rules: dict[str, tuple], target: str) -> int:

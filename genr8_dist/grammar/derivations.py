@@ -152,11 +152,12 @@ class _Sampler:
                 m = c + x
                 # A grown tree takes another round by the natural chance (m - c - 1) / m; a full
                 # one takes at least X rounds.
-                if not mine:
-                    self.write(int(self.rng.integers(0, c + 1)), m)   # stop: this limit is reached
+                # No codon above codon_max exists: past round codon_max every codon stops the repetition.
+                if not mine or (self.full and c < x and c >= self.codon_max):
+                    self.write(int(self.rng.integers(0, min(c, self.codon_max) + 1)), m)   # stop
                     break
                 if self.full and c < x:
-                    self.write(int(self.rng.integers(c + 1, m)), m)   # another round
+                    self.write(int(self.rng.integers(c + 1, min(m, self.codon_max + 1))), m)   # another round
                 elif self.any_codon() % m <= c:
                     break
                 self.node(inner, depth, scope)

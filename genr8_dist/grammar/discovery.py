@@ -5,47 +5,53 @@ Discovery order (the first universe found under a name wins):
 1. built-ins: ``*.lark`` in :func:`genr8_dist.resources.grammars_dir` (``hemls.lark``, the parser's
    full language, is not a universe);
 2. plugins shipped with genr8_dist: one folder each in :func:`genr8_dist.resources.plugins_dir`;
-3. ``./plugins`` in the current directory, then every folder in ``GENR8_PLUGINS``
-   (``os.pathsep``-separated; a folder holding a ``.lark`` is itself a plugin, otherwise each of its
-   sub-folders is);
+3. every folder in ``GENR8_PLUGINS`` (``os.pathsep``-separated; a folder holding a ``.lark`` is
+   itself a plugin, otherwise each of its sub-folders is). The current directory is never searched:
+   code runs only from where the user said (a copied run or download holding ``plugins/`` runs nothing);
 4. installed packages: entry points in the group ``genr8_dist.universes`` whose value is a path to a
    ``.lark`` file or plugin folder, or ``module:attr`` naming such a path or a function returning one.
 
-A path to a ``.lark`` file or plugin folder is accepted wherever a name is.
+A path to a ``.lark`` file or plugin folder is accepted wherever a name is. A plugin that is broken
+(two ``.lark`` files, an entry point that cannot be loaded) is listed with its one-line error and
+fails only when it is itself loaded; every other universe keeps working.
+
+Discovery reads a universe's files into a :class:`~genr8_dist.grammar.source.UniverseSource` and runs
+none of its code; :func:`load_universe` builds it (running a plugin's modules, which naming it is
+consent to).
 """
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import re
-import sys
-import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from types import ModuleType
 
 from genr8_dist.errors import UniverseError
-from genr8_dist.grammar.compiler import read_grammar_file
-from genr8_dist.grammar.universe import Universe
+from genr8_dist.grammar.source import UniverseSource
+from genr8_dist.grammar.trust import consent, may_run, remember, remembered, require_trust
+from genr8_dist.grammar.universe import Universe, build_universe
 from genr8_dist.resources import grammars_dir, plugins_dir
 
-__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "list_universes", "load_universe"]
+__all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "consent_for_history", "consent_for_new_run",
+           "consent_for_stored", "find_source",
+           "installed_code_digest", "list_universes", "load_universe"]
 
 ENTRY_POINT_GROUP = "genr8_dist.universes"
 _NOT_UNIVERSES = {"hemls"}
-_CACHE: dict[tuple, Universe] = {}
-_LOCK = threading.Lock()
 
 
 @dataclass(frozen=True, slots=True)
 class UniverseInfo:
-    """A universe found by discovery: its name, where it came from, its ``.lark`` file."""
+    """A universe found by discovery: its name, where it came from, its ``.lark`` file, and the
+    one-line ``error`` of a broken plugin (``None`` when it is sound as far as discovery can tell)."""
 
     name: str
     origin: str
     path: Path
     description: str = ""
+    error: str | None = None
 
 
 def _plugin_lark(folder: Path) -> Path | None:
@@ -74,19 +80,27 @@ def _description(path: Path) -> str:
 
 
 def _plugin_folders(root: Path) -> list[Path]:
-    if not root.is_dir():
+    try:
+        if not root.is_dir():
+            return []
+        if any(root.glob("*.lark")):
+            return [root]
+        return sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
+    except OSError:
         return []
-    if any(root.glob("*.lark")):
-        return [root]
-    return sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith((".", "_")))
 
 
 def _entry_point_infos() -> list[UniverseInfo]:
-    from importlib.metadata import entry_points
+    import importlib.metadata
 
+    try:
+        eps = list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
+    except Exception:  # a broken installed distribution's metadata: no entry points from there
+        return []
     infos = []
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        dist = ep.dist.name if ep.dist is not None else "?"
+    for ep in eps:
+        found = getattr(ep, "dist", None)
+        dist = found.name if found is not None else "?"
         origin = f"entry point:{dist}"
         value = ep.value.strip()
         try:
@@ -96,19 +110,26 @@ def _entry_point_infos() -> list[UniverseInfo]:
             else:
                 target = value
             path = Path(os.fspath(target))
+            lark = _plugin_lark(path) if path.is_dir() else path
+            if lark is None or not lark.is_file():
+                raise UniverseError(f"names {path}, which is neither a .lark file nor a plugin folder")
         except Exception as exc:  # a broken third-party package must not break discovery
-            raise UniverseError(f"entry point '{ep.name}' of {dist} ({value}) cannot be loaded: "
-                                f"{type(exc).__name__}: {exc}") from None
-        lark = _plugin_lark(path) if path.is_dir() else path
-        if lark is None or not lark.is_file():
-            raise UniverseError(f"entry point '{ep.name}' of {dist} names {path}, which is neither a "
-                                ".lark file nor a plugin folder")
+            detail = str(exc) if isinstance(exc, UniverseError) else f"{type(exc).__name__}: {exc}"
+            error = f"entry point '{ep.name}' of {dist} ({value}) cannot be loaded: {detail}"
+            infos.append(UniverseInfo(ep.name, origin, Path(value), "", error.splitlines()[0]))
+            continue
         infos.append(UniverseInfo(ep.name, origin, lark, _description(lark)))
     return infos
 
 
+def _plugin_roots() -> list[Path]:
+    listed = os.environ.get("GENR8_PLUGINS", "").split(os.pathsep)
+    return [plugins_dir()] + [Path(p).expanduser() for p in listed if p.strip()]
+
+
 def list_universes() -> list[UniverseInfo]:
-    """Every universe discovery finds, in discovery order; a later one with a taken name is skipped."""
+    """Every universe discovery finds, in discovery order; a later one with a taken name is skipped.
+    A broken plugin is listed with its ``error``."""
     infos: list[UniverseInfo] = []
     seen: set[str] = set()
 
@@ -122,16 +143,18 @@ def list_universes() -> list[UniverseInfo]:
         for path in sorted(builtin.glob("*.lark")):
             if path.stem not in _NOT_UNIVERSES:
                 add(UniverseInfo(path.stem, "built-in", path, _description(path)))
-    roots = [plugins_dir(), Path.cwd() / "plugins"]
-    roots += [Path(p) for p in os.environ.get("GENR8_PLUGINS", "").split(os.pathsep) if p.strip()]
     done: set[Path] = set()
-    for root in roots:
+    for root in _plugin_roots():
         for folder in _plugin_folders(root):
             key = folder.resolve()
             if key in done:
                 continue
             done.add(key)
-            lark = _plugin_lark(folder)
+            try:
+                lark = _plugin_lark(folder)
+            except UniverseError as exc:
+                add(UniverseInfo(folder.name, f"plugin:{folder}", folder, "", str(exc)))
+                continue
             if lark is not None:
                 add(UniverseInfo(folder.name, f"plugin:{folder}", lark, _description(lark)))
     for info in _entry_point_infos():
@@ -139,72 +162,112 @@ def list_universes() -> list[UniverseInfo]:
     return infos
 
 
-def _load_hooks(folder: Path) -> ModuleType | None:
-    hooks = folder / "hooks.py"
-    if not hooks.is_file():
-        return None
-    name = "genr8_dist_plugin_" + re.sub(r"\W", "_", str(folder.resolve()))
-    spec = importlib.util.spec_from_file_location(name, hooks)
-    if spec is None or spec.loader is None:
-        raise UniverseError(f"{hooks}: cannot be imported")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # a plugin's own bug: report it as the plugin's, in one line
-        sys.modules.pop(name, None)
-        raise UniverseError(f"{hooks}: importing the plugin's hooks failed: "
-                            f"{type(exc).__name__}: {exc}") from None
-    return module
+def _source_of(info: UniverseInfo) -> UniverseSource:
+    if info.error is not None:
+        raise UniverseError(info.error)
+    lark = info.path.resolve()
+    with_code = info.origin.startswith(("plugin:", "entry point:")) and lark.name != "hemls.lark"
+    if info.origin == "built-in":
+        with_code = False
+    return UniverseSource.from_grammar_file(lark, info.name, str(lark), with_code=with_code)
 
 
-def _build(name: str, origin: str, lark: Path) -> Universe:
-    lark = lark.resolve()
-    try:
-        stat = lark.stat()
-    except OSError as exc:
-        raise UniverseError(f"{lark}: cannot read universe file: {exc.strerror or exc}") from None
-    hooks_file = lark.parent / "hooks.py"
-    plugin = origin.startswith(("plugin:", "entry point:")) or (origin == "path" and hooks_file.is_file()
-                                                                and lark.parent.name == name)
-    hooks_stat = hooks_file.stat().st_mtime_ns if plugin and hooks_file.is_file() else None
-    key = (name, origin, str(lark), stat.st_mtime_ns, stat.st_size, hooks_stat)
-    with _LOCK:
-        cached = _CACHE.get(key)
-    if cached is not None:
-        return cached
-    text = read_grammar_file(lark)
-    hooks = _load_hooks(lark.parent) if plugin else None
-    universe = Universe(name, origin, lark, text, hooks)
-    with _LOCK:
-        _CACHE[key] = universe
-    return universe
+def _path_source(path: Path) -> UniverseSource:
+    """The universe at a path: a ``.lark`` file (with the ``.py`` beside it when its folder is named
+    like it, i.e. it is a plugin's) or a plugin folder."""
+    path = path.resolve()
+    if path.is_file():
+        hooks = path.parent / "hooks.py"
+        with_code = hooks.is_file() and path.parent.name == path.stem
+        return UniverseSource.from_grammar_file(path, path.stem, str(path), with_code=with_code)
+    lark = _plugin_lark(path)
+    if lark is None:
+        raise UniverseError(f"{path}: folder holds no .lark file, so it is not a universe")
+    return UniverseSource.from_grammar_file(lark, path.name, str(lark), with_code=True)
+
+
+def _looks_like_path(text: str) -> bool:
+    return text.endswith(".lark") or os.sep in text or "/" in text or text.startswith((".", "~"))
+
+
+def find_source(name: str | os.PathLike[str], base_dir: str | os.PathLike[str] | None = None
+                ) -> tuple[UniverseSource, str]:
+    """The files of the universe called ``name``, or at the path ``name`` (relative paths resolved
+    against ``base_dir``, default the current directory), and its origin (``built-in``,
+    ``plugin:<folder>``, ``entry point:<dist>`` or ``path``). Reads files; runs no code."""
+    text = os.fspath(name)
+    if not isinstance(text, str) or not text.strip():
+        raise UniverseError(f"a universe is named by a non-empty string, got {name!r}")
+    if not _looks_like_path(text):
+        for info in list_universes():
+            if info.name == text:
+                return _source_of(info), info.origin
+    path = Path(text).expanduser()
+    if not path.is_absolute() and base_dir is not None:
+        path = Path(base_dir) / path
+    if path.exists():
+        return _path_source(path), "path"
+    if _looks_like_path(text):
+        raise UniverseError(f"{path}: no such universe file or plugin folder")
+    usable = [info.name for info in list_universes() if info.error is None]
+    raise UniverseError(f"unknown universe '{text}' (known: {', '.join(usable)}); give one of these names or "
+                        "a path to a .lark file or plugin folder")
+
+
+def installed_code_digest(name: str) -> str | None:
+    """The code digest of the installed universe called ``name`` (``None`` when there is none)."""
+    for info in list_universes():
+        if info.name == name and info.error is None and info.origin != "built-in":
+            try:
+                return _source_of(info).code_digest
+            except UniverseError:
+                return None
+    return None
 
 
 def load_universe(name: str | os.PathLike[str]) -> Universe:
     """The universe called ``name`` (built-in, plugin or entry point), or at the path ``name``.
 
-    Compiled universes are cached (keyed by file, size and modification time), so loading one again
-    is free. Raises :class:`UniverseError` for an unknown name or a malformed ``.lark`` file.
+    Naming a universe is consent to run its plugin code. Compiled universes are cached (keyed by the
+    digest of their files), so loading one again is cheap. Raises :class:`UniverseError` for an
+    unknown name, a broken plugin or a malformed universe, in one line naming file, line and fault.
     """
-    text = os.fspath(name)
-    if not isinstance(text, str) or not text.strip():
-        raise UniverseError(f"a universe is named by a non-empty string, got {name!r}")
-    looks_like_path = text.endswith(".lark") or os.sep in text or "/" in text
-    if not looks_like_path:
-        for info in list_universes():
-            if info.name == text:
-                return _build(info.name, info.origin, info.path)
-    path = Path(text).expanduser()
-    if path.is_file():
-        return _build(path.stem, "path", path)
-    if path.is_dir():
-        lark = _plugin_lark(path)
-        if lark is not None:
-            return _build(path.name, "path", lark)
-        raise UniverseError(f"{path}: folder holds no .lark file, so it is not a universe")
-    if looks_like_path:
-        raise UniverseError(f"{text}: no such universe file or plugin folder")
-    known = ", ".join(info.name for info in list_universes())
-    raise UniverseError(f"unknown universe '{text}' (known: {known}); give one of these names or a "
-                        "path to a .lark file or plugin folder")
+    source, origin = find_source(name)
+    consent(source.code_digest)
+    return build_universe(source, origin=origin)
+
+
+def consent_for_history(source: UniverseSource) -> bool:
+    """Whether a history command (``show``, ``gallery``, the report) may run ``source``'s code, giving
+    consent if so: only when the code is byte for byte the installed plugin's of the same name, or a
+    digest this machine already trusted (the user's own code either way). Never anything else."""
+    digest = source.code_digest
+    if may_run(digest):
+        return True
+    if digest in remembered() or installed_code_digest(source.name) == digest:
+        consent(digest)
+        return True
+    return False
+
+
+def consent_for_new_run(source, notify: Callable[[str], None]) -> None:
+    """Consent to the code of a universe a run configuration names (``genr8 run``).
+
+    An installed plugin's code runs silently; code named by a path or carried in the TOML runs after
+    ``notify`` is given a one-line notice, the first time this machine sees its digest."""
+    digest = source.code_digest
+    if may_run(digest):
+        return
+    if installed_code_digest(source.name) != digest and digest not in remembered():
+        modules = ", ".join(f"{m}.py" for m in source.modules)
+        notify(f"genr8: note: universe '{source.name}' runs Python code ({modules} from "
+               f"{source.folder}, sha256 {digest[:16]}...); this machine trusts "
+               "it from now on (the trust rule: docs/run-store.md)")
+        remember(digest, f"universe {source.name} ({source.folder})")
+    consent(digest)
+
+
+def consent_for_stored(sources, *, trust_flag: bool, command: str) -> None:
+    """:func:`require_trust` for every universe a run stores (one per configuration version)."""
+    for source in sources:
+        require_trust(source, trust_flag=trust_flag, command=command, installed=installed_code_digest)

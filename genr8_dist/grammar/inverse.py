@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 import sys
 from collections.abc import Iterator
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import InversionError
 from genr8_dist.grammar.hooks import rule_predecessors
@@ -124,10 +124,10 @@ class _Search:
         m = self.res[template].fullmatch(self.toks[pos])
         return int(m.group(1)) if m else None
 
-    def run(self) -> tuple | None:
+    def run(self) -> tuple[Any, ...] | None:
         for pos, ev in self.rule(self.cg.start, 0, 1, None):
             if pos == self.n:
-                return ev
+                return ev  # type: ignore[return-value]  # the search yields derivation tuples
         return None
 
     def rule(self, name: str, pos: int, d: int, ev) -> Iterator[tuple[int, object]]:

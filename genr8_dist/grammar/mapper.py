@@ -62,11 +62,26 @@ class _Writer:
         self.birth = birth
         self.suffix = suffix
         self.recursive = _recursive_rules(cg)
+        self.functions_for = self.recursive | _too_big_to_inline(cg, self.recursive)
+        self._sets: dict[tuple, set[tuple[int, ...]]] = {}
         self.checked: set[str] = set()
         self.functions: dict[str, list[str]] = {}
         self.pending: list[str] = []
         self.counter = 0
         self.draws = False
+
+    def eligible_sets(self, alts: tuple, dep: tuple) -> set[tuple[int, ...]]:
+        """The distinct eligible-alternative tuples ``alts`` can have at depth ``dep`` (memoised)."""
+        key = (id(alts), dep[0] is None, dep[1])
+        found = self._sets.get(key)
+        if found is None:
+            if dep[0] is None:
+                found = {eligible(self.cg, alts, dep[1], self.maxd)}
+            else:
+                top = max(self.maxd, max(self.cg.min_depth.values())) + 2
+                found = {eligible(self.cg, alts, d + dep[1], self.maxd) for d in range(1, top + 1)}
+            self._sets[key] = found
+        return found
 
     def fresh(self, stem: str) -> str:
         self.counter += 1
@@ -100,7 +115,7 @@ class _Writer:
         return funcs, main
 
     def rule_ref(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
-        if name in self.recursive:
+        if name in self.functions_for:
             if name not in self.functions and name not in self.pending:
                 self.functions[name] = []
                 self.pending.append(name)
@@ -115,11 +130,7 @@ class _Writer:
         if len(alts) == 1:
             out.append(f"{pad}nxt()")
             return self.node(alts[0], out, ind, dep, scope, state)
-        top = max(self.maxd, max(self.cg.min_depth.values())) + 2
-        if dep[0] is None:
-            sets = {eligible(self.cg, alts, dep[1], self.maxd)}
-        else:
-            sets = {eligible(self.cg, alts, d + dep[1], self.maxd) for d in range(1, top + 1)}
+        sets = self.eligible_sets(alts, dep)
         if len(sets) == 1:
             elig = next(iter(sets))
             if len(elig) == 1:
@@ -271,6 +282,83 @@ class _Writer:
             self.draw(var, out, pad + "    ")
         out.append(f"{pad}app({table}[{var}])")
         return bound | {letter}, maybe | {letter}
+
+
+INLINE_NODES = 400    # a rule whose inlined code would exceed this many grammar nodes becomes a function
+INLINE_NESTING = 12   # ... or nest deeper than this many blocks (Python allows 20 nested loops)
+
+
+def _too_big_to_inline(cg: CompiledGrammar, recursive: set[str]) -> set[str]:
+    """Non-recursive rules whose inlined code would be too large or too deeply nested.
+
+    Inlining copies a rule's code into every place that uses it, so a chain of rules each using the
+    next twice would grow as 2^n; the cost of each rule is memoised bottom-up (rules are visited in
+    dependency order), which keeps this and the generated code polynomial in the grammar's size."""
+    cost: dict[str, tuple[int, int]] = {}
+    big: set[str] = set()
+
+    def node_cost(node: tuple) -> tuple[int, int]:
+        kind = node[0]
+        if kind == "rule":
+            name = node[1]
+            if name in recursive or name in big:
+                return 1, 0
+            return rule_cost(name)
+        if kind in ("seq", "choice"):
+            size, depth = 1, 0
+            for child in node[1]:
+                s, d = node_cost(child)
+                size += s
+                depth = max(depth, d)
+            return size, depth + (kind == "choice")
+        if kind in ("rep", "opt"):
+            s, d = node_cost(node[1])
+            return s + 1, d + 1
+        return 1, 0
+
+    def rule_cost(name: str) -> tuple[int, int]:
+        found = cost.get(name)
+        if found is not None:
+            return found
+        size, depth = 1, 0
+        for alt in cg.rules[name]:
+            s, d = node_cost(alt)
+            size += s
+            depth = max(depth, d)
+        depth += 1
+        if size > INLINE_NODES or depth > INLINE_NESTING:
+            big.add(name)
+            cost[name] = (1, 0)
+        else:
+            cost[name] = (size, depth)
+        return cost[name]
+
+    for name in _dependency_order(cg, recursive):
+        rule_cost(name)
+    return big
+
+
+def _dependency_order(cg: CompiledGrammar, recursive: set[str]) -> list[str]:
+    """The non-recursive rules, each after every rule it uses (so costs are known bottom-up)."""
+    calls = {name: [n[1] for alt in alts for n in _walk(alt) if n[0] == "rule"]
+             for name, alts in cg.rules.items()}
+    order: list[str] = []
+    done: set[str] = set(recursive)
+    for root in cg.rules:
+        if root in done:
+            continue
+        stack = [(root, iter(calls[root]))]
+        done.add(root)
+        while stack:
+            name, it = stack[-1]
+            child = next(it, None)
+            if child is None:
+                stack.pop()
+                order.append(name)
+            elif child not in done:
+                done.add(child)
+                stack.append((child, iter(calls[child])))
+    return order
 
 
 def _recursive_rules(cg: CompiledGrammar) -> set[str]:

@@ -16,12 +16,17 @@ from pathlib import Path
 from types import ModuleType
 from typing import NamedTuple
 
-from genr8_dist.errors import GenomeError, UniverseError
+from genr8_dist.errors import GenomeError, UniverseError, located
 from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
 from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
 from genr8_dist.grammar.mapper import CompiledMapper, _walk, compile_mapper
+from genr8_dist.grammar.source import UniverseSource, load_modules
 
-__all__ = ["MapResult", "Universe", "check_genome"]
+__all__ = ["MapResult", "Universe", "build_universe", "check_genome"]
+
+
+class HookError(Exception):
+    """A universe's hook raised: the genome being mapped fails at the ``map`` stage."""
 
 
 class MapResult(NamedTuple):
@@ -76,11 +81,41 @@ def check_genome(genome: Iterable[int]) -> list[int] | tuple[int, ...]:
     return seq
 
 
-def _rebuild(name: str, origin: str, path: str, text: str, hooks_dir: str | None) -> Universe:
-    from genr8_dist.grammar.discovery import _load_hooks
+def _rebuild(source: UniverseSource, origin: str, path: str) -> Universe:
+    return build_universe(source, origin=origin, path=Path(path), check=False)
 
-    hooks = _load_hooks(Path(hooks_dir)) if hooks_dir else None
-    return Universe(name, origin, Path(path), text, hooks)
+
+_BUILT: dict[tuple[str, str, str], Universe] = {}
+_BUILT_LOCK = threading.Lock()
+_SAMPLED: set[str] = set()   # digests whose derivations were parsed (check_sample passed)
+SAMPLE_GENOMES = 48     # derivations parsed when a universe is loaded
+SAMPLE_LENGTH = 200     # codons each
+
+
+def build_universe(source: UniverseSource, *, origin: str | None = None, path: Path | None = None,
+                   check: bool = True) -> Universe:
+    """The universe ``source`` describes, built once per process (keyed by its digest).
+
+    Its Python modules run only if this process consented to them (:mod:`genr8_dist.grammar.trust`),
+    else :class:`UniverseError`. ``check`` also parses a sample of derivations
+    (:meth:`Universe.check_sample`), so that a universe whose texts the phenotype cannot read fails now.
+    """
+    origin = origin if origin is not None else source.origin or "stored"
+    key = (source.digest, source.name, origin)
+    source.check_hook_names()
+    modules = load_modules(source)   # refuses code this process has not consented to, cached or not
+    with _BUILT_LOCK:
+        universe = _BUILT.get(key)
+    if universe is None:
+        path = path if path is not None else Path(source.where(source.grammar_file))
+        universe = Universe(source.name, origin, path, source.grammar_text, modules.get("hooks"),
+                            source=source)
+        with _BUILT_LOCK:
+            universe = _BUILT.setdefault(key, universe)
+    if check and source.digest not in _SAMPLED:
+        universe.check_sample()
+        _SAMPLED.add(source.digest)
+    return universe
 
 
 def _render(tokens: list[str]) -> str:
@@ -99,10 +134,12 @@ class Universe:
     """
 
     def __init__(self, name: str, origin: str, path: Path, text: str,
-                 hooks: ModuleType | None = None) -> None:
+                 hooks: ModuleType | None = None, *, source: UniverseSource | None = None) -> None:
         self.name = name
         self.origin = origin
         self.path = path
+        self.source = source if source is not None else UniverseSource(name, ((Path(path).name, text),),
+                                                                       origin=origin)
         self.grammar: CompiledGrammar = compile_grammar(text, str(path))
         self.description = self.grammar.description
         self.hooks = hooks
@@ -127,9 +164,65 @@ class Universe:
         self._parser = None
 
     def __reduce__(self):
-        """Pickle by source (name, origin, path, grammar text, hooks folder): compiled code is rebuilt."""
-        hooks_dir = str(Path(self.hooks.__file__).parent) if self.hooks is not None else None
-        return (_rebuild, (self.name, self.origin, str(self.path), self.grammar.text, hooks_dir))
+        """Pickle by source (the universe's files as text): compiled code is rebuilt where it lands,
+        which needs no file of the plugin there (a Ray host on another machine)."""
+        if self.hooks is not None and self.source.text("hooks.py") is None:
+            raise UniverseError(f"universe '{self.name}': its hooks were given as a module, not as "
+                                "source; build it with build_universe to send it elsewhere")
+        return (_rebuild, (self.source, self.origin, str(self.path)))
+
+    # ----------------------------------------------------------------------------- the phenotype
+
+    def parse_system(self, text: str):
+        """The phenotype's parser applied to a derived text (the built-in surface phenotype parses
+        HEMLS into a ``RewriteSystem``); it raises for a text the phenotype cannot read. ``None``
+        when the universe's phenotype has no parser (its texts are then not checked at load)."""
+        from genr8_dist.phenotype import phenotype_of
+
+        parse = getattr(phenotype_of(self), "parse", None)
+        return parse(text) if parse is not None else None
+
+    def check_sample(self, max_depth: int = 5) -> None:
+        """Parse ``SAMPLE_GENOMES`` derivations of seeded random genomes; the first one the phenotype's
+        parser rejects is a :class:`UniverseError` naming the grammar literal it came from."""
+        from genr8_dist.phenotype import phenotype_of
+        from genr8_dist.rng import stream
+
+        if getattr(phenotype_of(self), "parse", None) is None:
+            return
+        gen = stream(0, "universe-check", self.source.digest[:16])
+        genomes = gen.integers(0, 256, size=(SAMPLE_GENOMES, SAMPLE_LENGTH)).tolist()
+        for genome in genomes:
+            result = self.map(genome, max_depth=max_depth, max_wraps=2)
+            if not result.valid or result.text is None:
+                continue
+            try:
+                self.parse_system(result.text)
+            except Exception as exc:  # the phenotype's parser: whatever it raises is the finding
+                raise UniverseError(self._unreadable(result.text, exc)) from None
+
+    def _unreadable(self, text: str, exc: Exception) -> str:
+        line, column = getattr(exc, "line", 0) or 0, getattr(exc, "column", 0) or 0
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        message = re.sub(r"^<[^>]*>(:\d+)*:\s*", "", message)
+        token = ""
+        if line and column:
+            rows = text.splitlines()
+            if line <= len(rows):
+                m = re.match(r"\S+", rows[line - 1][column - 1:])
+                token = m.group() if m else ""
+        if token:
+            from genr8_dist.grammar.compiler import find_literal
+
+            at = find_literal(self.grammar.text, token)
+            if at is not None:
+                rule, lineno, col = at
+                return located(f"the literal \"{token}\" ({rule}) derives text the phenotype's parser "
+                               f"cannot read: {message}", str(self.path), lineno, col)
+        first = text.splitlines()[line - 1] if line and line <= len(text.splitlines()) else ""
+        shown = f" in the derived line '{first}'" if first else ""
+        return located(f"a derivation of this universe cannot be read by the phenotype's parser{shown}: "
+                       f"{message}", str(self.path))
 
     def __repr__(self) -> str:
         return f"Universe({self.name!r}, origin={self.origin!r}, path='{self.path}')"
@@ -200,6 +293,9 @@ class Universe:
                         text = self._run_repair(m, nxt, out, text, count, has)
             except StopIteration:
                 continue
+            except HookError as exc:
+                used = len(ext) - length_hint(it)
+                return MapResult(None, False, str(exc), used, (used - 1) // n if used else 0)
             used = len(ext) - length_hint(it)
             return MapResult(text, True, None, used, (used - 1) // n if used else 0)
         return MapResult(None, False,
@@ -217,6 +313,7 @@ class Universe:
         occurring = set(range(2, count))
         occurring.update(k for k in (0, 1) if any(table[k] in out for table in m.distinct))
         acc: list[str] = []
+        assert m.repair is not None and self._repair_hook is not None  # a universe that repairs
         grow_one = m.repair(nxt, acc, count)
 
         def expand() -> list[str]:
@@ -227,15 +324,23 @@ class Universe:
         get = m.labels.get
 
         def labels_in(tokens: list[str]) -> set[int]:
-            found = set(map(get, tokens))
-            found.discard(None)
-            return found
+            return {label for label in map(get, tokens) if label is not None}
 
         template = self._pred_template
         ctx = RepairContext(text=text, expand=expand, occurring=occurring, has_rule=has,
                             label_of=self.label_of, edge=template.text if template else str,
                             count=count, labels_in=labels_in)
-        self._repair_hook(ctx)
+        try:
+            self._repair_hook(ctx)
+        except StopIteration:
+            raise
+        except Exception as exc:  # a plugin's bug: this genome fails at the map stage, naming the hook
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            raise HookError(f"hook repair of universe '{self.name}' raised {type(exc).__name__}"
+                            + (f": {first}" if first else "")) from None
+        if not isinstance(ctx.text, str):
+            raise HookError(f"hook repair of universe '{self.name}' set ctx.text to a "
+                            f"{type(ctx.text).__name__}, not a str")
         return ctx.text
 
     def _hemls_repair(self, m: CompiledMapper, nxt: Callable[[], int], out: list[str], text: str,
@@ -254,6 +359,7 @@ class Universe:
         end = len(text) if end < 0 else end + 1
         get = m.labels.get
         acc: list[str] = []
+        assert m.repair is not None  # a universe that repairs
         expand = m.repair(nxt, acc, count)
         edges = m.tables[self._pred_index]
         new = []

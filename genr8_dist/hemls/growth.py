@@ -482,6 +482,7 @@ class _Grower:
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
         self.pairs = 0      # branch pairs tested and re-tested for joining
         self.cone = getattr(env, "branch_join", "orientation") == "cone"
+        self.ties_join_none = getattr(env, "branch_ties", "first") == "none"
         self._stop_later: list[np.ndarray] = []  # vertices drawn between two stopped ones
         self._keys: np.ndarray | None = None
 
@@ -506,6 +507,9 @@ class _Grower:
                 self._join(pending, max_dist)
         finally:
             m.compact()
+            if self.env.uniform_cells:
+                m.pos[:m.nv] = self.env.relax_cells(m.pos[:m.nv], edges=m.edge_array(),
+                                                    perimeter=m.perimeter_mask(), stopped=m.stopped[:m.nv])
             self._constrain()
 
     def _constrain(self) -> None:
@@ -590,7 +594,7 @@ class _Grower:
                 break
             ok = free.copy()
             if rule.condition is not None:
-                ok &= rule.condition.holds(m.age[idx])
+                ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
             if rule.left is not None:
                 ok[ok] = self._context_ok(idx[ok], 0, rule.left)
             if rule.right is not None:
@@ -698,15 +702,15 @@ class _Grower:
                    + hd[None, :, 2, None] * up[:, None, :])
         corner = np.full((n, nb), -1, dtype=np.int64)
         side = tpl.branch_side
-        for b in range(nb):
-            if side[b] == LEFT:
-                corner[:, b] = fwd[:, j[b]]
-            elif side[b] == RIGHT:
-                corner[:, b] = bwd[:, j[b] - 1]
-            elif side[b] == AT_END:
-                start_half = fwd[:, 0] if j[b] == 0 else bwd[:, k - 1]
+        for br in range(nb):
+            if side[br] == LEFT:
+                corner[:, br] = fwd[:, j[br]]
+            elif side[br] == RIGHT:
+                corner[:, br] = bwd[:, j[br] - 1]
+            elif side[br] == AT_END:
+                start_half = fwd[:, 0] if j[br] == 0 else bwd[:, k - 1]
                 for r in range(n):
-                    corner[r, b] = self._corner_at(int(start_half[r]), heading[r, b], up[r])
+                    corner[r, br] = self._corner_at(int(start_half[r]), heading[r, br], up[r])
         blabels = self._noisy(np.broadcast_to(tpl.branch_labels, (n, nb)).ravel())
         bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
                                     tpl.branch_ages), 0).ravel()
@@ -801,6 +805,7 @@ class _Grower:
         score = -np.round(ci + cj, 9)
         order = np.lexsort((pj, pi, np.round(dist, 9), score))
         pi, pj = pi[order], pj[order]
+        rank = np.stack([score[order], np.round(dist, 9)[order]], axis=1)  # equal rows: a tie
         used = np.zeros(n, dtype=bool)
         live = np.ones(len(pi), dtype=bool)
         while True:
@@ -813,11 +818,15 @@ class _Grower:
             if not len(at):
                 break
             if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
-                pi, pj, live, fi = pi[at], pj[at], live[at], fi[at]
+                pi, pj, live, fi, rank = pi[at], pj[at], live[at], fi[at], rank[at]
                 at = np.arange(len(pi))
             # one join per face per round (a join splits its face), best pair first
             _, firsts = np.unique(fi[at], return_index=True)
             chosen = at[np.sort(firsts)]
+            if self.ties_join_none:
+                chosen = self._drop_ties(chosen, at, fi, rank, live)
+                if not len(chosen):
+                    continue
             a, b = pi[chosen], pj[chosen]
             adjacent = self._adjacent(corner[a], vert[b])
             live[chosen[adjacent]] = False
@@ -845,6 +854,19 @@ class _Grower:
                 pending.keep(~used)
                 raise _Capped("edges")
         pending.keep(~used)
+
+    @staticmethod
+    def _drop_ties(chosen, at, fi, rank, live):
+        """``branch_ties = "none"``: a face whose best pair ties (same alignment and distance) with
+        another of its live pairs joins neither of them; they are all marked dead. Returns the
+        chosen pairs without a tie."""
+        keep = np.ones(len(chosen), dtype=bool)
+        for k, c in enumerate(chosen):
+            tied = at[(fi[at] == fi[c]) & np.all(rank[at] == rank[c], axis=1)]
+            if len(tied) > 1:
+                live[tied] = False
+                keep[k] = False
+        return chosen[keep]
 
     def _prefilter(self, rows, cols, points, heading, max_dist):
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.

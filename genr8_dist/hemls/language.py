@@ -56,6 +56,7 @@ DEFAULT_ANGLE = 90.0
 DEFAULT_BRANCH_ANGLE = 30.0
 
 _COMMENT_RE = re.compile(r"(//|#)[^\n]*")
+MAX_NUMBER = 2**31 - 1  # the largest edge number or age offset a rewrite system may use
 _EDGE_RE = re.compile(r"^(?:Edge(?P<num>[0-9]+)|(?P<letter>[A-Z]))(?:_i(?P<off>[+-][0-9]+)?(?P<timed>))?$")
 
 
@@ -371,6 +372,9 @@ class _Build(Transformer):
         if m is None:  # the terminal's pattern and this one agree; kept as a guard for edits
             raise self._fail(f"malformed edge {str(tok)!r}", tok)
         age = None
+        for group in ("num", "off"):
+            if m.group(group) is not None and abs(int(m.group(group))) > MAX_NUMBER:
+                raise self._fail(f"{str(tok)!r}: {m.group(group)} is too large (at most {MAX_NUMBER})", tok)
         if m.group("timed") is not None:
             age = int(m.group("off")) if m.group("off") else 0
         name = f"Edge{int(m.group('num'))}" if m.group("num") is not None else m.group("letter")
@@ -595,8 +599,8 @@ class _NotDirect(Exception):
 @functools.lru_cache(maxsize=4096)
 def _direct_segment(word: str) -> Segment:
     m = _EDGE_RE.match(word)
-    if m is None:
-        raise _NotDirect
+    if m is None or any(m.group(g) is not None and len(m.group(g)) > 9 for g in ("num", "off")):
+        raise _NotDirect  # Lark's reader names the problem
     age = None
     if m.group("timed") is not None:
         age = int(m.group("off")) if m.group("off") else 0
@@ -793,7 +797,8 @@ def _parse_lark(text: str, source: str, name: str) -> RewriteSystem:
     try:
         tree = _parser().parse(text)
     except UnexpectedCharacters as exc:
-        ch = text[exc.pos_in_stream] if 0 <= exc.pos_in_stream < len(text) else "?"
+        at = exc.pos_in_stream if exc.pos_in_stream is not None else -1
+        ch = text[at] if 0 <= at < len(text) else "?"
         raise _located_error(f"unexpected character {ch!r}; expected {_expected(exc.allowed or ())}",
                              source, exc.line, exc.column, text) from None
     except UnexpectedToken as exc:

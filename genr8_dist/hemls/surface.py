@@ -98,7 +98,7 @@ class Surface:
     def mirror_line(self, tolerance: float = 1e-6) -> np.ndarray | None:
         """A line of symmetry: the unit xy direction ``u`` of a vertical plane through the centre that
         maps every vertex onto a vertex (within ``tolerance`` x the surface's extent) and every edge
-        onto an edge, or None.
+        onto an edge (vertices at one place count as one point), or None.
 
         A mirror plane of a point set passes through its centre, and maps the vertices farthest from
         the vertical axis through the centre onto each other; so the candidates are the lines through
@@ -122,17 +122,21 @@ class Surface:
             if np.linalg.norm(w - v) > tol:
                 candidates.append(v + w if np.linalg.norm(v + w) > tol else np.array([-v[1], v[0]]))
         tree = cKDTree(rel)
-        edges = np.sort(self.edges, axis=1)
-        keys = np.sort(edges[:, 0] * n + edges[:, 1])
+        # vertices at one place (a successor whose lines cross) count as one point
+        first = np.array([min(near) for near in tree.query_ball_point(rel, tol)], dtype=np.int64)
+
+        def edge_keys(ids: np.ndarray) -> np.ndarray:
+            ends = np.sort(first[ids[self.edges]], axis=1)
+            ends = ends[ends[:, 0] != ends[:, 1]]
+            return np.unique(ends[:, 0] * n + ends[:, 1])
+
+        keys = edge_keys(np.arange(n))
         for u in candidates:
             u = u / np.linalg.norm(u)
             mirrored = rel.copy()
             mirrored[:, :2] = 2.0 * (rel[:, :2] @ u)[:, None] * u - rel[:, :2]
             distance, image = tree.query(mirrored, distance_upper_bound=2.0 * tol)
-            if not np.all(distance <= tol):
-                continue
-            moved = np.sort(image[self.edges], axis=1)
-            if np.array_equal(np.sort(moved[:, 0] * n + moved[:, 1]), keys):
+            if np.all(distance <= tol) and np.array_equal(edge_keys(image), keys):
                 return u
         return None
 

@@ -10,6 +10,7 @@ from genr8_dist.history import pictures, report
 from genr8_dist.history._regrow import EXPORT_FORMATS, Regrown, export, regrow, save_text
 from genr8_dist.history._regrow import picture as surface_png
 from genr8_dist.history._run import HistoryError, open_run, run_directory_holding, write_table
+from genr8_dist.history._search import archive, clusters, pareto_front
 from genr8_dist.history._tables import (
     QUERY_TIMEOUT,
     configs,
@@ -27,6 +28,8 @@ __all__ = [
     "QUERY_TIMEOUT",
     "HistoryError",
     "Regrown",
+    "archive",
+    "clusters",
     "configs",
     "events",
     "export",
@@ -34,6 +37,7 @@ __all__ = [
     "interventions",
     "lineage",
     "open_run",
+    "pareto_front",
     "per_generation",
     "pictures",
     "query",

@@ -2,9 +2,10 @@
 
 Genr8 let a designer "re-grow that member and thus study it in closer detail" and save its genome, its
 grammar and its surface (thesis 4.1.2). Here the row gives the genome and the configuration version it
-was evaluated under; the genome is mapped again with that version's universe, the rewrite system is
-grown in that version's environment, and the surface's digest (blake2b of the vertex array) must equal
-the one recorded when the run evaluated it: the exported surface is the one the run scored.
+was evaluated under; the genome is mapped again with that version's universe, the text is developed
+by that universe's phenotype (a HEMLS surface grown in that version's environment, or a plugin's
+phenotype, ``genr8_dist.phenotype``), and the phenotype's digest (for a surface, blake2b of the vertex
+array) must equal the one recorded when the run evaluated it: what is exported is what the run scored.
 """
 
 from __future__ import annotations
@@ -14,37 +15,40 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from genr8_dist.errors import ConfigError
-from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    atomic_write,
+    config_of,
+    open_run,
+    phenotype_for,
+    run_directory_holding,
+)
 
-__all__ = ["EXPORT_FORMATS", "Regrown", "config_of", "export", "picture", "regrow", "save_text"]
+__all__ = ["EXPORT_FORMATS", "Regrown", "check_export_path", "config_of", "export", "export_formats",
+           "phenotype_of_run", "picture", "regrow", "save_text"]
 
 EXPORT_FORMATS = ("obj", "ply", "stl", "glb", "3dm")
 
 
 @dataclass(frozen=True)
 class Regrown:
-    """One individual regrown: its stored ``row``, the ``config`` it was evaluated under, the rewrite
-    ``system``, the ``surface`` (``None`` when the individual never grew one), the derivation ``steps``
-    done, the surface ``digest``, and whether the genome still maps to the recorded text."""
+    """One individual regrown: its stored ``row``, the ``config`` it was evaluated under, its universe's
+    ``phenotype``, the ``developed`` phenotype (``None`` when the individual never developed one), the
+    derivation ``steps`` done, the ``digest``, and whether the genome still maps to the recorded text."""
 
     row: dict[str, Any]
     config: Any
-    system: Any
-    surface: Any
+    phenotype: Any
+    developed: Any
     steps: int
     digest: str | None
-    text_matches: bool
+    text_matches: bool | None    # None: not checked (the universe's hooks are code history never runs)
 
-
-def config_of(store: Any, version: int) -> Any:
-    """The ``RunConfig`` of configuration ``version`` of ``store``."""
-    if int(version) not in {int(cv.version) for cv in store.configs()}:
-        raise HistoryError(f"{run_label(store)}: no configuration version {version}")
-    try:
-        return store.config(int(version))
-    except ConfigError as exc:
-        raise HistoryError(str(exc)) from None
+    @property
+    def surface(self) -> Any:
+        """The developed phenotype itself (a ``Surface`` for HEMLS universes), ``None`` if none."""
+        return self.developed.value if self.developed is not None else None
 
 
 def regrow(run: RunLike, id: str) -> Regrown:
@@ -55,52 +59,86 @@ def regrow(run: RunLike, id: str) -> Regrown:
     ``HistoryError`` says what differs. An individual that failed before growth has no surface.
     """
     from genr8_dist.evolution.evaluate import universe_for
-    from genr8_dist.hemls import grow, parse
+    from genr8_dist.grammar.trust import may_run
     from genr8_dist.history._tables import individual
 
     store = open_run(run)
     row = individual(store, id).to_pylist()[0]
     config = config_of(store, row["config_version"])
-    universe = universe_for(config.universe)
-    mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
-                          max_wraps=config.genome.max_wraps)
     text = row["text"]
-    text_matches = bool(mapped.valid) and mapped.text == text
+    text_matches: bool | None = None
+    phenotype = phenotype_for(store, config)
+    if may_run(config.universe_source.code_digest):  # consented by phenotype_for: installed or trusted
+        universe = universe_for(config)
+        mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
+                              max_wraps=config.genome.max_wraps)
+        text_matches = bool(mapped.valid) and mapped.text == text
     if text is None or row["surface_digest"] is None:
-        return Regrown(row, config, None, None, 0, None, text_matches)
-    system = parse(text)
-    result = grow(system, config.environment)
-    surface = result.surface
-    digest = surface.digest()
-    steps = len(result.steps) if hasattr(result.steps, "__len__") else int(result.steps)
-    counts = (len(surface.vertices), len(surface.edges), len(surface.regions), steps)
+        return Regrown(row, config, phenotype, None, 0, None, text_matches)
+    developed = phenotype.develop(text, config)
+    digest = developed.digest
+    counts = (*(int(developed.counts.get(k, 0)) for k in ("n_vertices", "n_edges", "n_regions")),
+              developed.steps)
     recorded = (row["n_vertices"], row["n_edges"], row["n_regions"], row["steps_done"])
     if digest != row["surface_digest"] or counts != recorded:
         raise HistoryError(
-            f"regrowing {id} did not reproduce the recorded surface: digest {digest} vs "
+            f"regrowing {id} did not reproduce the recorded {phenotype.name}: digest {digest} vs "
             f"{row['surface_digest']}, "
             f"(vertices, edges, regions, steps) {counts} vs {recorded}; was the run made by another version "
             f"of genr8_dist?")
-    return Regrown(row, config, system, surface, steps, digest, text_matches)
+    return Regrown(row, config, phenotype, developed, developed.steps, digest, text_matches)
+
+
+def phenotype_of_run(run: RunLike, id: str) -> Any:
+    """The phenotype individual ``id`` of ``run`` develops into (its configuration's universe's)."""
+    from genr8_dist.history._tables import individual
+
+    store = open_run(run)
+    row = individual(store, id).select(["config_version"]).to_pylist()[0]
+    return phenotype_for(store, config_of(store, row["config_version"]))
 
 
 def _need_surface(result: Regrown, what: str) -> Any:
-    if result.surface is None:
+    if result.developed is None:
         row = result.row
-        raise HistoryError(f"{row['id']} has no surface to {what}: it failed at {row['stage']} "
-                           f"({row['error']})")
+        raise HistoryError(f"{row['id']} has no {result.phenotype.name} to {what}: it failed at "
+                           f"{row['stage']} ({row['error']})")
     return result.surface
 
 
-def export(result: Regrown, path: str | os.PathLike) -> Path:
-    """Write the regrown surface to ``path``: .obj .ply .stl .glb through trimesh, .3dm through
-    rhino3dm (the ``rhino`` extra). The file is written atomically."""
+def export_formats(phenotype: Any) -> tuple[str, ...]:
+    """The file suffixes ``export`` writes for ``phenotype`` (a surface: meshes and .3dm)."""
+    from genr8_dist.phenotype import SURFACES
+
+    return EXPORT_FORMATS if phenotype is SURFACES else tuple(phenotype.export_formats)
+
+
+def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
+    """``path`` when ``export`` can write it for ``phenotype``; a ``HistoryError`` naming the formats
+    otherwise."""
     path = Path(path)
-    suffix = path.suffix.lower().lstrip(".")
-    if suffix not in EXPORT_FORMATS:
+    allowed = export_formats(phenotype)
+    if path.suffix.lower().lstrip(".") not in allowed:
         raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
-                           + ", ".join(f".{s}" for s in EXPORT_FORMATS))
+                           + ", ".join(f".{s}" for s in allowed))
+    inside = run_directory_holding(path)
+    if inside is not None:
+        raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
+                           "write into a run: choose a path outside it")
+    return path
+
+
+def export(result: Regrown, path: str | os.PathLike) -> Path:
+    """Write the regrown phenotype to ``path``: a surface as .obj .ply .stl .glb through trimesh or
+    .3dm through rhino3dm (the ``rhino`` extra); a plugin's phenotype through its own ``export``. The
+    file is written atomically."""
+    from genr8_dist.phenotype import SURFACES
+
+    path = check_export_path(path, result.phenotype)
+    suffix = path.suffix.lower().lstrip(".")
     surface = _need_surface(result, "export")
+    if result.phenotype is not SURFACES:
+        return result.phenotype.export(result.developed, path, result.config)
     if suffix == "3dm":
         _export_3dm(surface, path, name=result.row["id"])
     else:
@@ -116,7 +154,9 @@ def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
     import numpy as np
 
     try:
-        import rhino3dm
+        import importlib
+
+        rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
     except ImportError:
         raise HistoryError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
     vertices = np.asarray(surface.vertices, dtype=np.float64)
@@ -152,13 +192,17 @@ def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
 
 
 def picture(result: Regrown, path: str | os.PathLike) -> Path:
-    """A shaded PNG of the regrown surface in its environment, titled with its id and fitness."""
+    """A shaded PNG of the regrown phenotype (a surface in its environment), titled with its id and
+    fitness."""
     from genr8_dist.export import render_png
+    from genr8_dist.phenotype import SURFACES
 
     surface = _need_surface(result, "draw")
     row = result.row
     title = (f"{row['id']}  fitness {row['fitness']:.4g}  (generation {row['generation']}, "
              f"island {row['island']})")
+    if result.phenotype is not SURFACES:
+        return result.phenotype.preview(result.developed, Path(path), title=title, config=result.config)
     return render_png(surface, Path(path), title=title, env=result.config.environment)
 
 

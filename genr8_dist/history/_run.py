@@ -12,17 +12,20 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.dataset as pads
 
-from genr8_dist.errors import HistoryError, StoreError
+from genr8_dist.errors import ConfigError, HistoryError, StoreError
 from genr8_dist.evolution.individual import parse_id
+from genr8_dist.files import replacing
 from genr8_dist.store.schema import criterion_of
 
 __all__ = [
     "HistoryError",
     "RunLike",
     "atomic_write",
+    "config_of",
     "criteria_of",
     "open_run",
     "parse_id",
+    "phenotype_for",
     "targets_by_version",
     "write_table",
 ]
@@ -53,9 +56,10 @@ def open_run(run: RunLike) -> Any:
     return RunStore.open(text)
 
 
-def dataset(store: Any) -> pads.Dataset:
-    """The committed individuals of ``store`` as a dataset; a run with none is a ``StoreError``."""
-    data = store.dataset()
+def dataset(store: Any, generations: tuple[int, int] | None = None) -> pads.Dataset:
+    """The committed individuals of ``store`` (only the files holding ``generations=(lo, hi)``, when
+    given) as a dataset; a run with none is a ``StoreError``."""
+    data = store.dataset() if generations is None else store.dataset(generations)
     if next(iter(data.get_fragments()), None) is None:
         raise StoreError(f"{_label(store)}: the run has no committed generation yet")
     return data
@@ -128,13 +132,8 @@ def atomic_write(path: str | os.PathLike, write: Any) -> None:
     if inside is not None:
         raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
                            "write into a run: choose a path outside it")
-    tmp = folder / f".{target.name}.tmp-{os.getpid()}"
-    try:
+    with replacing(target) as tmp:
         write(str(tmp))
-        os.replace(tmp, target)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = None) -> None:
@@ -156,3 +155,36 @@ def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = N
         atomic_write(path, lambda tmp: pcsv.write_csv(flat, tmp))
     else:
         raise HistoryError(f"format {fmt!r}: write csv or parquet")
+
+
+def config_of(store: Any, version: int) -> Any:
+    """The ``RunConfig`` of configuration ``version`` of ``store``."""
+    if int(version) not in {int(cv.version) for cv in store.configs()}:
+        raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    try:
+        return store.config(int(version))
+    except ConfigError as exc:
+        raise HistoryError(str(exc)) from None
+
+
+def phenotype_for(store: Any, config: Any) -> Any:
+    """The phenotype of ``config``'s universe (a configuration of ``store``).
+
+    History runs no stored code (:mod:`genr8_dist.grammar.trust`) but the code of an installed plugin
+    with the same digest, or one this machine remembers, is the user's own: a phenotype plugin's
+    individuals are regrown with it. A run whose criteria are the surface criteria regrows surfaces
+    without running any code; any other run whose code may not run is a ``HistoryError``."""
+    from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.fitness import SURFACE, criterion_names
+    from genr8_dist.grammar.discovery import consent_for_history
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+
+    source = config.universe_source
+    digest = source.code_digest
+    if consent_for_history(source):
+        return phenotype_of(universe_for(config))
+    if set(store.criteria) <= set(criterion_names(SURFACE)):
+        return SURFACES
+    raise HistoryError(f"{run_label(store)}: universe '{source.name}' develops its texts with Python code "
+                       f"this machine has not trusted (sha256 {digest[:16]}...); install the plugin, or "
+                       f"continue the run once with `genr8 resume --trust-hooks`, to regrow its individuals")

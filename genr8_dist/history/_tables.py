@@ -15,6 +15,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 
+from genr8_dist.fitness import SURFACE, criterion_names
 from genr8_dist.history._run import (
     HistoryError,
     RunLike,
@@ -228,10 +229,20 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
 def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.ndarray:
     """The total fitness of each row of ``table`` (valid rows with their ``crit_<name>`` columns) under
     configuration ``version``'s targets and weights: ``sum w * |raw - target| / unit``, as the run
-    scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing."""
+    scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing. A universe whose
+    phenotype combines its criteria otherwise (``genr8_dist.phenotype``) is rescored by its
+    phenotype's ``fitness``."""
     chosen = [cv for cv in store.configs() if int(cv.version) == int(version)]
     if not chosen:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
+    if not set(store.criteria) <= set(criterion_names(SURFACE)):
+        from genr8_dist.history._run import config_of, phenotype_for
+
+        config = config_of(store, version)
+        phenotype = phenotype_for(store, config)
+        columns = {c: as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits}
+        return np.array([phenotype.fitness({c: float(v[i]) for c, v in columns.items()}, config)
+                         for i in range(table.num_rows)], dtype=np.float64)
     spec = store.fitness(chosen[0])
     total = np.zeros(table.num_rows)
     for c in spec.criteria:
@@ -250,7 +261,8 @@ def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.
 def individual(run: RunLike, id: str, columns: list[str] | None = None) -> pa.Table:
     """The row of individual ``id`` (all columns, or ``columns``) as a one-row table."""
     store = open_run(run)
-    data = dataset(store)
+    parsed = parse_id(str(id))   # an id names its generation: only the files holding it are read
+    data = dataset(store, None if parsed is None else (parsed[1], parsed[1]))
     if columns is not None and "id" not in columns:
         columns = ["id", *columns]
     rows = _rows_by_ids(data, [str(id)], columns or data.schema.names)
@@ -292,10 +304,10 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     if depth is not None and depth < 0:
         raise HistoryError(f"depth: must be 0 or more generations back, got {depth}")
     store = open_run(run)
-    data = dataset(store)
     start = individual(store, id, ["generation"])
     g0 = int(start["generation"][0].as_py())
     lowest = 0 if depth is None else max(0, g0 - int(depth))
+    data = dataset(store, (lowest, g0))
     columns = ["id", "generation", "island", "index", "origin", "parents", "fitness", "valid"]
     filt = (pc.field("generation") <= g0) & (pc.field("generation") >= lowest)
     table = data.to_table(columns=columns, filter=filt)
@@ -433,7 +445,7 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
     store = open_run(run)
     individuals = dataset(store)
     tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
-    con = duckdb.connect(":memory:", config=dict(_SANDBOX))
+    con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
         for name, table in tables.items():

@@ -58,6 +58,11 @@ def _pyplot() -> Any:
     return plt
 
 
+def save_figure(fig: Any, path: str | os.PathLike) -> None:
+    """Write ``fig`` to ``path`` (a PNG, atomically) and close it."""
+    _save(fig, path, dpi=100)
+
+
 def _save(fig: Any, path: str | os.PathLike, dpi: int = 110) -> None:
     plt = _pyplot()
     suffix = os.path.splitext(os.fspath(path))[1] or ".png"
@@ -256,7 +261,8 @@ def lineage_figure(table: pa.Table, id: str) -> Any:
     width = max(r["index"] for r in rows) + 1
     pos = {r["id"]: (r["generation"], band[r["island"]] + (r["index"] + 0.5) / width * 0.8 + 0.1)
            for r in rows}
-    links, main = [], []
+    links: list[Any] = []
+    main: list[Any] = []
     line = {r["id"] for r in rows if r["main_line"]}
     for r in rows:
         for parent in r["parents"] or ():
@@ -343,20 +349,38 @@ def _tile_grid(n: int, columns: int | None = None) -> tuple[int, int]:
     return math.ceil(n / cols), cols
 
 
+def _draw_tile(ax: Any, item: Any) -> bool:
+    """Draw a surface, or a regrown individual through its phenotype; False when there is nothing."""
+    from genr8_dist.phenotype import SURFACES
+
+    if item is None:
+        return False
+    if hasattr(item, "phenotype"):  # a history._regrow.Regrown
+        if item.developed is None:
+            return False
+        if item.phenotype is not SURFACES:
+            item.phenotype.draw(ax, item.developed)
+            return True
+        item = item.surface
+    if not len(item.vertices):
+        return False
+    draw_surface(ax, item)
+    return True
+
+
 def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int | None = None,
                    row_labels: Sequence[str] | None = None) -> Any:
-    """A contact sheet: one 3D tile per ``(label, surface)``; ``None`` surfaces show their label only."""
+    """A contact sheet: one 3D tile per ``(label, surface)`` (or ``(label, regrown individual)``,
+    drawn by its phenotype); ``None`` shows the label only."""
     plt = _pyplot()
     rows, cols = _tile_grid(len(tiles), columns)
     fig = plt.figure(figsize=(3.1 * cols, 3.2 * rows + 0.7), facecolor="white")
     for n, (label, surface) in enumerate(tiles):
         ax = fig.add_subplot(rows, cols, n + 1, projection="3d")
         ax.set_facecolor("white")
-        if surface is not None and len(surface.vertices):
-            draw_surface(ax, surface)
-        else:
+        if not _draw_tile(ax, surface):
             ax.set_axis_off()
-            ax.text2D(0.5, 0.5, "no surface", ha="center", va="center", transform=ax.transAxes,
+            ax.text2D(0.5, 0.5, "nothing grown", ha="center", va="center", transform=ax.transAxes,
                       color="#999999")
         ax.set_title(label, fontsize=9, pad=-2)
         if row_labels and n % cols == 0:
@@ -390,6 +414,9 @@ def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
         fetch *= 4
 
 
+GALLERY_MAX = 144  # surfaces on one contact sheet (a row per island with per_island)
+
+
 def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
                       island: int | None = None, per_island: bool = False,
                       distinct: bool = True) -> tuple[Any, str]:
@@ -404,6 +431,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
 
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
+    if k > GALLERY_MAX:
+        raise HistoryError(f"k: a contact sheet holds at most {GALLERY_MAX} surfaces (per island with "
+                           f"per-island), got {k}")
     store = open_run(run)
     generation = _resolve_generation(dataset(store), generation)
     if per_island:
@@ -424,8 +454,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     else:
         ids = list(_best_ids(store, k, generation, island, distinct))
         row_labels, columns = None, None
-    tiles = []
+    tiles: list[tuple[str, Any]] = []
     count = 0
+    noun = "surface"
     for ident in ids:
         if ident is None:
             tiles.append(("", None))
@@ -435,15 +466,16 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
         except Genr8Error as exc:
             raise HistoryError(f"gallery: cannot regrow {ident}: {exc}") from None
         count += 1
-        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result.surface))
+        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result))
+        noun = result.phenotype.noun
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
         where += f", island {island}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: the best {count if not per_island else k}"
-             + (" distinct surfaces" if distinct else "") + f" of {where}"
+             + (f" distinct {noun}s" if distinct else "") + f" of {where}"
              + (" per island" if per_island else "") + "  (lower fitness is better)")
     fig = gallery_figure(tiles, title=title, columns=columns, row_labels=row_labels)
-    return fig, f"{count} surfaces of {where}"
+    return fig, f"{count} {noun}s of {where}"
 
 
 def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
@@ -466,3 +498,123 @@ def png_bytes(fig: Any, dpi: int = 100) -> bytes:
     finally:
         plt.close(fig)
     return buffer.getvalue()
+
+
+# --------------------------------------------------------------------------------------------------
+# The search modes' pictures: Pareto front, MAP-Elites archive, clusters.
+
+
+def _regrown_tiles(store: Any, table: Any, label: Any) -> list[tuple[str, Any]]:
+    from genr8_dist.history._regrow import regrow
+
+    tiles = []
+    for row in table.to_pylist():
+        try:
+            surface = regrow(store, row["id"]).surface
+        except Genr8Error as exc:
+            raise HistoryError(f"cannot regrow {row['id']}: {exc}") from None
+        tiles.append((label(row), surface))
+    return tiles
+
+
+def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = None,
+                       island: int | None = None) -> tuple[Any, str]:
+    """A contact sheet of one representative per cluster (``history._search.clusters``)."""
+    from genr8_dist.history._search import clusters
+
+    store = open_run(run)
+    table = clusters(store, k, generation=generation, island=island)
+    tiles = _regrown_tiles(store, table, lambda r: f"cluster {r['cluster']} ({r['members']})   "
+                                                   f"{r['id']}  {r['fitness']:.3g}")
+    where = "the whole run" if generation is None else f"generation {generation}"
+    title = (f"{getattr(store, 'run_id', run_label(store))}: {len(tiles)} kinds of form in {where} "
+             "(k-means; the design nearest each centroid, cluster size in brackets)")
+    return gallery_figure(tiles, title=title), f"{len(tiles)} clusters of {where}"
+
+
+def pareto_figure_of(run: RunLike, *, objectives: Sequence[str] | None = None) -> tuple[Any, str]:
+    """The run's distinct surfaces over two Pareto objectives (weighted deviations, lower is better),
+    the non-dominated front highlighted, with thumbnails of up to 8 front members."""
+    from genr8_dist.evolution.island import pareto_objectives
+    from genr8_dist.history._search import _distinct, _newest_config, pareto_front
+
+    store = open_run(run)
+    config = _newest_config(store)
+    names = list(objectives or pareto_objectives(config))[:2]
+    front = pareto_front(store)
+    everyone = _distinct(store, None, None, [])
+    plt = _pyplot()
+    fig = plt.figure(figsize=(13, 6.2), facecolor="white")
+    ax = fig.add_axes((0.06, 0.1, 0.42, 0.8))
+
+    def devs(table: Any, name: str) -> Any:
+        from genr8_dist.store.schema import criterion_column
+
+        return np.array([config.fitness[name].deviation(v) if v is not None else np.inf
+                         for v in table[criterion_column(name)].to_pylist()])
+
+    x, y = devs(everyone, names[0]), devs(everyone, names[1])
+    ok = np.isfinite(x) & np.isfinite(y)
+    ax.scatter(x[ok], y[ok], s=10, color="#b9c2ca", label=f"{int(ok.sum())} distinct surfaces")
+    fx, fy = devs(front, names[0]), devs(front, names[1])
+    order = np.argsort(fx)
+    count = len(pareto_objectives(config))
+    ax.scatter(fx, fy, s=36, color="#d1495b", zorder=3,
+               label=f"front ({front.num_rows}, over {count} objectives)")
+    ax.plot(fx[order], fy[order], color="#d1495b", lw=0.8, alpha=0.6)
+    ax.set_xlabel(f"{names[0]}: weighted deviation from its target")
+    ax.set_ylabel(f"{names[1]}: weighted deviation from its target")
+    ax.legend(loc="upper right", fontsize=9, frameon=False)
+    ax.set_title("Pareto front (lower is better on both axes)", fontsize=11, loc="left")
+    shown = front.take(list(range(min(8, front.num_rows))))
+    tiles = _regrown_tiles(store, shown, lambda r: f"{r['id']}")
+    for n, (label, surface) in enumerate(tiles):
+        row, col = divmod(n, 4)
+        sub = fig.add_axes((0.52 + col * 0.12, 0.5 - row * 0.42, 0.12, 0.4), projection="3d")
+        if surface is not None and len(surface.vertices):
+            draw_surface(sub, surface)
+        sub.set_title(label, fontsize=8, pad=-2)
+        ax.annotate(str(n + 1), (fx[n], fy[n]), fontsize=8, xytext=(3, 3), textcoords="offset points")
+        sub.text2D(0.02, 0.92, str(n + 1), transform=sub.transAxes, fontsize=9, fontweight="bold")
+    fig.suptitle(f"{getattr(store, 'run_id', run_label(store))}: the non-dominated surfaces",
+                 x=0.01, ha="left", fontsize=13, fontweight="bold")
+    return fig, f"front of {front.num_rows} surfaces"
+
+
+def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any, str]:
+    """The MAP-Elites archive as a map of thumbnails: one tile per cell of the first two descriptors
+    (the best over a third), empty cells blank."""
+    from genr8_dist.evolution.archive import Grid
+    from genr8_dist.history._search import _newest_config, archive
+
+    store = open_run(run)
+    grid = Grid.from_settings(_newest_config(store).search)
+    table = archive(store, generation=generation)
+    names = grid.descriptors
+    cols = grid.bins[0]
+    rows = grid.bins[1] if len(names) > 1 else 1
+    best: dict[tuple[int, int], dict[str, Any]] = {}
+    for r in table.to_pylist():   # best first
+        key = (r[f"bin_{names[0]}"], r[f"bin_{names[1]}"] if len(names) > 1 else 0)
+        best.setdefault(key, r)
+    plt = _pyplot()
+    fig = plt.figure(figsize=(2.3 * cols + 1.0, 2.3 * rows + 0.9), facecolor="white")
+    from genr8_dist.history._regrow import regrow
+
+    for (i, j), r in best.items():
+        ax = fig.add_subplot(rows, cols, (rows - 1 - j) * cols + i + 1, projection="3d")
+        draw_surface(ax, regrow(store, r["id"]).surface)
+        ax.set_title(f"{r['id']}  {r['fitness']:.3g}", fontsize=7, pad=-4)
+    (lo0, hi0), n0 = grid.ranges[0], grid.bins[0]
+    xlabel = f"{names[0]} →  ({lo0:g} to {hi0:g}, {n0} bins)"
+    ylabel = (f"{names[1]} →  ({grid.ranges[1][0]:g} to {grid.ranges[1][1]:g}, {grid.bins[1]} bins)"
+              if len(names) > 1 else "")
+    fig.text(0.5, 0.01, xlabel, ha="center", fontsize=11)
+    fig.text(0.005, 0.5, ylabel, va="center", rotation=90, fontsize=11)
+    where = "the whole run" if generation is None else f"after generation {generation}"
+    fig.suptitle(f"{getattr(store, 'run_id', run_label(store))}: MAP-Elites archive {where}, "
+                 f"{len(table)} of {grid.size} cells held (best fitness per cell)", x=0.01, ha="left",
+                 fontsize=12, fontweight="bold")
+    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.05, top=1 - 0.6 / (2.3 * rows + 0.9),
+                        wspace=0.02, hspace=0.1)
+    return fig, f"{len(table)} of {grid.size} cells"

@@ -1,6 +1,9 @@
 """One self-contained HTML page about a run: Genr8's output window as a file a designer can open anywhere.
 
-The page holds the fitness curves, a gallery of the best surfaces of the last generation, the top
+    phenotype = _phenotype(store, configs)
+    parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
+    if phenotype.noun == "surface":
+        parts.extend(_search_sections(store, run_label(store)))
 individuals with their criteria and rewrite systems, the interventions with what each changed, and the
 configuration versions. Images are embedded as base64 PNG; there are no scripts, fonts or links to
 fetch, so it opens offline and can be mailed as one file.
@@ -18,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import Genr8Error
+from genr8_dist.history._regrow import export_formats
 from genr8_dist.history._run import RunLike, atomic_write, criteria_of, open_run, run_label
 from genr8_dist.store.schema import criterion_column
 
@@ -83,13 +87,31 @@ def _changes(old_toml: str, new_toml: str) -> list[str]:
         return []
     lines = []
     for key in sorted(set(old) | set(new)):
+        if key.startswith("stored_universe.") and key != "stored_universe.digest":
+            continue   # the universe's files: their digest says whether they changed
         if old.get(key) != new.get(key):
-            lines.append(f"{key}: {old.get(key, '(default)')} → {new.get(key, '(default)')}")
+            lines.append(f"{key}: {_short(old.get(key, '(default)'))} → {_short(new.get(key, '(default)'))}")
     return lines
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    text = str(value)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
 def _section(title: str, body: str) -> str:
     return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
+
+
+def _phenotype(store: Any, configs: list) -> Any:
+    """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
+    from genr8_dist.history._run import phenotype_for
+    from genr8_dist.phenotype import SURFACES
+
+    try:
+        return phenotype_for(store, store.config(configs[-1].version))
+    except Genr8Error:
+        return SURFACES
 
 
 def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
@@ -133,13 +155,17 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         gallery += f'<p class="note">{html.escape(info)}, regrown from the run\'s rows.</p>'
     except Genr8Error as exc:
         gallery = f'<p class="note">No gallery: {html.escape(str(exc))}</p>'
-    parts.append(_section(f"The best surfaces of generation {last}", gallery))
+    phenotype = _phenotype(store, configs)
+    parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
+    if phenotype.noun == "surface":
+        parts.extend(_search_sections(store, run_label(store)))
 
     crits = criteria_of(best.schema)
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
                                               "as scored",
                                               *[c.replace("_", " ") for c in crits],
                                               "made by", "rewrite system"])
+    formats = export_formats(phenotype)
     rows = []
     for r in best.to_pylist():
         cells = [f'<td class="num">{r["rank"]}</td>', f"<td><code>{html.escape(r['id'])}</code></td>",
@@ -152,8 +178,8 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")
         rows.append("<tr>" + "".join(cells) + "</tr>")
     top_note = (f'<p class="note">Regrow and export any of them: <code>genr8 show '
-                f"{html.escape(str(run_label(store)))} ID -o surface.obj</code> (also .ply .stl .glb .3dm)."
-                "</p>")
+                f"{html.escape(str(run_label(store)))} ID -o {phenotype.noun}.{formats[0]}</code> (also "
+                f"{' '.join('.' + f for f in formats[1:])}).</p>")
     ranked = (f'<p class="note">Ranked under configuration version {newest}, the one in force at the '
               "run's end: each individual rescored from its stored raw criteria with that version's "
               "targets and weights. <i>As scored</i> is the fitness the run gave it under the version "
@@ -205,6 +231,46 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
             f"<header><h1>{html.escape(title)}</h1><p>{subtitle}</p></header>"
             f"<main>{''.join(parts)}</main></body></html>\n")
+
+
+def _search_sections(store: Any, label: str) -> list[str]:
+    """The search modes' sections: the Pareto front (``pareto`` mode), the MAP-Elites archive
+    (``map-elites`` mode), and in every mode the kinds of form the run found (12 clusters)."""
+    from genr8_dist.history import pictures
+
+    sections = []
+    mode = store.config(store.configs()[-1]).search.mode
+    shown = html.escape(str(label))
+    if mode == "pareto":
+        try:
+            fig, info = pictures.pareto_figure_of(store)
+            sections.append(_section("The Pareto front", _img(pictures.png_bytes(fig, dpi=80), info)
+                                     + f'<p class="note">{html.escape(info)} over the run; the first two '
+                                     "objectives drawn, the thumbnails numbered as on the plot. "
+                                     f"<code>genr8 top {shown} --pareto</code> lists them all.</p>"))
+        except Genr8Error as exc:
+            sections.append(_section("The Pareto front", f'<p class="note">{html.escape(str(exc))}</p>'))
+    if mode == "map-elites":
+        try:
+            fig, info = pictures.archive_figure_of(store)
+            sections.append(_section("The MAP-Elites archive", _img(pictures.png_bytes(fig, dpi=70), info)
+                                     + f'<p class="note">{html.escape(info)} held after the last '
+                                     "generation: each tile the best surface of its cell. "
+                                     f"<code>genr8 gallery {shown} --archive -o map.png</code>.</p>"))
+        except Genr8Error as exc:
+            sections.append(_section("The MAP-Elites archive",
+                                     f'<p class="note">{html.escape(str(exc))}</p>'))
+    try:
+        fig, info = pictures.clusters_figure_of(store, 12)
+        sections.append(_section("Kinds of form the run found", _img(pictures.png_bytes(fig, dpi=80), info)
+                                 + '<p class="note">The run\'s distinct surfaces grouped by k-means over '
+                                 "their criteria and region and vertex counts; each tile is the design "
+                                 "nearest its cluster's centre, the cluster's size in brackets. "
+                                 f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>"))
+    except Genr8Error as exc:
+        sections.append(_section("Kinds of form the run found",
+                                 f'<p class="note">No clusters: {html.escape(str(exc))}</p>'))
+    return sections
 
 
 def write_report(run: RunLike, path: str | os.PathLike, *, k: int = 10, gallery_k: int = 12) -> Path:

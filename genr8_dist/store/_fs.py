@@ -106,7 +106,7 @@ class RunFS:
             with open(self._local(rel), "rb") as fh:
                 return fh.read()
         with self.fs.open_input_stream(self.full(rel)) as fh:
-            return fh.read()
+            return bytes(fh.read())
 
     # --- writes ------------------------------------------------------------------------------
     def makedirs(self, rel: str = "") -> None:
@@ -142,7 +142,7 @@ class RunFS:
         info = self.fs.get_file_info(self.full(rel))
         if info.type != pafs.FileType.File or info.mtime is None:
             return None
-        return info.mtime.timestamp()
+        return float(info.mtime.timestamp())
 
     def _put_exclusive(self, rel: str, data: bytes | memoryview) -> None:
         if self.local_root is None:
@@ -177,7 +177,10 @@ class RunFS:
         folder, name = posixpath.split(rel)
         tmp_rel = posixpath.join(folder, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
         tmp = self._local(tmp_rel)
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, self._local(rel)) from None
         done = False
         try:
             view = memoryview(data)
@@ -186,6 +189,8 @@ class RunFS:
                 view = view[written:]
             os.fsync(fd)
             done = True
+        except OSError as exc:  # a full disk, say: name the file being written
+            raise OSError(exc.errno, exc.strerror, self._local(rel)) from None
         finally:
             os.close(fd)
             if not done:

@@ -169,7 +169,7 @@ def _check_range(value: Any) -> None:
 def file_entries(manifest: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
     """Every file a manifest names, as ``(kind, entry)``: the kind is the manifest key listing it
     (``configs``, ``individuals``, ``events``, or any list a later feature adds the same way)."""
-    out = []
+    out: list[tuple[str, dict[str, Any]]] = []
     for key, value in manifest.items():
         if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
             out.extend((key, e) for e in value)
@@ -611,25 +611,33 @@ class RunStore:
         self._m, self._stale = newest, stale
         return True
 
-    def dataset(self) -> ds.Dataset:
+    def dataset(self, generations: tuple[int, int] | None = None) -> ds.Dataset:
         """The committed individuals files as one pyarrow dataset (DuckDB can scan it), each file
-        checked against the manifest's sha256 first."""
+        checked against the manifest's sha256 first. With ``generations=(lo, hi)`` only the files
+        holding a generation in that range (any island) are in it, and only they are checked: a
+        reader of a few generations of a long run hashes a few files, not the run."""
         import pyarrow.dataset as ds
 
         self._require_current()
+        entries = self._m["individuals"] if generations is None else self._entries_between(*generations)
         try:
-            self._verify_files(self._m["individuals"])
+            self._verify_files(entries)
         except StoreError:
             if self._refreshed():
-                return self.dataset()
+                return self.dataset(generations)
             raise
         try:
-            return ds.dataset(self.individual_files(), schema=self.reading_schema, format="parquet",
-                              filesystem=self._fs.fs)
+            return ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
+                              format="parquet", filesystem=self._fs.fs)
         except OSError as exc:
             if self._refreshed():
-                return self.dataset()
+                return self.dataset(generations)
             raise StoreError(f"{self._fs.show()}: cannot read individuals: {exc}") from None
+
+    def _entries_between(self, lo: int, hi: int) -> list[dict[str, Any]]:
+        """The individuals files holding some island's generation in ``lo..hi``."""
+        return [e for e in self._m["individuals"]
+                if any(a <= hi and b >= lo for a, b in e["islands"].values())]
 
     def individual_files(self) -> list[str]:
         """The committed individuals files, as paths inside ``self.filesystem`` (local: absolute paths)."""
@@ -1116,12 +1124,21 @@ class RunStore:
     def _verify_files(self, entries: list[dict[str, Any]]) -> None:
         """Check each file against its manifest entry (size, sha256, Parquet rows) the first time
         this store reads it; ``StoreError`` naming the first damaged one."""
+        todo = []
         for e in entries:
             key = (e["path"], e["sha256"])
             stamp = self._stamp(e["path"])
             if self._verified.get(key) == stamp and stamp[0] is not None:
                 continue  # checked before, and neither its size nor its time has changed since
-            problem = self._check_entry(e, deep=True)
+            todo.append((e, key, stamp))
+        if len(todo) > 1:  # hashing releases the GIL: several files at once on several cores
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(max_workers=min(len(todo), os.cpu_count() or 1, 8)) as pool:
+                problems = list(pool.map(lambda t: self._check_entry(t[0], deep=True), todo))
+        else:
+            problems = [self._check_entry(t[0], deep=True) for t in todo]
+        for (_, key, stamp), problem in zip(todo, problems, strict=True):
             if problem is not None:
                 raise StoreError(f"{problem}; {self._repair_hint()}")
             self._verified[key] = stamp
@@ -1188,8 +1205,9 @@ class RunStore:
             k = (e["path"], e["sha256"])
             if k not in cache:
                 cache[k] = self._check_entry(e, deep=True)
-            if cache[k] is not None:
-                bad.append((kind, e, cache[k]))
+            problem = cache[k]
+            if problem is not None:
+                bad.append((kind, e, problem))
         return bad
 
     def _config(self, entry: dict[str, Any]) -> ConfigVersion:
@@ -1324,7 +1342,7 @@ def _load_state(rfs: RunFS) -> tuple[dict[str, Any] | None, str | None]:
                 skipped.append(version)
             continue
         found = manifest.get("schema_version")
-        if not _is_int(found) or found > SCHEMA_VERSION:
+        if not isinstance(found, int) or not _is_int(found) or found > SCHEMA_VERSION:
             raise StoreError(
                 f"{rfs.show(_manifest_rel(version))}: schema version {found!r} is newer than this "
                 f"genr8_dist reads ({SCHEMA_VERSION}); upgrade genr8_dist"

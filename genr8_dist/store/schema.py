@@ -9,7 +9,7 @@ columns are what SQL and column projection want.
 from __future__ import annotations
 
 import json
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
@@ -249,20 +249,20 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
     declared = {c.name: c for c in stored_columns()}
     stored = set(schema.names)
     cols: dict[str, list[Any]] = {f.name: [] for f in schema}
-    getters = []
-    for f in schema:
-        crit = criterion_of(f.name)
-        if f.name == "run_id":
-            getters.append((cols[f.name], lambda ind: run_id))
-        elif f.name == "id":
-            getters.append((cols[f.name], lambda ind: ind.id))
-        elif crit is not None:
-            getters.append((cols[f.name], lambda ind, c=crit: ind.criteria.get(c)))
-        elif f.name in _FIELDS:
-            getters.append((cols[f.name], lambda ind, n=f.name: getattr(ind, n)))
-        else:
-            default = declared[f.name].default if f.name in declared else None
-            getters.append((cols[f.name], lambda ind, n=f.name, d=default: ind.extra.get(n, d)))
+    def getter(name: str) -> Callable[[Individual], Any]:
+        crit = criterion_of(name)
+        if name == "run_id":
+            return lambda ind: run_id
+        if name == "id":
+            return lambda ind: ind.id
+        if crit is not None:
+            return lambda ind: ind.criteria.get(crit)
+        if name in _FIELDS:
+            return lambda ind: getattr(ind, name)
+        default = declared[name].default if name in declared else None
+        return lambda ind: ind.extra.get(name, default)
+
+    getters = [(cols[f.name], getter(f.name)) for f in schema]
     for ind in individuals:
         if not isinstance(ind, Individual):
             raise StoreError(f"the store keeps Individual records, got {type(ind).__name__}")

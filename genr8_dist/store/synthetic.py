@@ -129,8 +129,9 @@ def synthetic_epoch(
     has_text = valid | ~stage_pick
     text = pa.array(texts).take(pa.array(rng.integers(0, len(texts), size=n)))
     text = pc.if_else(pa.array(has_text), text, pa.scalar(None, pa.string()))
-    stage = np.where(valid, None, np.where(stage_pick, "map", "grow"))
-    error = np.where(valid, None, np.where(stage_pick, "genome ran out of codons after 3 wraps",
+    none = np.full(n, None, dtype=object)
+    stage = np.where(valid, none, np.where(stage_pick, "map", "grow"))
+    error = np.where(valid, none, np.where(stage_pick, "genome ran out of codons after 3 wraps",
                                            "growth produced no regions"))
 
     decay = 1.0 + 9.0 * np.exp(-generation / max(1.0, (first + n_gen + 30) / 3.0))
@@ -178,7 +179,7 @@ def synthetic_epoch(
         "n_edges": (n_vertices * 2 - np.minimum(n_vertices, 2)).astype(np.int32),
         "n_regions": np.where(valid, n_vertices // 3, 0).astype(np.int32),
         "steps_done": np.where(valid, rng.integers(1, 9, size=n), 0).astype(np.int32),
-        "capped": pa.array(np.where(valid & (n_vertices > 3800), "vertices", None), pa.string()),
+        "capped": pa.array(np.where(valid & (n_vertices > 3800), "vertices", none), pa.string()),
         "surface_digest": digest,
         "eval_seconds": timing.sum(axis=0),
         "map_seconds": timing[0],

@@ -24,6 +24,7 @@ __all__ = ["MAX_FACES", "RunView"]
 MAX_FACES = 20_000          # a surface with more triangles is decimated before it is sent
 MAX_EDGES = 30_000          # scaffold edges sent with a surface (every k-th one past this)
 GLB_CACHE = 256             # surfaces kept in memory
+GENERATION_CACHE = 32       # generations' rows kept in memory
 LINEAGE_DEPTH = 12          # generations of the main line shown for a design
 
 
@@ -41,9 +42,12 @@ class RunView:
         self.run_dir = run_dir
         self._store: Any = None
         self._lock = threading.RLock()
+        self._curves_lock = threading.Lock()
+        self._curves_store: Any = None
         self._curves: dict[str, Any] | None = None
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
+        self._generations: OrderedDict[int, list[dict[str, Any]]] = OrderedDict()
         self._configs: dict[int, Any] = {}
         self._seen: tuple[float, int] | None = None   # (time, individuals) when the newest commit was seen
 
@@ -61,7 +65,7 @@ class RunView:
 
     def config(self, version: int | None = None) -> Any:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
-        from genr8_dist.history._regrow import config_of
+        from genr8_dist.history._run import config_of
 
         with self._lock:
             if version is not None and version in self._configs:
@@ -74,6 +78,18 @@ class RunView:
             if found is None:
                 found = self._configs[version] = config_of(store, version)
             return found
+
+    def warm(self) -> None:
+        """Read what the page asks for first (the state, the newest generation, then the curves) while
+        the designer opens it; a run not created yet is left to the page's polls."""
+        from genr8_dist.errors import Genr8Error
+
+        try:
+            self.state()
+            self.generation()
+            self.curves()
+        except (Genr8Error, OSError):
+            pass
 
     # -- progress -----------------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
@@ -101,7 +117,8 @@ class RunView:
             status = "stopped"
         population = int(config.ea.population)
         rate, left = self._rate(events, low, n * population, last, status)
-        curves = self.curves()
+        with self._lock:
+            curves = self._curves or {"islands": {}}   # as far as computed (``curves`` runs apart)
         islands = []
         for i in range(n):
             best = curves["islands"].get(str(i), {}).get("best", [])
@@ -117,7 +134,7 @@ class RunView:
             "interventions": self._interventions(events),
             "environment": self._environment_values(config),
             "injectable": _builtin_universe(str(config.universe)),
-            "has": self._extras(store),
+            "search": getattr(getattr(config, "search", None), "mode", "weighted"),
         }
 
     def _events(self, store: Any) -> list[dict[str, Any]]:
@@ -193,34 +210,41 @@ class RunView:
                         "what": parts, "source": d.get("source", "edit")})
         return out
 
-    @staticmethod
-    def _extras(store: Any) -> dict[str, bool]:
-        """Which of the search's results (clusters, Pareto front, MAP-Elites) the run holds."""
-        names = set(store.schema.names)
-        return {"pareto": "pareto_rank" in names, "clusters": "cluster" in names,
-                "map_elites": "niche" in names}
-
     # -- curves -------------------------------------------------------------------------------------
     def curves(self) -> dict[str, Any]:
         """Per generation: the best and mean fitness over all islands, each island's best, and the
         raw criteria of the generation's best design; plus the configuration versions' first
         generations. Only the generations committed since the last call are read."""
-        store = self.store()
+        import copy
+
+        from genr8_dist.store import RunStore
+
+        version = self.store().version
         with self._lock:
-            if self._curves is not None and self._curves_version == store.version:
+            if self._curves is not None and self._curves_version == version:
                 return self._curves
-            curves = self._curves or {"generation": [], "best": [], "mean": [], "best_id": [],
-                                      "islands": {}, "criteria": {}, "last": -1}
+        # Computed apart (its own store, its own lock): the state, a generation and a surface are
+        # answered meanwhile, so the page shows them before the first read of the whole run ends.
+        with self._curves_lock:
+            if self._curves_store is None:
+                self._curves_store = RunStore.open(self.run_dir)
+            store = self._curves_store.refresh()
+            with self._lock:
+                if self._curves is not None and self._curves_version == store.version:
+                    return self._curves
+                curves = copy.deepcopy(self._curves) if self._curves is not None else {
+                    "generation": [], "best": [], "mean": [], "best_id": [], "islands": {}, "criteria": {},
+                    "last": -1}
             _add_generations(curves, store)
             curves["versions"] = [{"version": int(c.version), "generation": int(c.effective_generation)}
                                   for c in store.configs()]
-            self._curves, self._curves_version = curves, store.version
+            with self._lock:
+                self._curves, self._curves_version = curves, store.version
             return curves
 
     # -- generations and designs --------------------------------------------------------------------
     def generation(self, generation: int | None = None) -> dict[str, Any]:
         """The individuals of ``generation`` (default: the newest every island committed), best first."""
-        import pyarrow.compute as pc
 
         store = self.store()
         committed = store.committed_generations()
@@ -228,10 +252,18 @@ class RunView:
             return {"generation": -1, "individuals": []}
         newest = min(committed.values())
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        with self._lock:
+            rows = self._generations.get(g)
+            if rows is not None:
+                self._generations.move_to_end(g)
+                return {"generation": g, "newest": newest, "individuals": rows}
         crits = [f"crit_{c}" for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
                    "config_version", *crits]
-        table = store.dataset().to_table(columns=columns, filter=pc.field("generation") == g)
+        import pyarrow.compute as pc
+
+        # one read of the files holding generation g (only they are checked against their sha256)
+        table = store.dataset((g, g)).to_table(columns=columns, filter=pc.field("generation") == g)
         front = self._pareto(table, store.criteria)
         table = table.drop_columns(crits)
         rows = table.to_pylist()
@@ -241,45 +273,54 @@ class RunView:
                                  r["island"], r["index"]))
         for r in rows:
             r["fitness"] = _finite(r["fitness"])
+        if g <= newest:   # every island committed it: its rows and its front never change
+            with self._lock:
+                self._generations[g] = rows
+                while len(self._generations) > GENERATION_CACHE:
+                    self._generations.popitem(last=False)
         return {"generation": g, "newest": newest, "individuals": rows}
 
     def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
-        """Which rows are on the Pareto front of their generation: valid, and no other valid row is at
-        least as close to every weighted criterion's target (``|raw - target| / unit``, under the
-        configuration version that scored it) and closer to one."""
-        import numpy as np
+        """Which rows are on the Pareto front of their generation (all islands together): the
+        non-dominated valid ones over the weighted deviations of the Pareto objectives (the search's
+        own ``pareto_objectives``, ``objectives_of`` and ``non_dominated``), under the newest
+        configuration version among them."""
+        from genr8_dist.evolution.island import pareto_objectives
+        from genr8_dist.evolution.pareto import non_dominated, objectives_of
 
-        n = table.num_rows
-        valid = np.asarray(table["valid"].to_pylist(), dtype=bool)
-        versions = table["config_version"].to_pylist()
-        columns = []
-        specs = {v: self.config(int(v)).fitness for v in set(versions)}
-        for name in criteria:
-            raw = np.asarray(table[f"crit_{name}"].to_pylist(), dtype=object)
-            dev = np.full(n, np.inf)
-            used = False
-            for version, spec in specs.items():
-                term = spec[name] if name in getattr(spec, "names", ()) else None
-                if term is None or term.weight == 0.0:
-                    continue
-                used = True
-                rows = np.asarray([v == version for v in versions])
-                values = np.asarray([np.nan if x is None else float(x) for x in raw[rows]])
-                with np.errstate(invalid="ignore"):
-                    dev[rows] = np.abs(values - term.target) / term.unit
-            if used:
-                columns.append(np.where(np.isfinite(dev), dev, np.inf))
-        if not columns:
-            return [False] * n
-        points = np.stack(columns, axis=1)
-        candidates = np.flatnonzero(valid & np.isfinite(points).all(axis=1))
-        front = np.zeros(n, dtype=bool)
-        p = points[candidates]
-        for k, i in enumerate(candidates):
-            no_worse = (p <= p[k]).all(axis=1)
-            better = (p < p[k]).any(axis=1)
-            front[i] = not (no_worse & better).any()
-        return front.tolist()
+        if table.num_rows == 0:
+            return []
+        config = self.config(max(table["config_version"].to_pylist()))
+        names = [n for n in pareto_objectives(config) if n in criteria]
+        if not names:
+            return [False] * table.num_rows
+        raws = [{n: (math.nan if r[f"crit_{n}"] is None else r[f"crit_{n}"]) for n in names}
+                for r in table.select([f"crit_{n}" for n in names]).to_pylist()]
+        valid = table["valid"].to_pylist()
+        front = non_dominated(objectives_of(raws, valid, config.fitness, names))
+        return [bool(ok) and bool(on) for ok, on in zip(valid, front, strict=True)]
+
+    def archive(self, generation: int | None = None) -> dict[str, Any] | None:
+        """The MAP-Elites archive of ``generation`` (default: the newest) when the run searches in
+        ``map-elites`` mode: per occupied cell its bins and elite (the lowest fitness over all islands,
+        ``Grid.archive``); ``None`` for a run of another mode."""
+        from genr8_dist.evolution.archive import Grid
+
+        store = self.store()
+        committed = store.committed_generations()
+        config = self.config()
+        search = getattr(config, "search", None)
+        if not committed or search is None or search.mode != "map-elites":
+            return None
+        g = min(committed.values()) if generation is None or generation < 0 else int(generation)
+        grid = Grid.from_settings(search)
+        individuals = [ind for i in sorted(committed) if committed[i] >= g
+                       for ind in store.load_generation(i, g)]
+        cells = grid.archive(individuals)
+        return {"generation": g, "descriptors": list(grid.descriptors),
+                "ranges": [list(r) for r in grid.ranges], "bins": list(grid.bins),
+                "cells": [{"cell": c, "bins": list(grid.coordinates(c)), "id": ind.id,
+                           "fitness": _finite(ind.fitness)} for c, ind in sorted(cells.items())]}
 
     def individual(self, id: str) -> dict[str, Any]:
         """One design: its row (criteria, rewrite system, provenance), its main line of ancestors, the

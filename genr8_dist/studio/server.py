@@ -85,10 +85,15 @@ class Studio:
         """Serve in a background thread (``genr8 run --studio``)."""
         self._thread = threading.Thread(target=self.httpd.serve_forever, name="genr8-studio", daemon=True)
         self._thread.start()
+        self._warm()
         return self
 
     def serve_forever(self) -> None:
+        self._warm()
         self.httpd.serve_forever()
+
+    def _warm(self) -> None:
+        threading.Thread(target=self.view.warm, name="genr8-studio-warm", daemon=True).start()
 
     def close(self) -> None:
         self.httpd.shutdown()
@@ -132,7 +137,13 @@ class Studio:
                         island=None if island in (None, "") else int(_number(island, "island")))
         else:
             raise ConfigError(f"unknown action {action!r}")
-        result = apply_edit(self.run_dir, edit, source="studio")
+        try:
+            result = apply_edit(self.run_dir, edit, source="studio")
+        except ConfigError as exc:
+            if "use --generations N" not in str(exc):
+                raise
+            raise ConfigError(f"{action}: the run has no generation left to take it; add generations first "
+                              "(Steer → Length of the run → Go on)") from None
         if result.queued:
             message = (f"queued ({result.queued}); the run takes it at its next epoch, generation "
                        f"{result.effective_generation} or later")
@@ -232,7 +243,8 @@ class _Handler(BaseHTTPRequestHandler):
         view = self.studio.view
 
         def arg(name: str, default: str | None = None) -> str | None:
-            return (query.get(name) or [default])[0]
+            values = query.get(name)
+            return values[0] if values else default
 
         if path in ("/", "/index.html"):
             body = (STATIC / "index.html").read_bytes()
@@ -249,6 +261,9 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/generation":
             g = arg("g")
             self._json(view.generation(None if g in (None, "") else int(_number(g, "g"))))
+        elif path == "/api/archive":
+            g = arg("g")
+            self._json(view.archive(None if g in (None, "") else int(_number(g, "g"))))
         elif path == "/api/individual":
             self._json(view.individual(_check_id(arg("id"))))
         elif path == "/api/surface":

@@ -7,30 +7,35 @@ is in ``voxels.py`` beside this file: the P0L-system, the turtle, the criteria, 
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from collections.abc import Mapping
 from pathlib import Path
-from types import MappingProxyType
 from typing import Any
 
+from genr8_dist.fitness import CriterionInfo, criterion_names, register_criterion
 from genr8_dist.phenotype import Developed, Phenotype
 
-
-def _sibling(name: str) -> Any:
-    """Import ``<name>.py`` from this plugin's folder (hooks are loaded by path, not as a package)."""
-    module_name = f"{__name__}__{name}"
-    module = sys.modules.get(module_name)
-    if module is None:
-        spec = importlib.util.spec_from_file_location(module_name, Path(__file__).with_name(f"{name}.py"))
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[module_name] = module
-        spec.loader.exec_module(module)
-    return module
+# A plugin's modules are one package (genr8_dist.grammar.source): its siblings are relative imports,
+# and they travel with the run that stores the universe, so this works after the plugin folder is gone.
+from . import voxels
 
 
-voxels = _sibling("voxels")
+def _declare(name: str, heading: str, description: str) -> None:
+    """Register one criterion of the ``voxels`` phenotype (once per process: hooks may be reloaded).
+    Their targets and weights are unused: the fitness is the paper's product, not deviations."""
+    if name not in criterion_names("voxels"):
+        register_criterion(CriterionInfo(name, lambda table, env: voxels.criteria(table.voxels)[name],
+                                         0.0, 0.0, heading=heading, description=description,
+                                         phenotype="voxels"))
+
+
+for _name, _heading, _description in (
+    ("height", "height", "`Y_max`, the highest filled layer (the ground is layer 0)"),
+    ("surface", "surf", "the voxels in layer `Y_max` (the table top)"),
+    ("stability", "stab", "the sum, over the layers below `Y_max`, of the area of each layer's convex hull"),
+    ("excess", "excess", "the voxels not in layer `Y_max`"),
+    ("voxels", "voxels", "all filled voxels (recorded, not part of the fitness)"),
+):
+    _declare(_name, _heading, _description)
 
 
 class TablesPhenotype(Phenotype):
@@ -40,16 +45,7 @@ class TablesPhenotype(Phenotype):
     negation."""
 
     name = "voxels"
-    criteria = voxels.CRITERIA
-    headings = MappingProxyType({"height": "height", "surface": "surf", "stability": "stab",
-                                 "excess": "excess", "voxels": "voxels"})
-    descriptions = MappingProxyType({
-        "height": "Y_max, the highest filled layer (the ground is layer 0)",
-        "surface": "the voxels in layer Y_max (the table top)",
-        "stability": "the sum, over the layers below Y_max, of the area of each layer's convex hull",
-        "excess": "the voxels not in layer Y_max",
-        "voxels": "all filled voxels (not part of the fitness)",
-    })
+    noun = "table"
     direction = "maximise"
     capped_is_invalid = False
     export_formats = ("obj", "ply", "stl", "glb")
@@ -59,8 +55,19 @@ class TablesPhenotype(Phenotype):
         table = voxels.develop(text)
         return Developed(table, table.digest(), table.steps, table.capped)
 
+    def trivial(self, evaluation: Any) -> bool:
+        """A structure the paper's fitness scores 0 (flat, or nothing below its top layer)."""
+        return voxels.fitness(evaluation.criteria) == 0.0 if evaluation.criteria else True
+
+    def describe(self, developed: Developed) -> str:
+        table = developed.value
+        return (f"{table.n_voxels} voxels from {table.commands} commands" +
+                (f" (capped: {table.capped})" if table.capped else ""))
+
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
-        return voxels.criteria(developed.value.voxels)
+        raw = voxels.criteria(developed.value.voxels)
+        names = config.fitness.names if config is not None else self.criteria
+        return {name: raw[name] for name in names}
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return -voxels.fitness(dict(raw))

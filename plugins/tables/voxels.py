@@ -472,11 +472,21 @@ class _Turtle:
                 self.stack.append((list(self.pos), [list(v) for v in self.frame]))
                 self.run_items(item[1])
                 self.pos, self.frame = self.stack.pop()
-            elif kind == "{":
+            elif kind == "{" and _has_command(item[2]):  # repeating nothing would only cost time
                 for _ in range(max(0, int(item[1]))):
                     if self.left <= 0:
                         return
                     self.run_items(item[2])
+
+
+def _has_command(items: tuple) -> bool:
+    """Whether running ``items`` runs at least one command (``{ }(0)`` and calls run none)."""
+    for item in items:
+        kind = item[0]
+        if kind == "c" or (kind == "[" and _has_command(item[1])) or \
+                (kind == "{" and int(item[1]) > 0 and _has_command(item[2])):
+            return True
+    return False
 
 
 def build(word: tuple, max_commands: int = MAX_COMMANDS) -> tuple[np.ndarray, int, bool]:

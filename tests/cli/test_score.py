@@ -75,3 +75,18 @@ def test_errors_are_one_line_and_exit_2(capsys, tmp_path):
     config.write_text("[fitness.size]\nweight = -1\n")
     assert main(["score", "square", "--fitness", str(config)]) == 2
     assert "'fitness.size.weight'" in capsys.readouterr().err
+
+
+def test_a_plugin_phenotypes_text_is_scored_by_its_phenotype(capsys, tmp_path):
+    from pathlib import Path
+
+    examples = Path(__file__).resolve().parents[2] / "examples" / "tables.toml"
+    tree = tmp_path / "tree.txt"
+    tree.write_text("P0 ( 4 ) iterations 4\n"
+                    "P0 ( n0 ) : n0 > 1.0 -> [ P1 ( n0 * 1.5 ) ] ^ ( 1 ) f ( 3 ) v ( 1 ) P0 ( n0 - 1 )\n"
+                    "P1 ( n0 ) : n0 > 1.0 -> { [ f ( n0 ) ] < ( 1 ) } ( 4 )\n")
+    report = score_json(capsys, str(tree), "--fitness", str(examples))
+    assert report["valid"] and report["universe"] == "tables"
+    assert report["criteria"] == {"height": 9.0, "surface": 1.0, "stability": 183.0, "excess": 61.0,
+                                  "voxels": 62.0}
+    assert report["fitness"] == pytest.approx(-27.0)     # the paper's 9 * 1 * 183 / 61, negated

@@ -23,7 +23,7 @@ def test_universes_lists_names_and_origins(capsys):
     code, out, _ = run(capsys, "universes")
     assert code == 0
     names = [line.split()[0] for line in out.splitlines()]
-    assert names[:4] == ["default", "probabilistic", "reversible", "symmetric"]
+    assert names[:6] == ["default", "gecco", "probabilistic", "reversible", "symmetric", "symmetric_thesis"]
     assert "timed" in names and "plugin:" in out
     code, out, _ = run(capsys, "universes", "--json")
     listed = {u["name"]: u for u in json.loads(out)}
@@ -142,3 +142,9 @@ def test_map_warns_about_a_rule_that_can_never_fire(capsys):
                            "one rule, or 'p =' on each)")
     code, out, _ = run(capsys, "map", "--random", "--seed", "14", "--json")
     assert json.loads(out)["warnings"] == [err.strip()[len("genr8: warning: "):]]
+
+
+def test_map_of_a_plugin_phenotypes_universe_prints_its_text_without_hemls_warnings(capsys):
+    code, out, err = run(capsys, "map", "--universe", "tables", "--random", "--seed", "2")
+    assert code == 0 and out.startswith("P0 ( ") and " iterations " in out.splitlines()[0]
+    assert err == ""

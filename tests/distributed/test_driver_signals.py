@@ -108,3 +108,39 @@ def test_sigkill_of_the_driver_then_resume_gives_the_same_rows(reference, tmp_pa
     _resume(run_dir)
     assert rows(run_dir) == reference
     assert "resume" in event_kinds(run_dir)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_after_the_last_commit_leaves_a_complete_run_and_exit_0(tmp_path, ray_local, sig):
+    proc, run_dir = _start(tmp_path)
+    try:
+        _wait_until(proc, run_dir, GENERATIONS)
+        proc.send_signal(sig)  # while the command shuts Ray down
+        out, err = proc.communicate(timeout=120)
+    finally:
+        _cleanup(proc)
+    assert proc.returncode == 0, err[-2000:]
+    assert "run complete" in out and "Traceback" not in err
+
+
+def test_a_signal_during_start_up_stops_before_the_first_epoch(tmp_path, ray_local):
+    from genr8_dist.distributed.reaper import _descendants, _table
+
+    proc, run_dir = _start(tmp_path)
+    try:
+        deadline = time.monotonic() + 120
+        while len(_descendants({proc.pid}, _table())) < 3 and time.monotonic() < deadline:
+            time.sleep(0.02)  # until Ray's processes are starting (the reaper is the first child)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=120)
+    finally:
+        _cleanup(proc)
+    # stopped cleanly whenever it landed: during Ray's start-up (one line, 130: nothing was written),
+    # or later (0, the run says how far it got)
+    assert proc.returncode in (0, 130), err[-2000:]
+    assert "Traceback" not in err
+    assert "committed up to generation -1" not in out
+    if proc.returncode == 130:
+        assert err.strip() == "genr8: interrupted" and not run_dir.exists()
+    else:
+        assert "interrupted" in out or "run complete" in out

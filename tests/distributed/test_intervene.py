@@ -154,11 +154,27 @@ def test_an_edit_of_a_running_run_is_queued_then_recorded_as_an_edit_records_it(
     assert store.events().column("kind").to_pylist()[-1] == "refused"
 
 
+def test_hand_fitness_is_for_valid_designs_only(tmp_path):
+    """A design that failed has no surface to judge: scoring it by hand is refused."""
+    import dataclasses
+    import math
+
+    path = tmp_path / "run"
+    store = new_run(path, tiny_toml(islands=1))
+    config = parse_config(tiny_toml(islands=1), "tiny")
+    first = Island(config, 0).initial()
+    failed = dataclasses.replace(first[3], valid=False, stage="grow", error="too many edges",
+                                 fitness=math.inf)
+    store.commit([*first[:3], failed, *first[4:]])
+    with pytest.raises(ConfigError, match="hand fitness for 0-0-3: it failed at grow"):
+        apply_edit(str(path), Edit(hand_fitness=[("0-0-3", 0.0)]))
+
+
 def test_hand_fitness_makes_a_marked_individual_an_elite_of_the_next_generation():
     config = parse_config(tiny_toml(islands=1), "tiny")
     island = Island(config, 0)
     first = island.initial()
-    worst = max(first, key=lambda ind: ind.fitness)
+    worst = max((ind for ind in first if ind.valid), key=lambda ind: ind.fitness)
     second = island.step(first, 1, hand=[(worst, 0.0)])
     (elite,) = [ind for ind in second if ind.origin == "elite"]
     assert elite.parents == (worst.id,) and elite.genome == worst.genome
@@ -167,3 +183,26 @@ def test_hand_fitness_makes_a_marked_individual_an_elite_of_the_next_generation(
     third = island.step(second, 2, hand=[(worst, 0.0)])
     assert [ind.parents for ind in third if ind.origin == "elite"] == [(worst.id,)]
     assert island.step(first, 1) != second
+
+
+def test_genr8_edit_and_resume_of_a_running_run(run_dir, capsys):
+    """With the run's lock held (what `genr8 run` holds), `genr8 edit` queues and says so, and a second
+    `genr8 resume` is refused in one line before Ray starts."""
+    from genr8_dist.cli import main
+
+    lock = RunStore.open(run_dir).lock("run")
+    assert lock.acquire()
+    try:
+        assert main(["edit", str(run_dir), "--favour", "0-0-1", "--hand-fitness", "1-0-2=0.5"]) == 0
+        out = capsys.readouterr().out
+        assert "the run is running; the edit is queued (0000000001.json)" in out
+        assert "inject favoured 0-0-1 into island 0" in out
+        (queued,) = RunStore.open(run_dir).queued()
+        assert queued.request["edit"]["hand_fitness"] == [["1-0-2", 0.5]]
+        assert main(["resume", str(run_dir)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("genr8: error:") and "is running already" in err and len(err.splitlines()) == 1
+        assert main(["edit", str(run_dir), "--hand-fitness", "1-0-2"]) == 2
+        assert "expected ID=FITNESS" in capsys.readouterr().err
+    finally:
+        lock.release()

@@ -131,3 +131,20 @@ def test_examples_grow_valid_maps(square, example):
     assert result.capped is None
     assert result.surface.validate() == []
     assert np.isfinite(result.surface.vertices).all()
+
+
+def test_uniform_cells_relax_after_the_step_so_the_new_cells_are_even_too():
+    """Thesis 2.7.2: after each growth step the perimeter is fixed and the other vertices move to even
+    out the cells; the interior vertices that one step's joins make end at their neighbours' mean."""
+    from genr8_dist.hemls import parse
+
+    thirds = parse("Edge0 + ~ Edge1 + ~ Edge0 + Edge1\n"
+                   "Edge0 -> Edge0 [ [ + Edge1 ] - Edge1 ] Edge0 Edge0\n"
+                   "Edge1 -> Edge1 [ [ + Edge0 ] - Edge0 ] Edge1 Edge1\nAngle 90\n")
+    for uniform in (True, False):
+        surface = grow(thirds, Environment(uniform_cells=uniform, steps=1, scale=1.0)).surface
+        inner = np.flatnonzero(~surface.perimeter_mask)
+        assert len(inner) == 2
+        gap = max(np.linalg.norm(surface.vertices[surface.neighbours(v)].mean(axis=0) - surface.vertices[v])
+                  for v in inner)
+        assert (gap < 1e-3) == uniform, (uniform, gap)

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from genr8_dist.environment import Environment, PointForce
+from genr8_dist.errors import ConfigError
 from genr8_dist.rng import stream
 
 
@@ -106,6 +109,13 @@ def test_bounded_law_has_no_singularity():
     np.testing.assert_allclose(bounded.magnitude(d[3:], m[3:]), inverse.magnitude(d[3:], m[3:]))
 
 
+def test_bounded_law_near_part_is_c_times_d_whatever_the_mass():
+    # thesis 2.7.1: f = c / (m d^e) for d > 1, c · d for d <= 1
+    bounded = PointForce(constant=3.0, exponent=2.0, law="bounded")
+    d = np.array([0.5, 1.0, 2.0])
+    np.testing.assert_allclose(bounded.magnitude(d, np.full(3, 2.0)), [1.5, 3.0, 3.0 / (2.0 * 4.0)])
+
+
 def test_fixed_perimeter_keeps_perimeter_vertices_in_place():
     p, e, per = grid()
     env = Environment(fixed_perimeter=True, gravity=(0.0, 0.0, -0.3),
@@ -156,8 +166,12 @@ def test_uniform_cells_even_out_edge_lengths_and_hold_the_perimeter():
     p, e, per = grid(n=11)
     warp = p.copy()
     warp[:, 0] = np.sign(p[:, 0]) * np.abs(p[:, 0]) ** 2  # cells crowd at the centre
-    plain, _, _ = grow(Environment(), warp, e, per)
-    even, _, _ = grow(Environment(uniform_cells=True), warp, e, per)
+    plain = warp
+    even = Environment(uniform_cells=True).relax_cells(warp, edges=e, perimeter=per,
+                                                       stopped=np.zeros(len(warp), dtype=bool))
+    # uniform cells act after the step, not in the size increase
+    np.testing.assert_array_equal(grow(Environment(uniform_cells=True), warp, e, per)[0],
+                                  grow(Environment(), warp, e, per)[0])
 
     inner = ~(per[e[:, 0]] & per[e[:, 1]])
 
@@ -199,3 +213,22 @@ def test_shape_mismatch_is_a_growth_error():
     with pytest.raises(GrowthError, match="masses"):
         Environment().increase_size(p, step=1, masses=np.ones(3), stopped=np.zeros(len(p), bool),
                                     perimeter=per, edges=e, rng=stream(0))
+
+
+def test_repelling_points_reach_every_vertex_with_radius_minus_one():
+    from genr8_dist.environment.forces import repelling_displacement
+
+    points = np.array([[0.0, 0, 0], [1.0, 0, 0], [10.0, 0, 0]])
+    masses = np.array([1.0, 1.0, 2.0])
+    every = repelling_displacement(points, masses, 0.5, math.inf, 1.0)
+    # thesis 2.7.2: each vertex pushes all the others, (L/d)^2 with L = 1
+    np.testing.assert_allclose(every[2], [0.5 * (1 / 100 + 1 / 81) / 2.0, 0, 0])
+    np.testing.assert_allclose(every[0], [-0.5 * (1 + 1 / 100), 0, 0])
+    near = repelling_displacement(points, masses, 0.5, 2.0, 1.0)
+    np.testing.assert_allclose(near[2], 0.0)
+    np.testing.assert_allclose(near[0], [-0.5 * (1 - 1 / 4), 0, 0])  # shifted to 0 at R = 2
+    env = Environment(repelling_points=0.5, repelling_radius=-1)
+    np.testing.assert_allclose(env.repelling(points, masses, 1.0), every)
+    for bad in (0, -2):
+        with pytest.raises(ConfigError, match=r"repelling_radius.*-1 \(every vertex, the thesis\) or > 0"):
+            Environment(repelling_radius=bad)

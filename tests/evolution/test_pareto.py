@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from genr8_dist.evolution.pareto import crowding_distance, non_dominated_ranks, pareto_order
+from genr8_dist.evolution.pareto import crowding_distance, non_dominated, non_dominated_ranks, pareto_order
 from genr8_dist.rng import stream
 
 
@@ -60,3 +60,13 @@ def test_the_order_puts_the_front_first_and_its_extremes_before_its_middle():
     assert ranks.tolist() == [0, 0, 0, 1, 0, 2]
     assert sorted(position[[0, 2]].tolist()) == [0, 1]          # extremes first
     assert position[5] == 5 and position[3] == 4
+
+
+@pytest.mark.parametrize("trial", range(40))
+def test_the_non_dominated_mask_equals_rank_zero_with_ties_and_infinities(trial):
+    rng = stream(11, "non-dominated", trial)
+    n, k = int(rng.integers(0, 50)), int(rng.integers(1, 4))
+    f = rng.integers(0, 4, (n, k)).astype(np.float64)   # few values: many ties and equal rows
+    f[rng.random(n) < 0.2] = np.inf
+    f[rng.random((n, k)) < 0.05] = np.nan
+    assert non_dominated(f).tolist() == [r == 0 for r in brute_ranks(np.nan_to_num(f, nan=np.inf))]

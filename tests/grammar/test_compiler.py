@@ -25,7 +25,7 @@ from genr8_dist.grammar.compiler import compile_grammar
     ('\n//@ bias nothere 3\nstart: "x"\n', ":2:1:", "names no rule"),
     ('//@ repair nothere\nstart: "x"\n', ":1:1:", "names no rule"),
     ('//@ bias start#2 3\nstart: "x"*\n', ":1:1:", "has only 1 repetition"),
-    ('start: a\na: "x" a\n', ":1:1:", "can never finish"),
+    ('start: a\na: "x" a\n', ":2:1:", "rule a can never finish"),
     ('foo: "x"\n', ":1:1:", "needs a rule named 'start'"),
     ('start: "x"~3\n', ":1:1:", "repetition range"),
     ('_t{x}: x\nstart: _t{"a"}\n', ":1:1:", "template"),

@@ -1,4 +1,4 @@
-"""Finding universes: built-ins, shipped plugins, ./plugins, GENR8_PLUGINS, entry points, paths."""
+"""Finding universes: built-ins, shipped plugins, GENR8_PLUGINS, entry points, paths."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ import pytest
 from genr8_dist.errors import UniverseError
 from genr8_dist.grammar import ENTRY_POINT_GROUP, list_universes, load_universe
 
-MINI = '//@ description a tiny test universe\nstart: "tiny" EDGE\nEDGE: /Edge[0-9]+/\n%ignore " "\n'
+MINI = ('//@ description a tiny test universe\nstart: EDGE "+" EDGE "+" EDGE\nEDGE: /Edge[0-9]+/\n'
+        '%ignore " "\n')
 
 
 def plugin(root: Path, name: str, text: str = MINI) -> Path:
@@ -42,13 +43,17 @@ def test_genr8_plugins_folders_are_searched(tmp_path, monkeypatch):
     assert infos["mini"].origin == f"plugin:{tmp_path / 'many' / 'mini'}"
     assert infos["solo"].description == "a tiny test universe"
     u = load_universe("mini")
-    assert u.name == "mini" and u.map([0, 1]).text == "tiny Edge1"
+    assert u.name == "mini" and u.map([0, 1]).text == "Edge1 + Edge0 + Edge1"
 
 
-def test_plugins_folder_of_the_current_directory(tmp_path, monkeypatch):
-    plugin(tmp_path / "plugins", "local")
+def test_the_current_directory_is_never_searched(tmp_path, monkeypatch):
+    """A copied run or a download holding plugins/ runs nothing: only GENR8_PLUGINS is searched."""
+    folder = plugin(tmp_path / "plugins", "local")
+    (folder / "hooks.py").write_text("raise SystemExit('ran code from the current directory')\n")
     monkeypatch.chdir(tmp_path)
-    assert load_universe("local").origin.startswith("plugin:")
+    assert "local" not in {i.name for i in list_universes()}
+    with pytest.raises(UniverseError, match=r"unknown universe 'local'"):
+        load_universe("local")
 
 
 def test_a_built_in_name_cannot_be_taken_by_a_plugin(tmp_path, monkeypatch):
@@ -79,7 +84,7 @@ def test_entry_points_give_universes(tmp_path, monkeypatch):
     for name in ("by_path", "by_function", "by_folder"):
         u = load_universe(name)
         assert u.origin.startswith("entry point:")
-        assert u.map([5, 2]).text == "tiny Edge2"
+        assert u.map([5, 2]).text == "Edge2 + Edge1 + Edge2"
 
 
 def test_paths_to_files_and_folders(tmp_path):
@@ -95,8 +100,8 @@ def test_compiled_universes_are_cached_and_reloaded_when_the_file_changes(tmp_pa
     first = load_universe(str(folder))
     assert load_universe(str(folder)) is first
     assert load_universe("default") is load_universe("default")
-    (folder / "cached.lark").write_text(MINI.replace('"tiny"', '"small"'))
-    assert load_universe(str(folder)).map([0, 0]).text == "small Edge0"
+    (folder / "cached.lark").write_text(MINI.replace('"+" EDGE\n', '"+" EDGE "+" EDGE\n'))
+    assert load_universe(str(folder)).map([0, 0]).text == "Edge0 + Edge0 + Edge0 + Edge0"
 
 
 @pytest.mark.parametrize("name, pattern", [
@@ -112,8 +117,8 @@ def test_unknown_universes(name, pattern):
 def test_plugin_hooks_that_fail_to_import_are_reported(tmp_path):
     folder = plugin(tmp_path, "broken")
     (folder / "hooks.py").write_text("import no_such_module_anywhere\n")
-    with pytest.raises(UniverseError, match=r"hooks.py: importing the plugin's hooks failed: "
-                       r"ModuleNotFoundError"):
+    with pytest.raises(UniverseError, match=r"broken/hooks.py:1: importing the plugin's hooks.py failed: "
+                       r"ModuleNotFoundError: No module named 'no_such_module_anywhere'$"):
         load_universe(str(folder))
 
 

@@ -391,3 +391,14 @@ def test_branches_join_when_opposite_within_branch_angle_and_facing_each_other()
         grower.cone = mode == "cone"
         # facing each other; opposite but facing away; opposite, facing, but aimed past each other
         assert grower._pair_ok(pi, pj, points, heading, plane, math.inf).tolist() == expected
+
+
+def test_tied_joins_that_cross_join_neither_with_branch_ties_none():
+    """A regular hexagon whose six edges each send a branch to the opposite edge: the three
+    diameters tie. By default the branch drawn first wins (one diameter, which breaks all but one of
+    the hexagon's mirror lines); with branch_ties = "none" no diameter is drawn."""
+    hexagon = parse("A + A + A + A + A + A\nA -> A [ + + + B ] A\nB -> B\nAngle 30\nBranchAngle 15\n")
+    first = grow(hexagon, Environment(steps=1, scale=1.0)).surface
+    none = grow(hexagon, Environment(steps=1, scale=1.0, branch_ties="none")).surface
+    assert first.n_regions == 2
+    assert none.n_regions == 1 and none.mirror_line() is not None

@@ -292,3 +292,25 @@ def test_direct_reader_and_lark_agree_on_edited_texts():
             assert _outcome(edited) == _lark_outcome(edited), edited
             checked += 1
     assert checked > 300
+
+
+APPENDIX_B = """Edge2 + Edge0 + Edge0
+Edge2 > Edge0 -> ^ Edge0 & Edge1
+Edge0 > Edge1 -> [ [ + + Edge0 ] - Edge2 ] Edge0
+Edge1 -> Edge0
+Angle 30
+BranchAngle 75
+"""
+
+
+def test_thesis_appendix_b_rewrite_system_parses_and_grows_as_the_thesis_expects():
+    """Thesis Appendix B maps a genome to this system and expects "a very boring structure that
+    [is] unable to subdivide in an interesting way"."""
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow
+
+    system = parse(APPENDIX_B)
+    assert [str(r) for r in system.rules][1] == "Edge0 > Edge1 -> [ [ + + Edge0 ] - Edge2 ] Edge0"
+    assert system.turn_angle == 30 and system.cone_angle == 75 and not system.sync
+    result = grow(system, Environment(steps=4))
+    assert result.surface.validate() == [] and result.surface.n_regions == 1

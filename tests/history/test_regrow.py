@@ -237,7 +237,9 @@ def test_report_is_self_contained(real_run, tmp_path):
     assert page.startswith("<!DOCTYPE html>")
     assert not re.search(r"(src|href)=\"(https?:)?//", page), "the page must not fetch anything"
     assert "<script" not in page
-    assert page.count('src="data:image/png;base64,') == 3  # the curves, the gallery, the ancestry
+    # the curves, the gallery, the kinds of form (clusters), the ancestry
+    assert page.count('src="data:image/png;base64,') == 4
+    assert "Kinds of form the run found" in page and "No clusters" not in page
     best = history.top(real_run, 5, systems=True)
     for ident in best["id"].to_pylist():
         assert f"<code>{ident}</code>" in page

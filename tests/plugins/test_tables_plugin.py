@@ -105,6 +105,13 @@ def test_moves_stop_at_the_grid_and_commands_are_capped():
     assert table.capped == "modules" and table.steps < 30 and table.modules <= V.MAX_MODULES
 
 
+def test_replicating_blocks_without_commands_costs_nothing():
+    text = ("P0 ( 1 , 1 ) iterations 2\n"
+            "P0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) { { P1 ( n0 , n1 ) } ( 1000000 ) [ ] } ( 1000000 )\n")
+    table = V.develop(text)
+    assert (table.commands, table.n_voxels, table.capped) == (1, 2, None)
+
+
 def test_arithmetic_never_fails_a_derivation():
     text = ("P0 ( 1 , 0 ) iterations 12\n"
             "P0 ( n0 , n1 ) : n0 > -10 -> f ( 1 ) P0 ( n0 * 9 , n0 / n1 ) { f ( n1 ) } ( n0 / 0 )\n")
@@ -132,10 +139,10 @@ def test_bad_texts_are_one_line_errors_with_where(text, words):
 @given(st.lists(st.integers(0, 255), min_size=20, max_size=300), st.sampled_from(["tables", "tables_direct"]))
 def test_evolved_texts_round_trip_and_the_turtle_never_places_a_disconnected_voxel(genome, name):
     universe = TABLES if name == "tables" else DIRECT
-    mapped = universe.map(genome, max_depth=10)
+    mapped = universe.map(genome, max_depth=5)
     if not mapped.valid:
         return
-    assert universe.map(universe.invert(mapped.text, max_depth=10), max_depth=10).text == mapped.text
+    assert universe.map(universe.invert(mapped.text, max_depth=5), max_depth=5).text == mapped.text
     table = V.develop(mapped.text)
     assert V.is_connected(table.voxels)
     assert table.voxels[V.START]

@@ -56,8 +56,8 @@ def test_a_registered_criterion_is_scored_stored_shown_and_documented(tmp_path, 
         assert store.load_generation(0, 0)[0].criteria == evaluation.criteria
         # shown by top, under its heading, and rankable by it
         lines = _top_lines(run_dir, capsys)
-        assert lines[0].split()[-2:] == ["verts", "origin"]
-        assert lines[1].split()[-2:] == [str(evaluation.n_vertices), "injected"]
+        assert lines[0].split()[-3:] == ["verts", "origin", "front"]
+        assert lines[1].split()[-3:] == [str(evaluation.n_vertices), "injected", "-"]
         assert "verts" in _top_lines(run_dir, capsys, "--criterion", "vertex_count")[0].split()
         # documented: the generated docs table has its row
         assert ("| `vertex_count` | the number of vertices `V` | `300.0` | `0.5` |"
@@ -81,36 +81,36 @@ def test_a_run_keeps_its_criteria_when_one_is_registered_later(tmp_path):
     assert "crit_vertex_count" not in store.schema.names
 
 
-PARETO = Column("pareto_rank", "int32", top=16, shown=7, heading="front")
+PARETO = Column("novelty", "int32", top=18, shown=8, heading="novel")
 
 
 def test_a_registered_column_is_stored_read_back_and_shown_by_top(tmp_path, capsys):
     with registered_column(PARETO):
         run_dir = tmp_path / "run"
         store = RunStore.create(run_dir, RunConfig().to_toml())
-        assert store.schema.names[-1] == "pareto_rank"
+        assert store.schema.names[-1] == "novelty"
         rows = [Individual(0, 0, n, (n + 1,), "random", valid=True, fitness=float(n),
-                           criteria={"size": 1.0}, extra={"pareto_rank": 3 - n}) for n in range(3)]
+                           criteria={"size": 1.0}, extra={"novelty": 3 - n}) for n in range(3)]
         store.commit(rows)
-        assert [i.extra for i in store.load_generation(0, 0)] == [{"pareto_rank": 3 - n} for n in range(3)]
+        assert [i.extra for i in store.load_generation(0, 0)] == [{"novelty": 3 - n} for n in range(3)]
         from genr8_dist import history
 
         top = history.top(store, 3)
-        assert top.column_names[-1] == "pareto_rank" and top["pareto_rank"].to_pylist() == [3, 2, 1]
+        assert top.column_names[-1] == "novelty" and top["novelty"].to_pylist() == [3, 2, 1]
         lines = _top_lines(run_dir, capsys)
-        assert lines[0].split()[-2:] == ["origin", "front"]
+        assert lines[0].split()[-3:] == ["origin", "front", "novel"]
         assert [line.split()[-1] for line in lines[1:]] == ["3", "2", "1"]
         # the synthetic writer fills a column it knows nothing about with the declared default (null)
         from genr8_dist.store.synthetic import write_synthetic_run
 
         synthetic = write_synthetic_run(tmp_path / "synthetic", 1, 2, 5, 0)
-        assert synthetic.individuals(["pareto_rank"]).column(0).null_count == 10
+        assert synthetic.individuals(["novelty"]).column(0).null_count == 10
         # a run created before the column existed reads it as nulls
         old = RunStore.open(ROOT / "tests" / "data" / "run-schema-v1")
-        assert "pareto_rank" not in old.schema.names
-        assert old.individuals(["pareto_rank"]).column(0).null_count == old.individuals().num_rows
+        assert "novelty" not in old.schema.names
+        assert old.individuals(["novelty"]).column(0).null_count == old.individuals().num_rows
     # unregistered: the run keeps the column it was created with
-    assert RunStore.open(run_dir).individuals(["pareto_rank"]).column(0).to_pylist() == [3, 2, 1]
+    assert RunStore.open(run_dir).individuals(["novelty"]).column(0).to_pylist() == [3, 2, 1]
 
 
 def test_the_docs_criteria_table_is_the_registrys():

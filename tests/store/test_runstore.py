@@ -426,6 +426,22 @@ def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
     assert problems == [f"{victim}: corrupt: its sha256 differs from the one the manifest recorded"]
 
 
+def test_a_dataset_of_some_generations_checks_only_the_files_it_reads(store: RunStore) -> None:
+    store.commit(epoch(range(3)))
+    store.commit(epoch(range(3, 6)))
+    store.commit(epoch(range(6, 9)))
+    victim = Path(store.path) / store.manifest["individuals"][0]["path"]   # generations 0..2
+    data = bytearray(victim.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    victim.write_bytes(bytes(data))
+    reader = RunStore.open(store.path)
+    late = reader.dataset((4, 7)).to_table(columns=["generation"])
+    assert sorted(set(late["generation"].to_pylist())) == [3, 4, 5, 6, 7, 8] and late.num_rows == 60
+    for span in ((2, 4), None):   # any read that touches the damaged file is refused, naming it
+        with pytest.raises(StoreError, match=re.escape(str(victim)) + ": corrupt"):
+            reader.dataset() if span is None else reader.dataset(span)
+
+
 def test_a_missing_individuals_file_is_named_by_every_reader(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
@@ -610,3 +626,43 @@ def test_manifests_are_published_where_hard_links_are_not_supported(
     monkeypatch.undo()
     assert RunStore.open(store.path).committed_generations() == {0: 2, 1: 2}
     assert not [n for n in os.listdir(Path(store.path) / "_manifest") if n.startswith(".tmp")]
+
+
+# --- creation that stopped half-way, a full disk -------------------------------------------------
+
+def test_a_half_created_run_is_named_and_a_new_run_finishes_it(tmp_path: Path) -> None:
+    from genr8_dist.distributed.session import _check_new_run_dir
+
+    half = tmp_path / "half"
+    for folder in ("_manifest", "configs", "individuals", "events"):
+        (half / folder).mkdir(parents=True)
+    (half / "configs" / ".tmp-v0001.toml-4242-0badf00d").write_bytes(b"[run")  # killed while writing
+    with pytest.raises(StoreError, match=r"half: a run whose creation did not finish .*genr8 run CONFIG"):
+        RunStore.open(half)
+    _check_new_run_dir(str(half))  # `genr8 run` accepts it ...
+    store = RunStore.create(half, CONFIG)  # ... and finishes it
+    assert store.verify() == [] and RunStore.open(half).configs()[0].toml == CONFIG
+    with pytest.raises(StoreError, match="already holds a run"):
+        _check_new_run_dir(str(half))
+
+
+def test_a_full_disk_names_the_file_and_leaves_the_run_whole(
+    store: RunStore, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+
+    store.commit(epoch(range(2)))
+    real_write = os.write
+
+    def full(fd: int, data: object) -> int:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "write", full)
+    with pytest.raises(OSError) as caught:
+        store.commit(epoch(range(2, 4)))
+    monkeypatch.setattr(os, "write", real_write)
+    assert caught.value.errno == errno.ENOSPC
+    assert caught.value.filename.startswith(str(Path(store.path) / "individuals" / "part-0000000003-"))
+    assert RunStore.open(store.path).verify() == []
+    assert RunStore.open(store.path).committed_generations() == {0: 1, 1: 1}
+    assert not [p for p in Path(store.path).rglob("*") if p.name.startswith((".tmp-", "part-0000000003"))]

@@ -150,7 +150,8 @@ def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path)
         assert min(paused_at.values()) < last, "the run ended before it could be paused"
         _wait("the paused generation's surfaces", lambda: data("generation") == str(min(paused_at.values()))
               and int(data("surfaces") or 0) >= 1, 60)
-        rows = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+        rows = [r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+                if "invalid" not in (r.get_attribute("class") or "")]
         favoured, scored = rows[0].get_attribute("data-id"), rows[-1].get_attribute("data-id")
         rows[0].click()
         _wait("the favoured design's panel", lambda: driver.find_element(By.ID, "d-id").text == favoured, 30)

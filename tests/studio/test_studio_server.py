@@ -230,3 +230,70 @@ def test_the_pareto_front_is_the_non_dominated_valid_designs(run_dir):
 
     marked = {r["id"] for r in gen["individuals"] if r["pareto"]}
     assert marked and marked == {i for i in valid if not dominated(i)}
+
+
+def test_a_rewrite_system_written_in_the_studio_is_injected_and_weights_change(studio, run_dir):
+    store = RunStore.open(run_dir)
+    text = next(ind.text for ind in store.load_generation(0, 1) if ind.valid)
+    status, answer = post(studio, {"action": "inject", "text": text, "island": 1})
+    assert status == 200, answer
+    status, answer = post(studio, {"action": "set", "assignments": ["fitness.size.weight=3",
+                                                                    "environment.gravity=[0, 0, -0.2]"]})
+    assert status == 200, answer
+    events = [json.loads(e["detail"]) for e in RunStore.open(run_dir).events().to_pylist()
+              if e["kind"] == "intervention"]
+    (item,) = events[0]["injected"]
+    assert item["island"] == 1 and item["source"] == "rewrite system written in the studio"
+    assert events[1]["changes"] == {"fitness.size.weight": 3, "environment.gravity": [0, 0, -0.2]}
+    config = RunStore.open(run_dir).configs()[-1]
+    assert "weight = 3" in config.toml
+
+
+def test_the_map_elites_archive_of_a_generation(tmp_path):
+    """A run searching in map-elites mode: the studio's archive holds, per occupied cell, the valid
+    design of lowest fitness over all islands; a weighted run has none."""
+    toml = TOML + ('\n[search]\nmode = "map-elites"\ndescriptors = ["n_regions", "size"]\n'
+                   "ranges = [[1.0, 30.0], [0.0, 12.0]]\nbins = [3, 4]\n")
+    path = tmp_path / "run"
+    store = RunStore.create(path, toml)
+    config = parse_config(toml, "t")
+    population = [ind for i in range(2) for ind in Island(config, i).initial()]
+    store.commit(population)
+    studio = Studio(str(path), port=0).start()
+    try:
+        archive = json.loads(get(studio, "/api/archive")[2])
+    finally:
+        studio.close()
+    assert archive["bins"] == [3, 4] and archive["descriptors"] == ["n_regions", "size"]
+    expected: dict[tuple[int, int], tuple[float, str]] = {}
+    for ind in population:
+        if not ind.valid:
+            continue
+        i = min(2, max(0, int((ind.n_regions - 1.0) / 29.0 * 3)))
+        j = min(3, max(0, int(ind.criteria["size"] / 12.0 * 4)))
+        held = expected.get((i, j))
+        if held is None or ind.fitness < held[0]:
+            expected[(i, j)] = (ind.fitness, ind.id)
+    assert {tuple(c["bins"]): c["id"] for c in archive["cells"]} == {k: v[1] for k, v in expected.items()}
+
+
+def test_a_weighted_run_has_no_archive(studio):
+    assert json.loads(get(studio, "/api/archive")[2]) is None
+
+
+def test_an_action_on_a_finished_run_says_to_add_generations_first(tmp_path):
+    toml = TOML.replace("generations = 4", "generations = 0")
+    path = tmp_path / "run"
+    store = RunStore.create(path, toml)
+    config = parse_config(toml, "t")
+    store.commit([ind for i in range(2) for ind in Island(config, i).initial()])
+    studio = Studio(str(path), port=0).start()
+    try:
+        status, answer = post(studio, {"action": "favour", "ids": ["0-0-1"]})
+        assert status == 400 and "add generations first" in answer["error"]
+        status, answer = post(studio, {"action": "generations", "generations": 3})
+        assert status == 200 and answer["effective_generation"] == 1
+        status, answer = post(studio, {"action": "favour", "ids": ["0-0-1"]})
+        assert status == 200 and answer["version"] == 3
+    finally:
+        studio.close()

@@ -127,11 +127,12 @@ function lineChart(svg, xs, series, opts = {}) {
     el("line", { x1: x, x2: x, y1: T - 2, y2: H - B, stroke: "#f2a541", "stroke-dasharray": "3 3", "stroke-opacity": 0.7 }, svg);
     if (!opts.labels) continue;
     const width = m.label.length * 5.2 + 6;
-    let row = rows.findIndex((right) => x - width / 2 > right + 3);
+    const at = Math.min(Math.max(x, L + width / 2), W - R - width / 2);   // kept inside the chart
+    let row = rows.findIndex((right) => at - width / 2 > right + 3);
     if (row < 0 && rows.length < 3) { row = rows.length; rows.push(-Infinity); }
     if (row < 0) continue;
-    rows[row] = x + width / 2;
-    el("text", { x, y: 9 + row * 10, "text-anchor": "middle", class: "marker-label" }, svg).textContent = m.label;
+    rows[row] = at + width / 2;
+    el("text", { x: at, y: 9 + row * 10, "text-anchor": "middle", class: "marker-label" }, svg).textContent = m.label;
   }
   for (const t of opts.targets || []) {
     el("line", { x1: L, x2: W - R, y1: sy(t), y2: sy(t), stroke: "#8a94a3", "stroke-dasharray": "4 3", "stroke-width": 1 }, svg);
@@ -169,7 +170,12 @@ function drawCurves() {
   }
   series.push({ ys: curves.mean, colour: "#59c3c3", width: 1.5, opacity: 0.9 });
   series.push({ ys: curves.best, colour: "#f2a541", width: 2.4 });
-  lineChart($("fitness-chart"), xs, series, { markers: markers(s), labels: true, cursor: ui.viewGen });
+  // the range follows the best curve and the usual mean: a few wild means do not flatten the best
+  const means = curves.mean.filter((v) => v !== null && isFinite(v)).sort((a, b) => a - b);
+  const [lo, hiBest] = extent(curves.best);
+  const hi = Math.max(hiBest, means.length ? means[Math.floor(means.length * 0.8)] : hiBest);
+  lineChart($("fitness-chart"), xs, series, { markers: markers(s), labels: true, cursor: ui.viewGen,
+    yRange: hi > lo ? [lo, hi] : undefined });
   $("fitness-legend").innerHTML = `<span style="--c:#f2a541">best</span><span style="--c:#59c3c3">mean of the valid</span>` +
     (islands.length > 1 ? `<span style="--c:#9b8cf2">each island's best (island colours)</span>` : "");
   const box = $("criteria-charts");
@@ -243,13 +249,14 @@ function environmentGroup(env, size) {
   };
   env.attractors.forEach((a) => ball(a.position, "#7bd389"));
   env.repellers.forEach((a) => ball(a.position, "#ef6f6c"));
-  const lineMat = new THREE.LineBasicMaterial({ color: 0x8a94a3, transparent: true, opacity: 0.28 });
+  const lineMat = new THREE.LineBasicMaterial({ color: 0x8a94a3, transparent: true, opacity: 0.16 });
   for (const b of env.boundaries) {
     if (b.kind === "sphere") {
       const w = new THREE.LineSegments(new THREE.WireframeGeometry(new THREE.SphereGeometry(b.radius, 18, 12)), lineMat);
       w.position.set(...b.centre); g.add(w);
     } else if (b.kind === "box") {
-      g.add(new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max)), 0x8a94a3));
+      const box = new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max)), 0x8a94a3);
+      box.material.transparent = true; box.material.opacity = 0.3; g.add(box);
     } else if (b.kind === "plane") {
       const grid = new THREE.GridHelper(size, 8, 0x8a94a3, 0x59636f);
       grid.material.transparent = true; grid.material.opacity = 0.35;
@@ -265,11 +272,22 @@ function environmentGroup(env, size) {
   return g;
 }
 
+function envExtent(env) {
+  // the width (x, y) of the boundaries drawn with each design, so that cells do not overlap
+  let w = 0;
+  for (const b of env.boundaries) {
+    if (b.kind === "sphere") w = Math.max(w, 2 * b.radius + 2 * Math.hypot(b.centre[0], b.centre[1]));
+    else if (b.kind === "box") w = Math.max(w, b.max[0] - b.min[0], b.max[1] - b.min[1]);
+  }
+  return w;
+}
+
 function layout() {
   const items = [...ui.designs.values()].filter((d) => d.object);
   if (!items.length) return;
   let size = 1;
   for (const d of items) size = Math.max(size, d.size);
+  if (ui.env && $("show-env").checked) size = Math.max(size, envExtent(ui.env));
   const cell = size * 1.35, cols = Math.ceil(Math.sqrt(ui.order.length));
   ui.order.forEach((id, k) => {
     const d = ui.designs.get(id); if (!d || !d.object) return;
@@ -366,6 +384,33 @@ renderer.domElement.addEventListener("pointerup", (e) => {
   if (hit) select(hit.object.userData.id);
 });
 
+// ------------------------------------------------------------------------------------ the archive
+async function drawArchive(g) {
+  const panel = $("archive-panel");
+  if (!ui.state || ui.state.search !== "map-elites") { panel.classList.add("hidden"); return; }
+  const a = await getJSON(`/api/archive?g=${g}`);
+  if (!a) { panel.classList.add("hidden"); return; }
+  panel.classList.remove("hidden");
+  const [nx, ny, nz] = [a.bins[0], a.bins[1] || 1, a.bins[2] || 1];
+  const rows = ny * nz, W = 340, H = 160, L = 8, T = 6, cw = (W - 2 * L) / nx, ch = (H - T - 16) / rows;
+  const svg = $("archive"); svg.innerHTML = "";
+  const fits = a.cells.map((c) => c.fitness).filter((f) => f !== null);
+  const [lo, hi] = extent(fits);
+  const byCell = new Map(a.cells.map((c) => [c.bins.join(","), c]));
+  for (let i = 0; i < nx; i++) for (let j = 0; j < ny; j++) for (let k = 0; k < nz; k++) {
+    const key = [i, j, k].slice(0, a.bins.length).join(","), c = byCell.get(key);
+    const y = T + (rows - 1 - (j * nz + k)) * ch;
+    const fill = c ? "#" + rankColour(hi > lo ? (c.fitness - lo) / (hi - lo) : 0).getHexString() : "#1f262f";
+    const r = el("rect", { x: L + i * cw + 1, y: y + 1, width: cw - 2, height: ch - 2, rx: 3, fill,
+      stroke: c && c.id === ui.selected ? "#e6e9ee" : "none", "stroke-width": 1.5 }, svg);
+    if (c) { r.style.cursor = "pointer"; r.addEventListener("click", () => select(c.id));
+      el("title", {}, r).textContent = `${c.id} · fitness ${fmt(c.fitness, 4)}`; }
+  }
+  el("text", { x: L, y: H - 3, class: "axis" }, svg).textContent = `${a.descriptors[0]} →`;
+  $("archive-axes").textContent = `${a.cells.length} of ${a.bins.reduce((p, b) => p * b, 1)} cells filled · ` +
+    `${a.descriptors.join(" × ")} · click a cell`;
+}
+
 // ------------------------------------------------------------------------------------ generations
 async function loadGeneration(g) {
   const data = await getJSON(`/api/generation?g=${g}`);
@@ -383,6 +428,7 @@ async function loadGeneration(g) {
   const choice = $("count").value;
   const shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) : rows.filter((r) => r.valid).slice(0, Number(choice));
   showDesigns(shown.map((r) => r.id), rows);
+  drawArchive(data.generation).catch(() => {});
   drawCurves();
 }
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
@@ -479,9 +525,11 @@ async function poll() {
     showState(s);
     if (s.version !== ui.version) {
       ui.version = s.version;
-      curves = await getJSON("/api/curves");
-      drawCurves();
-      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) await loadGeneration(s.generation);
+      // the generation's designs first (a few files), the curves apart (the whole run, once)
+      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) loadGeneration(s.generation);
+      const asked = s.version;
+      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last) { curves = c; drawCurves(); } })
+        .catch(() => { if (ui.version === asked) ui.version = -1; });   // asked again at the next poll
     }
   } catch (e) {
     $("status").textContent = e.message.includes("not a run") || e.message.includes("no such run") ? "starting" : "waiting";

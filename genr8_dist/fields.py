@@ -1,4 +1,6 @@
-"""Checked readers for configuration values: every failure names the source, the field and the value."""
+"""Checked readers for configuration values (the one family of field validators: environments, run
+configurations, fitness specifications): every failure names the source (when there is one), the
+field and the value."""
 
 from __future__ import annotations
 
@@ -21,8 +23,9 @@ __all__ = [
 
 
 def fail(source: str, field: str, message: str) -> ConfigError:
-    """A ConfigError reading ``source: field 'x': message``."""
-    return ConfigError(f"{source}: field '{field}': {message}")
+    """A ConfigError reading ``source: field 'x': message`` (``field 'x': message`` without a source:
+    the caller names the file)."""
+    return ConfigError(f"{source}: field '{field}': {message}" if source else f"field '{field}': {message}")
 
 
 def _is_number(value: Any) -> bool:

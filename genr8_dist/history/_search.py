@@ -1,0 +1,184 @@
+"""The search modes' views of a run: its Pareto front, its MAP-Elites archive, its clusters of forms.
+
+Each takes a run (directory or open ``RunStore``) and returns an Arrow table of distinct surfaces
+(the best individual of each surface digest), with the columns ``top`` returns plus what the view adds:
+
+* ``pareto_front``: the non-dominated surfaces over the Pareto objectives of the configuration in
+  force at the run's end (``search.objectives``, or every criterion with weight > 0), each objective's
+  weighted deviation as ``dev_<name>``;
+* ``archive``: the MAP-Elites archive after a generation (the best of each cell of the grid of
+  ``[search]``), with ``cell`` and one ``bin_<descriptor>`` per axis;
+* ``clusters``: k-means (scikit-learn) over the standardised criteria and log region and vertex counts,
+  one representative per cluster (the surface nearest its centroid), with ``cluster`` and ``members``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from genr8_dist.history._run import (
+    HistoryError,
+    RunLike,
+    as_numpy,
+    criteria_of,
+    dataset,
+    open_run,
+    run_label,
+)
+from genr8_dist.history._tables import _resolve_generation, _rows_by_ids
+from genr8_dist.store.schema import criterion_column, listed_columns
+
+__all__ = ["archive", "clusters", "pareto_front"]
+
+
+def _newest_config(store: Any) -> Any:
+    return store.config(store.configs()[-1])
+
+
+def _distinct(store: Any, generation: int | None, island: int | None, extra: list[str]) -> pa.Table:
+    """The valid rows (of ``generation``, ``island``), one per surface digest (the lowest fitness,
+    ties to the earliest), sorted by fitness."""
+    data = dataset(store)
+    crits = criteria_of(data.schema)
+    generation = _resolve_generation(data, generation)
+    filt = pc.field("valid") == True  # noqa: E712  (an Arrow expression)
+    if generation is not None:
+        filt &= pc.field("generation") == int(generation)
+    if island is not None:
+        filt &= pc.field("island") == int(island)
+    columns = ["id", "generation", "island", "index", "fitness", "surface_digest", "n_regions",
+               "n_vertices", "n_edges", *[criterion_column(c) for c in crits]]
+    columns += [c for c in extra if c in data.schema.names and c not in columns]
+    table = data.to_table(columns=columns, filter=filt)
+    if table.num_rows == 0:
+        raise HistoryError(f"{run_label(store)}: no valid individual"
+                           + (f" in generation {generation}" if generation is not None else ""))
+    order = np.lexsort((as_numpy(table["index"], 0), as_numpy(table["island"], 0),
+                        as_numpy(table["generation"], 0), as_numpy(table["fitness"], math.inf)))
+    table = table.take(pa.array(order, pa.int64()))
+    seen, keep = set(), []
+    for n, digest in enumerate(table["surface_digest"].to_pylist()):
+        if digest not in seen:
+            seen.add(digest)
+            keep.append(n)
+    return table.take(pa.array(keep, pa.int64()))
+
+
+def _with_top_columns(store: Any, ids: list[str]) -> pa.Table:
+    data = dataset(store)
+    columns = listed_columns(criteria_of(data.schema), available=data.schema.names)
+    return _rows_by_ids(data, ids, columns)
+
+
+def pareto_front(run: RunLike, *, generation: int | None = None, island: int | None = None) -> pa.Table:
+    """The non-dominated distinct surfaces of the run (or of ``generation``, ``island``), by fitness."""
+    from genr8_dist.evolution.island import pareto_objectives
+    from genr8_dist.evolution.pareto import non_dominated_ranks
+
+    store = open_run(run)
+    config = _newest_config(store)
+    names = [n for n in pareto_objectives(config) if n in criteria_of(dataset(store).schema)]
+    if len(names) < 2:
+        raise HistoryError(f"{run_label(store)}: a Pareto front needs 2 objectives; the configuration "
+                           f"has {len(names)} (set [search] objectives or weights above 0)")
+    table = _distinct(store, generation, island, [])
+    devs = np.column_stack([
+        [config.fitness[n].deviation(v) if v is not None else math.inf
+         for v in table[criterion_column(n)].to_pylist()] for n in names])
+    front = np.flatnonzero(non_dominated_ranks(devs) == 0)
+    rows = _with_top_columns(store, [table["id"][int(i)].as_py() for i in front])
+    for j, n in enumerate(names):
+        rows = rows.append_column(f"dev_{n}", pa.array(devs[front, j], pa.float64()))
+    return rows
+
+
+def archive(run: RunLike, *, generation: int | None = -1, island: int | None = None) -> pa.Table:
+    """The MAP-Elites archive after ``generation`` (default the last; ``None``: the whole run) of the
+    grid of the run's ``[search]`` settings: each occupied cell's best surface, by fitness."""
+    from genr8_dist.evolution.archive import Grid
+
+    store = open_run(run)
+    config = _newest_config(store)
+    grid = Grid.from_settings(config.search)
+    table = _distinct(store, generation, island, [])
+    held: dict[int, tuple[float, str, list[int]]] = {}
+    for row in table.to_pylist():
+        view = _Row(row)
+        cell = grid.cell(view)
+        if cell is not None and cell not in held:   # rows come best first
+            held[cell] = (row["fitness"], row["id"], list(grid.coordinates(cell)))
+    cells = sorted(held, key=lambda c: (held[c][0], c))
+    rows = _with_top_columns(store, [held[c][1] for c in cells])
+    if "cell" in rows.column_names:   # as stored: the grid in force then; this is the newest grid
+        rows = rows.drop_columns(["cell"])
+    rows = rows.append_column("cell", pa.array(cells, pa.int32()))
+    for j, name in enumerate(grid.descriptors):
+        rows = rows.append_column(f"bin_{name}", pa.array([held[c][2][j] for c in cells], pa.int32()))
+        rows = rows.append_column(f"value_{name}", pa.array(
+            [_value(table, held[c][1], name) for c in cells], pa.float64()))
+    return rows
+
+
+def _value(table: pa.Table, ident: str, name: str) -> float:
+    from genr8_dist.evolution.archive import descriptor_value
+
+    row = table.filter(pc.field("id") == ident).to_pylist()[0]
+    return descriptor_value(_Row(row), name)
+
+
+class _Row:
+    """A stored row seen as the fields ``Grid`` reads (valid, criteria, counts)."""
+
+    def __init__(self, row: dict[str, Any]) -> None:
+        self.valid = True
+        self.fitness = row["fitness"]
+        self.n_vertices = row.get("n_vertices", 0)
+        self.n_edges = row.get("n_edges", 0)
+        self.n_regions = row.get("n_regions", 0)
+        self.criteria = {k[len("crit_"):]: (math.nan if v is None else v)
+                         for k, v in row.items() if k.startswith("crit_")}
+
+
+def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
+             island: int | None = None) -> pa.Table:
+    """``k`` clusters of the run's distinct surfaces (or of ``generation``, ``island``) by k-means over
+    their standardised criteria and log region and vertex counts; per cluster the surface nearest its
+    centroid, with its ``cluster`` number and how many ``members`` the cluster has, largest first."""
+    if k < 1:
+        raise HistoryError(f"clusters: k must be at least 1, got {k}")
+    try:
+        from sklearn.cluster import KMeans
+    except ImportError:
+        raise HistoryError("clustering needs scikit-learn: pip install 'genr8_dist[search]'") from None
+    store = open_run(run)
+    table = _distinct(store, generation, island, [])
+    crits = criteria_of(dataset(store).schema)
+    features = [as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits]
+    features += [np.log1p(as_numpy(table["n_regions"], 0).astype(np.float64)),
+                 np.log1p(as_numpy(table["n_vertices"], 0).astype(np.float64))]
+    x = np.column_stack(features)
+    x = np.where(np.isfinite(x), x, np.nan)
+    fill = np.nanmedian(np.where(np.isnan(x).all(axis=0), 0.0, x), axis=0) if len(x) else 0.0
+    x = np.where(np.isnan(x), fill, x)
+    spread = x.std(axis=0)
+    x = (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
+    k = min(k, len(x))
+    model = KMeans(n_clusters=k, n_init=10, random_state=0).fit(x)
+    labels = model.labels_
+    picks, sizes = [], []
+    for c in range(k):
+        members = np.flatnonzero(labels == c)
+        if not members.size:
+            continue
+        nearest = members[np.argmin(((x[members] - model.cluster_centers_[c]) ** 2).sum(axis=1))]
+        picks.append(int(nearest))
+        sizes.append(int(members.size))
+    order = sorted(range(len(picks)), key=lambda i: (-sizes[i], picks[i]))
+    rows = _with_top_columns(store, [table["id"][picks[i]].as_py() for i in order])
+    rows = rows.append_column("cluster", pa.array(list(range(1, len(order) + 1)), pa.int32()))
+    return rows.append_column("members", pa.array([sizes[i] for i in order], pa.int32()))

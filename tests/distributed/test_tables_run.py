@@ -1,0 +1,118 @@
+"""A run of the tables plugin universe (a phenotype that is not a surface) through the whole engine:
+islands on local Ray and on a simulated 2-node cluster, kill-and-resume equality, and the history
+commands regrowing, exporting and drawing its tables."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from distributed_runs import drive_to_end, rows, stop_at
+
+pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("ray_local")]
+
+HERE = Path(__file__).resolve().parent
+TABLES_TOML = """\
+universe = "tables"
+seed = 3
+
+[genome]
+length = 120
+
+[ea]
+population = 6
+generations = 4
+tournament = 2
+elites = 2
+
+[islands]
+count = 2
+migration_interval = 2
+migrants = 1
+"""
+
+
+def new_tables_run(run_dir, toml: str):
+    """A new run directory of ``toml`` storing its phenotype's criteria (as ``genr8 run`` creates it)."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.store import RunStore
+
+    config = RunConfig.from_toml(toml)
+    store = RunStore.create(run_dir, config.to_toml(), criteria=config.fitness.names)
+    store.record_event("start", generation=0)
+    return store
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory, ray_local):
+    run_dir = tmp_path_factory.mktemp("tables") / "run"
+    new_tables_run(run_dir, TABLES_TOML)
+    summary, _ = drive_to_end(run_dir)
+    assert summary.status == "complete"
+    return run_dir
+
+
+def test_a_tables_run_stores_the_voxel_criteria_and_the_negated_paper_fitness(reference):
+    got = rows(reference)
+    assert len(got) == 2 * 6 * 5
+    assert {k for k in got[0] if k.startswith("crit_")} == {
+        "crit_height", "crit_surface", "crit_stability", "crit_excess", "crit_voxels"}
+    valid = [r for r in got if r["valid"]]
+    assert valid and all(r["fitness"] <= 0 for r in valid)
+    for r in valid:
+        paper = (r["crit_height"] * r["crit_surface"] * r["crit_stability"] / r["crit_excess"]
+                 if r["crit_excess"] else 0.0)
+        assert r["fitness"] == pytest.approx(-paper)
+    # elitism 2: the best table of a generation is never worse than the one before
+    for island in (0, 1):
+        best = [min(r["fitness"] for r in valid if r["island"] == island and r["generation"] == g)
+                for g in range(5)]
+        assert all(b <= a for a, b in itertools.pairwise(best))
+
+
+def test_interrupted_and_resumed_equals_uninterrupted(reference, tmp_path):
+    run_dir = tmp_path / "run"
+    new_tables_run(run_dir, TABLES_TOML)
+    first, _ = drive_to_end(run_dir, on_generation=stop_at(2))
+    assert first.status == "interrupted"
+    second, _ = drive_to_end(run_dir)
+    assert second.status == "complete"
+    assert rows(run_dir) == rows(reference)
+
+
+def test_a_two_node_cluster_gives_the_same_rows(reference, tmp_path):
+    run_dir = tmp_path / "on-cluster"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")]),
+               RAY_USAGE_STATS_ENABLED="0")
+    proc = subprocess.run([sys.executable, str(HERE / "tables_cluster_run.py"), str(run_dir)], env=env,
+                          capture_output=True, text=True, timeout=400, start_new_session=True)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["status"] == "complete" and report["nodes"] == 2, report
+    assert rows(run_dir) == rows(reference)
+
+
+def test_show_regrows_a_table_bit_identically_and_the_report_shows_tables(reference, tmp_path):
+    import trimesh
+
+    from genr8_dist.cli import main
+    from genr8_dist.history import top
+    from genr8_dist.history.report import write_report
+
+    best = top(reference, 1)["id"][0].as_py()
+    for name in ("a", "b"):
+        assert main(["show", str(reference), best, "-o", str(tmp_path / f"{name}.stl"),
+                     "--png", str(tmp_path / f"{name}.png")]) == 0
+    first, second = (tmp_path / "a.stl").read_bytes(), (tmp_path / "b.stl").read_bytes()
+    assert first == second
+    row = next(r for r in rows(reference) if r["id"] == best)
+    mesh = trimesh.load(tmp_path / "a.stl")
+    assert mesh.is_watertight and mesh.volume == pytest.approx(row["crit_voxels"])
+    assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = write_report(reference, tmp_path / "report.html").read_text()
+    assert "The best tables of generation 4" in page and "table.obj" in page

@@ -1,0 +1,115 @@
+"""The search modes' views of a run: Pareto front, clusters, MAP-Elites archive, and their commands."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from genr8_dist.config import RunConfig
+from genr8_dist.evolution import Island
+from genr8_dist.store import RunStore
+
+pytestmark = pytest.mark.slow   # three small real runs, grown: about 20 s
+
+BASE = {"universe": "tiles", "seed": 7, "genome": {"length": 50},
+        "ea": {"population": 12, "generations": 3},
+        "fitness": {"undulation": {"target": 1.0}, "slivers": {"target": 0.0, "weight": 1.0}},
+        "environment": {"steps": 2}}
+
+
+def _run(path, **search):
+    config = RunConfig.from_dict({**BASE, "search": search} if search else BASE)
+    store = RunStore.create(path, config.to_toml())
+    for generation in Island(config, 0).run():
+        store.commit(generation)
+    return store, config
+
+
+@pytest.fixture(scope="module")
+def pareto_run(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("search") / "pareto", mode="pareto",
+                objectives=["undulation", "subdivisions", "slivers"])
+
+
+@pytest.fixture(scope="module")
+def archive_run(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("search") / "archive", mode="map-elites",
+                descriptors=["undulation", "cells"], ranges=[[0, 2], [1, 33]], bins=[3, 4])
+
+
+def _distinct_devs(store, names, config):
+    rows = [r for r in store.individuals().to_pylist() if r["valid"]]
+    best = {}
+    for r in sorted(rows, key=lambda r: (r["fitness"], r["generation"], r["island"], r["index"])):
+        best.setdefault(r["surface_digest"], r)
+    return {r["id"]: [config.fitness[n].deviation(r[f"crit_{n}"]) for n in names] for r in best.values()}
+
+
+def test_the_pareto_front_is_every_non_dominated_surface_and_nothing_else(pareto_run):
+    from genr8_dist import history
+
+    store, config = pareto_run
+    names = ["undulation", "subdivisions", "slivers"]
+    front = history.pareto_front(store)
+    devs = _distinct_devs(store, names, config)
+
+    def dominated(a):
+        return any(all(x <= y for x, y in zip(b, a, strict=True)) and b != a for b in devs.values())
+
+    expected = {i for i, d in devs.items() if not dominated(d)}
+    assert set(front["id"].to_pylist()) == expected and front.num_rows == len(expected)
+    assert front.column_names[-3:] == [f"dev_{n}" for n in names]
+    # stored: each individual's front among its generation, 0 for the non-dominated
+    ranks = [r["pareto_rank"] for r in store.individuals(["pareto_rank", "generation"]).to_pylist()]
+    assert min(ranks) == 0 and all(r is not None for r in ranks)
+
+
+def test_clusters_cover_the_distinct_surfaces_once_and_are_repeatable(pareto_run):
+    from genr8_dist import history
+
+    store, config = pareto_run
+    a = history.clusters(store, 4)
+    b = history.clusters(store, 4)
+    assert a.equals(b)
+    n = len(_distinct_devs(store, ["size"], config))
+    assert a.num_rows == 4 and sum(a["members"].to_pylist()) == n
+    assert len(set(a["id"].to_pylist())) == 4
+    assert a["members"].to_pylist() == sorted(a["members"].to_pylist(), reverse=True)
+
+
+def test_the_archive_holds_the_best_surface_of_each_cell(archive_run):
+    from genr8_dist import history
+    from genr8_dist.evolution.archive import Grid
+
+    store, config = archive_run
+    grid = Grid.from_settings(config.search)
+    table = history.archive(store)
+    last = store.load_generation(0, config.ea.generations)
+    cells = grid.archive(last)
+    assert sorted(table["cell"].to_pylist()) == sorted(cells)
+    for row in table.to_pylist():
+        assert row["fitness"] == cells[row["cell"]].fitness
+        assert math.isfinite(row["fitness"])
+    # the stored cell column is the archive cell of every valid individual
+    stored = [(i.extra.get("cell"), grid.cell(i)) for i in last]
+    assert all(a == b for a, b in stored)
+    assert np.all(np.diff(table["fitness"].to_numpy()) >= 0)
+
+
+def test_the_commands_list_the_front_and_draw_clusters_and_the_archive(pareto_run, archive_run, tmp_path,
+                                                                        capsys):
+    from genr8_dist.cli import main
+
+    assert main(["top", str(pareto_run[0].path), "--pareto"]) == 0
+    out = capsys.readouterr().out
+    assert "non-dominated surfaces" in out and "dev_undulation" in out
+    png = tmp_path / "kinds.png"
+    assert main(["gallery", str(pareto_run[0].path), "--clusters", "3", "-o", str(png)]) == 0
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    grid = tmp_path / "map.png"
+    assert main(["gallery", str(archive_run[0].path), "--archive", "-o", str(grid)]) == 0
+    assert grid.stat().st_size > 1000
+    assert main(["top", str(pareto_run[0].path), "--pareto", "--criterion", "size"]) == 2
+    assert "--pareto and --criterion" in capsys.readouterr().err
