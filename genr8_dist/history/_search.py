@@ -28,6 +28,7 @@ from genr8_dist.history._run import (
     criteria_of,
     dataset,
     open_run,
+    parse_id,
     run_label,
 )
 from genr8_dist.history._tables import _resolve_generation, _rows_by_ids
@@ -43,9 +44,12 @@ def _newest_config(store: Any) -> Any:
 def _distinct(store: Any, generation: int | None, island: int | None, extra: list[str]) -> pa.Table:
     """The valid rows (of ``generation``, ``island``), one per surface digest (the lowest fitness,
     ties to the earliest), sorted by fitness."""
-    data = dataset(store)
+    if generation is None or generation < 0:
+        data = dataset(store)
+        generation = _resolve_generation(data, generation)
+    else:   # one generation: only the files holding it are read (and checked)
+        data = dataset(store, (int(generation), int(generation)))
     crits = criteria_of(data.schema)
-    generation = _resolve_generation(data, generation)
     filt = pc.field("valid") == True  # noqa: E712  (an Arrow expression)
     if generation is not None:
         filt &= pc.field("generation") == int(generation)
@@ -70,7 +74,9 @@ def _distinct(store: Any, generation: int | None, island: int | None, extra: lis
 
 
 def _with_top_columns(store: Any, ids: list[str]) -> pa.Table:
-    data = dataset(store)
+    parsed = [parse_id(i) for i in ids]
+    gens = [p[1] for p in parsed if p is not None]
+    data = dataset(store, (min(gens), max(gens)) if gens and len(gens) == len(ids) else None)
     columns = listed_columns(criteria_of(data.schema), available=data.schema.names)
     return _rows_by_ids(data, ids, columns)
 
@@ -157,7 +163,7 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
         raise HistoryError("clustering needs scikit-learn: pip install 'genr8_dist[search]'") from None
     store = open_run(run)
     table = _distinct(store, generation, island, [])
-    crits = criteria_of(dataset(store).schema)
+    crits = criteria_of(table.schema)
     features = [as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits]
     features += [np.log1p(as_numpy(table["n_regions"], 0).astype(np.float64)),
                  np.log1p(as_numpy(table["n_vertices"], 0).astype(np.float64))]

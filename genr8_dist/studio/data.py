@@ -17,14 +17,16 @@ import time
 from collections import OrderedDict
 from typing import Any
 
-from genr8_dist.errors import StoreError
+from genr8_dist.errors import ConfigError, StoreError
 
 __all__ = ["MAX_FACES", "RunView"]
 
 MAX_FACES = 20_000          # a surface with more triangles is decimated before it is sent
 MAX_EDGES = 30_000          # scaffold edges sent with a surface (every k-th one past this)
 GLB_CACHE = 256             # surfaces kept in memory
-GENERATION_CACHE = 32       # generations' rows kept in memory
+GENERATION_CACHE = 32       # generations' rows (and their kinds of form) kept in memory
+KINDS = 12                  # kinds of form shown (Biomorpher shows 12)
+MAX_KINDS = 36
 LINEAGE_DEPTH = 12          # generations of the main line shown for a design
 
 
@@ -48,6 +50,7 @@ class RunView:
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
         self._generations: OrderedDict[int, list[dict[str, Any]]] = OrderedDict()
+        self._kinds: OrderedDict[tuple[int, int, int | None], dict[str, Any]] = OrderedDict()
         self._configs: dict[int, Any] = {}
         self._seen: tuple[float, int] | None = None   # (time, individuals) when the newest commit was seen
 
@@ -299,6 +302,51 @@ class RunView:
         valid = table["valid"].to_pylist()
         front = non_dominated(objectives_of(raws, valid, config.fitness, names))
         return [bool(ok) and bool(on) for ok, on in zip(valid, front, strict=True)]
+
+    def clusters(self, generation: int | None = None, k: int = KINDS, island: int | None = None
+                 ) -> dict[str, Any]:
+        """The kinds of form of ``generation`` (default: the newest), as Biomorpher shows them: its
+        distinct valid surfaces (of ``island``, or all) in ``k`` clusters by k-means over their
+        criteria and counts (``history.clusters``), one representative per cluster (the design
+        nearest its centre) with the cluster's size, largest first. Without scikit-learn:
+        ``unavailable`` says which extra to install."""
+        from genr8_dist.errors import HistoryError
+        from genr8_dist.history import clusters
+
+        store = self.store()
+        committed = store.committed_generations()
+        if not committed:
+            return {"generation": -1, "k": k, "representatives": []}
+        newest = min(committed.values())
+        g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        if not 1 <= k <= MAX_KINDS:
+            raise ConfigError(f"k {k}: the studio shows 1 to {MAX_KINDS} kinds of form")
+        try:
+            import sklearn.cluster  # noqa: F401  (the search extra)
+        except ImportError:
+            return {"generation": g, "k": k, "representatives": [],
+                    "unavailable": "kinds of form need scikit-learn: pip install 'genr8_dist[search]'"}
+        key = (g, k, island)
+        with self._lock:
+            found = self._kinds.get(key)
+        if found is not None:
+            return found
+        try:
+            table = clusters(store, k, generation=g, island=island)
+            rows = [{"id": r["id"], "cluster": r["cluster"], "members": r["members"], "island": r["island"],
+                     "fitness": _finite(r["fitness"]), "n_regions": r["n_regions"]}
+                    for r in table.select(["id", "cluster", "members", "island", "fitness", "n_regions"])
+                    .to_pylist()]
+            answer: dict[str, Any] = {"generation": g, "k": k, "representatives": rows,
+                                      "surfaces": sum(r["members"] for r in rows)}
+        except HistoryError as exc:   # no valid design in it: nothing to cluster
+            answer = {"generation": g, "k": k, "representatives": [], "message": str(exc)}
+        if g <= newest:
+            with self._lock:
+                self._kinds[key] = answer
+                while len(self._kinds) > GENERATION_CACHE:
+                    self._kinds.popitem(last=False)
+        return answer
 
     def archive(self, generation: int | None = None) -> dict[str, Any] | None:
         """The MAP-Elites archive of ``generation`` (default: the newest) when the run searches in

@@ -261,6 +261,11 @@ class _Handler(BaseHTTPRequestHandler):
         elif path == "/api/generation":
             g = arg("g")
             self._json(view.generation(None if g in (None, "") else int(_number(g, "g"))))
+        elif path == "/api/clusters":
+            g, k, island = arg("g"), arg("k"), arg("island")
+            self._json(view.clusters(None if g in (None, "") else int(_number(g, "g")),
+                                     12 if k in (None, "") else int(_number(k, "k")),
+                                     None if island in (None, "") else int(_number(island, "island"))))
         elif path == "/api/archive":
             g = arg("g")
             self._json(view.archive(None if g in (None, "") else int(_number(g, "g"))))

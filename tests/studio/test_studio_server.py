@@ -100,6 +100,33 @@ def test_state_curves_generation_and_a_design(studio):
     assert env["attractors"] == [{"position": [0.0, 0.0, 3.0], "constant": 1.0}]
 
 
+def test_the_kinds_of_form_are_one_existing_design_per_cluster(studio, run_dir, monkeypatch):
+    store = RunStore.open(str(run_dir))
+    rows = store.dataset().to_table(columns=["id", "generation", "valid", "surface_digest"]).to_pylist()
+    valid = {r["id"]: r["surface_digest"] for r in rows if r["generation"] == 1 and r["valid"]}
+    distinct = len(set(valid.values()))
+    assert distinct >= 4
+    for k, expected in ((4, 4), (12, min(12, distinct))):
+        kinds = json.loads(get(studio, f"/api/clusters?g=1&k={k}")[2])
+        reps = kinds["representatives"]
+        assert (kinds["generation"], kinds["k"], len(reps)) == (1, k, expected)
+        assert all(r["id"] in valid for r in reps)                       # existing, valid, of generation 1
+        assert len({valid[r["id"]] for r in reps}) == expected           # one surface per cluster
+        assert [r["cluster"] for r in reps] == list(range(1, expected + 1))
+        assert sum(r["members"] for r in reps) == kinds["surfaces"] == distinct
+        assert [r["members"] for r in reps] == sorted((r["members"] for r in reps), reverse=True)
+    island = json.loads(get(studio, "/api/clusters?g=1&k=3&island=1")[2])["representatives"]
+    assert len(island) == 3 and all(r["id"].startswith("1-1-") for r in island)
+    with pytest.raises(urllib.error.HTTPError) as bad:
+        get(studio, "/api/clusters?g=1&k=0")
+    assert bad.value.code == 400 and "1 to 36 kinds" in json.loads(bad.value.read())["error"]
+    monkeypatch.setitem(__import__("sys").modules, "sklearn", None)      # scikit-learn not installed
+    monkeypatch.setitem(__import__("sys").modules, "sklearn.cluster", None)
+    missing = json.loads(get(studio, "/api/clusters?g=0&k=4")[2])
+    assert missing["representatives"] == []
+    assert missing["unavailable"] == "kinds of form need scikit-learn: pip install 'genr8_dist[search]'"
+
+
 def test_a_surface_is_glb_and_downloads_are_whole_files(studio):
     gen = json.loads(get(studio, "/api/generation")[2])
     best = next(r["id"] for r in gen["individuals"] if r["valid"])

@@ -341,7 +341,9 @@ async function showDesigns(ids, generationRows) {
         });
         const box = new THREE.Box3().setFromObject(object);
         const row = rows.get(id) || {};
-        const label = labelSprite(`${id}  ${fmt(row.fitness, 3)}`, islandColour(row.island ?? 0));
+        const kind = ui.kinds ? ui.kinds.representatives.find((r) => r.id === id) : null;
+        const label = labelSprite(kind ? `${id}  ×${kind.members}  ${fmt(row.fitness, 3)}` : `${id}  ${fmt(row.fitness, 3)}`,
+          islandColour(row.island ?? 0));
         holder.add(object, label);
         if (ui.env && $("show-env").checked) holder.add(environmentGroup(ui.env, box.getSize(new THREE.Vector3()).length()));
         world.add(holder);
@@ -426,11 +428,40 @@ async function loadGeneration(g) {
   const version = rows.length ? rows[0].config_version : null;
   if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
   const choice = $("count").value;
-  const shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) : rows.filter((r) => r.valid).slice(0, Number(choice));
+  let shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) :
+    rows.filter((r) => r.valid).slice(0, choice === "kinds" ? 12 : Number(choice));
+  ui.kinds = null;
+  if (choice === "kinds") {
+    const kinds = await loadKinds(data.generation, island);
+    if (kinds && kinds.representatives.length) shown = kinds.representatives;
+  } else { $("kinds-panel").classList.add("hidden"); }
   showDesigns(shown.map((r) => r.id), rows);
   drawArchive(data.generation).catch(() => {});
   drawCurves();
 }
+// the kinds of form of a generation (Biomorpher's 12): one design per k-means cluster, nearest its centre
+async function loadKinds(g, island) {
+  const panel = $("kinds-panel"), list = $("kinds-list");
+  panel.classList.remove("hidden");
+  list.innerHTML = `<div class="note">clustering generation ${g}…</div>`;
+  let k;
+  try { k = await getJSON(`/api/clusters?g=${g}&k=12&island=${island}`); } catch (e) { list.innerHTML = `<div class="note">${escapeHTML(e.message)}</div>`; return null; }
+  if (k.unavailable || !k.representatives.length) {
+    list.innerHTML = `<div class="note">${escapeHTML(k.unavailable || k.message || "no valid design to cluster")}` +
+      `${k.unavailable ? " · showing the best 12" : ""}</div>`;
+    $("kinds-note").textContent = "";
+    return null;
+  }
+  ui.kinds = k;
+  $("kinds-note").textContent = `${k.representatives.length} clusters of the ${k.surfaces} distinct surfaces · the design nearest each centre`;
+  list.innerHTML = k.representatives.map((r) =>
+    `<div data-id="${r.id}" class="${r.id === ui.selected ? "selected" : ""}">` +
+    `<b><i style="color:${islandColour(r.island)}">■</i> kind ${r.cluster} · ${r.id}</b>` +
+    `<span>${r.members} form${r.members > 1 ? "s" : ""}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
+  document.body.dataset.kinds = String(k.representatives.length);
+  return k;
+}
+$("kinds-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-prev").onclick = () => { $("follow").checked = ui.follow = false; if (ui.viewGen > 0) loadGeneration(ui.viewGen - 1); };
 $("gen-next").onclick = () => { if (ui.state && ui.viewGen < ui.state.generation) loadGeneration(ui.viewGen + 1); };
@@ -444,7 +475,7 @@ $("overview").onclick = frameAll;
 // ------------------------------------------------------------------------------------------ design
 async function select(id) {
   ui.selected = id;
-  document.querySelectorAll("#gen-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
+  document.querySelectorAll("#gen-list [data-id], #kinds-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   highlight();
   let d;
   try { d = await getJSON(`/api/individual?id=${id}`); } catch (e) { toast(e.message, true); return; }
