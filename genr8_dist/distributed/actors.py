@@ -25,9 +25,12 @@ import os
 import socket
 from collections import deque
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.evolution.individual import Individual
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
 
 __all__ = ["OFFERS", "IslandHost", "remote_host_class"]
 
@@ -56,7 +59,7 @@ class IslandHost:
         """Where this host runs (answers once the actor is scheduled and started)."""
         return {"host": socket.gethostname(), "pid": os.getpid()}
 
-    def _island(self, island: int, config: Any, config_version: int) -> Any:
+    def _island(self, island: int, config: RunConfig | None, config_version: int) -> Any:
         from genr8_dist.evolution.island import Island
 
         if config is not None:
@@ -99,7 +102,7 @@ class IslandHost:
         self,
         island: int,
         generation: int,
-        config: Any,
+        config: RunConfig | None,
         config_version: int,
         migrants: Sequence[Individual] = (),
         injected: Sequence[Any] = (),
@@ -172,7 +175,8 @@ class IslandHost:
                 out.update(zip(share, found, strict=True))
         return out
 
-    def evaluate(self, config_version: int, config: Any, genomes: Sequence[Sequence[int]]) -> list[Any]:
+    def evaluate(self, config_version: int, config: RunConfig,
+                 genomes: Sequence[Sequence[int]]) -> list[Any]:
         """The evaluations of ``genomes`` under configuration version ``config_version`` (``config``),
         for the host of another island."""
         from genr8_dist.evolution.evaluate import Evaluator

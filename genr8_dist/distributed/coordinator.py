@@ -37,13 +37,17 @@ import json
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.distributed.actors import OFFERS
 from genr8_dist.distributed.migration import is_migration_generation, plan_migration
 from genr8_dist.distributed.progress import ProgressDisplay
 from genr8_dist.errors import Genr8Error, RunError
 from genr8_dist.evolution.individual import Individual
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.store import RunStore
 
 __all__ = [
     "Coordinator",
@@ -62,7 +66,7 @@ __all__ = [
 _TICKETS = itertools.count(1)
 
 
-def last_generation(config: Any) -> int:
+def last_generation(config: RunConfig) -> int:
     """The last generation of a run: ``ea.generations`` (generation 0 is the random one)."""
     return int(config.ea.generations)
 
@@ -91,7 +95,7 @@ def stored_events(table: Any) -> list[StoredEvent]:
             for r in rows]
 
 
-def parse_config(toml_text: str, source: str) -> Any:
+def parse_config(toml_text: str, source: str) -> RunConfig:
     """A configuration's TOML text as a ``RunConfig`` (a run's own versions: ``RunStore.config``)."""
     from genr8_dist.config import RunConfig
 
@@ -140,7 +144,7 @@ class Coordinator:
 
     def __init__(
         self,
-        store: Any,
+        store: RunStore,
         hosts: Any,
         *,
         progress: ProgressDisplay | None = None,
@@ -318,7 +322,7 @@ class Coordinator:
         s.wall_seconds = time.perf_counter() - self._created
         s.coordinator_seconds = max(0.0, s.wall_seconds - s.wait_seconds - s.store_seconds)
 
-    def _migrants(self, generation: int, config: Any) -> dict[int, list[Individual]]:
+    def _migrants(self, generation: int, config: RunConfig) -> dict[int, list[Individual]]:
         """The migrants that move after ``generation`` (from its committed populations)."""
         populations = {i: self._population(i, generation) for i in range(self.n_islands)}
         islands = config.islands

@@ -32,10 +32,15 @@ import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import parse_id
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.individual import Individual
+    from genr8_dist.store import RunStore
 
 __all__ = ["Edit", "EditResult", "apply_edit", "parse_assignment", "record_edit", "take_queued"]
 
@@ -137,7 +142,7 @@ def _assign(table: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
     at[path[-1]] = value
 
 
-def _individual(store: Any, ident: str, what: str) -> Any:
+def _individual(store: RunStore, ident: str, what: str) -> Individual:
     parsed = parse_id(ident.strip())
     if parsed is None:
         raise ConfigError(f"{what} {ident!r}: an individual id is ISLAND-GENERATION-INDEX, e.g. 0-12-3")
@@ -170,7 +175,8 @@ def apply_edit(run_dir: str, edit: Edit, *, source: str = "edit") -> EditResult:
         return record_edit(store, edit, source=source)
 
 
-def record_edit(store: Any, edit: Edit, *, source: str = "edit", request_id: str | None = None) -> EditResult:
+def record_edit(store: RunStore, edit: Edit, *, source: str = "edit",
+                request_id: str | None = None) -> EditResult:
     """Record ``edit`` in ``store`` (held by its one writer): a configuration version in force from the
     generation after the last committed one, with its ``intervention`` event."""
     from genr8_dist.store import Event
@@ -184,7 +190,7 @@ def record_edit(store: Any, edit: Edit, *, source: str = "edit", request_id: str
     return result
 
 
-def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
+def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], EditResult]:
     """Everything ``edit`` would record, checked: the new configuration, the event detail, the result."""
     from genr8_dist.config import RunConfig
     from genr8_dist.store import RunStore
@@ -286,7 +292,7 @@ def _prepare(store: Any, edit: Edit) -> tuple[Any, dict[str, Any], EditResult]:
     return config, detail, result
 
 
-def take_queued(store: Any) -> list[tuple[str, Any]]:
+def take_queued(store: RunStore) -> list[tuple[str, Any]]:
     """Record the running run's pending interventions in queue order (the coordinator calls this
     between epochs, as the run's one writer). Returns ``(kind, outcome)`` per request taken: ``edit``
     with its ``EditResult``, ``pause``/``continue``, or ``refused`` with the one-line reason (also

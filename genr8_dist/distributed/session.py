@@ -27,7 +27,9 @@ from typing import TYPE_CHECKING, Any, TextIO
 from genr8_dist.errors import Genr8Error, RunError, StoreError
 
 if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
+    from genr8_dist.store import RunStore
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
@@ -216,7 +218,7 @@ def _check_new_run_dir(run_dir: str) -> None:
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
-def stored_universes(store: Any) -> list[Any]:
+def stored_universes(store: RunStore) -> list[Any]:
     """The universe of every configuration version of the run that can be read (a damaged version is
     left to ``repair``), without running any of their code."""
     sources: list[Any] = []
@@ -234,13 +236,13 @@ def stored_universes(store: Any) -> list[Any]:
     return sources
 
 
-def latest_config(store: Any) -> Any:
+def latest_config(store: RunStore) -> RunConfig:
     """The run's newest configuration version, as a ``RunConfig``."""
     newest = store.configs()[-1]
     return store.config(newest)
 
 
-def _creation_config(store: Any) -> Any:
+def _creation_config(store: RunStore) -> RunConfig:
     """The configuration a damaged run was created with (``StoreError`` from ``repair`` when that very
     file is damaged: the run has no intact state to fall back to)."""
     try:
@@ -252,7 +254,7 @@ def _creation_config(store: Any) -> Any:
 
 
 @contextmanager
-def hold_run_lock(store: Any) -> Iterator[None]:
+def hold_run_lock(store: RunStore) -> Iterator[None]:
     """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
     then queue their interventions for the coordinator instead of writing. Refuses a run that another
     process is running."""
@@ -267,7 +269,7 @@ def hold_run_lock(store: Any) -> Iterator[None]:
         lock.release()
 
 
-def drive(store: Any, options: RunOptions, *, out: TextIO | None = None,
+def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
           on_generation: Callable[[Coordinator, int], None] | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
           stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:

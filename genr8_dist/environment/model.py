@@ -107,7 +107,7 @@ class Environment:
     position_noise: float = 0.0
     vertex_mass: float = 1.0
     max_edges: int = 200_000
-    max_work: int = 20_000
+    max_work: int = 15_000
     max_seconds: float = 60.0
     fixed_perimeter: bool = False
     fixed_centre: bool = False

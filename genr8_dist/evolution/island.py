@@ -52,7 +52,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
@@ -66,6 +66,9 @@ from genr8_dist.evolution.operators import (
     tournament_select,
 )
 from genr8_dist.rng import stream
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
@@ -106,7 +109,7 @@ _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
 
 
-def pareto_objectives(config: Any) -> tuple[str, ...]:
+def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
     """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
     with a weight above 0."""
     if config.search.objectives:
@@ -135,7 +138,7 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
 class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
-    def __init__(self, config: Any, island_index: int, config_version: int = 1, *,
+    def __init__(self, config: RunConfig, island_index: int, config_version: int = 1, *,
                  evaluator: Evaluator | None = None,
                  config_of: Callable[[int], Any] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -16,6 +16,10 @@ from genr8_dist.errors import ConfigError, HistoryError, StoreError
 from genr8_dist.evolution.individual import parse_id
 from genr8_dist.files import replacing
 from genr8_dist.store.schema import criterion_of
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.store import RunStore
 
 __all__ = [
     "HistoryError",
@@ -41,7 +45,7 @@ def _label(run: RunLike) -> str:
     return str(run)
 
 
-def open_run(run: RunLike) -> Any:
+def open_run(run: RunLike) -> RunStore:
     """The ``RunStore`` for ``run`` (a directory, a URI, or an already open store, returned as is).
 
     A local directory that does not exist is a ``StoreError`` naming it, before the store is asked.
@@ -56,7 +60,7 @@ def open_run(run: RunLike) -> Any:
     return RunStore.open(text)
 
 
-def dataset(store: Any, generations: tuple[int, int] | None = None) -> pads.Dataset:
+def dataset(store: RunStore, generations: tuple[int, int] | None = None) -> pads.Dataset:
     """The committed individuals of ``store`` (only the files holding ``generations=(lo, hi)``, when
     given) as a dataset; a run with none is a ``StoreError``."""
     data = store.dataset() if generations is None else store.dataset(generations)
@@ -79,7 +83,7 @@ def criteria_of(schema: pa.Schema) -> list[str]:
     return [c for name in schema.names if (c := criterion_of(name)) is not None]
 
 
-def targets_by_version(store: Any, criteria: list[str]) -> dict[int, dict[str, tuple[float, float]]]:
+def targets_by_version(store: RunStore, criteria: list[str]) -> dict[int, dict[str, tuple[float, float]]]:
     """For every configuration version: ``{criterion: (target, unit)}``, the deviation a criterion's
     raw value is judged by (``|raw - target| / unit``, the fitness's own normalisation, unweighted)."""
     out: dict[int, dict[str, tuple[float, float]]] = {}
@@ -161,7 +165,7 @@ def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = N
         raise HistoryError(f"format {fmt!r}: write csv or parquet")
 
 
-def config_of(store: Any, version: int) -> Any:
+def config_of(store: RunStore, version: int) -> RunConfig:
     """The ``RunConfig`` of configuration ``version`` of ``store``."""
     if int(version) not in {int(cv.version) for cv in store.configs()}:
         raise HistoryError(f"{run_label(store)}: no configuration version {version}")
@@ -171,7 +175,7 @@ def config_of(store: Any, version: int) -> Any:
         raise HistoryError(str(exc)) from None
 
 
-def phenotype_for(store: Any, config: Any) -> Any:
+def phenotype_for(store: RunStore, config: RunConfig) -> Any:
     """The phenotype of ``config``'s universe (a configuration of ``store``).
 
     History runs no stored code (:mod:`genr8_dist.grammar.trust`) but the code of an installed plugin

@@ -32,7 +32,7 @@ from genr8_dist.history._run import (
     run_label,
 )
 from genr8_dist.history._tables import _resolve_generation, _rows_by_ids
-from genr8_dist.store.schema import criterion_column, listed_columns
+from genr8_dist.store.schema import criterion_column, criterion_of, listed_columns
 
 __all__ = ["archive", "clusters", "pareto_front"]
 
@@ -146,8 +146,8 @@ class _Row:
         self.n_vertices = row.get("n_vertices", 0)
         self.n_edges = row.get("n_edges", 0)
         self.n_regions = row.get("n_regions", 0)
-        self.criteria = {k[len("crit_"):]: (math.nan if v is None else v)
-                         for k, v in row.items() if k.startswith("crit_")}
+        self.criteria = {c: (math.nan if v is None else v)
+                         for k, v in row.items() if (c := criterion_of(k)) is not None}
 
 
 def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,

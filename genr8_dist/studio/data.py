@@ -18,6 +18,7 @@ from collections import OrderedDict
 from typing import Any
 
 from genr8_dist.errors import ConfigError, StoreError
+from genr8_dist.store.schema import criterion_column
 
 __all__ = ["MAX_FACES", "RunView"]
 
@@ -262,7 +263,7 @@ class RunView:
             if rows is not None:
                 self._generations.move_to_end(g)
                 return {"generation": g, "newest": newest, "individuals": rows}
-        crits = [f"crit_{c}" for c in store.criteria]
+        crits = [criterion_column(c) for c in store.criteria]
         columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
                    "config_version", *crits]
         import pyarrow.compute as pc
@@ -299,8 +300,8 @@ class RunView:
         names = [n for n in pareto_objectives(config) if n in criteria]
         if not names:
             return [False] * table.num_rows
-        raws = [{n: (math.nan if r[f"crit_{n}"] is None else r[f"crit_{n}"]) for n in names}
-                for r in table.select([f"crit_{n}" for n in names]).to_pylist()]
+        raws = [{n: (math.nan if r[criterion_column(n)] is None else r[criterion_column(n)]) for n in names}
+                for r in table.select([criterion_column(n) for n in names]).to_pylist()]
         valid = table["valid"].to_pylist()
         front = non_dominated(objectives_of(raws, valid, config.fitness, names))
         return [bool(ok) and bool(on) for ok, on in zip(valid, front, strict=True)]
@@ -382,7 +383,7 @@ class RunView:
         config = self.config(int(row["config_version"]))
         crits = []
         for c in self._criteria(config):
-            c["value"] = _finite(row.get(f"crit_{c['name']}"))
+            c["value"] = _finite(row.get(criterion_column(c["name"])))
             crits.append(c)
         line = lineage(store, id, depth=LINEAGE_DEPTH).to_pylist()
         main = [{"id": r["id"], "generation": r["generation"], "origin": r["origin"],
@@ -485,7 +486,7 @@ def _add_generations(curves: dict[str, Any], store: Any) -> None:
     since = int(curves["last"])
     if done <= since:
         return
-    crits = [f"crit_{c}" for c in store.criteria]
+    crits = [criterion_column(c) for c in store.criteria]
     span = (pc.field("generation") > since) & (pc.field("generation") <= done)
     table = store.dataset().to_table(columns=["generation", "island", "index", "fitness", *crits],
                                      filter=span if since >= 0 or done < max(committed.values()) else None)
@@ -513,7 +514,8 @@ def _add_generations(curves: dict[str, Any], store: Any) -> None:
         curves["mean"].append(_finite(mean))
         curves["best_id"].append(f"{row['island']}-{g}-{row['index']}" if row else None)
         for name in store.criteria:
-            curves["criteria"].setdefault(name, []).append(_finite(row[f"crit_{name}"]) if row else None)
+            value = _finite(row[criterion_column(name)]) if row else None
+            curves["criteria"].setdefault(name, []).append(value)
     island_rows = per_island.sort_by([("island", "ascending"), ("generation", "ascending")]).to_pylist()
     for row in island_rows:
         isl = curves["islands"].setdefault(str(row["island"]), {"generation": [], "best": []})

@@ -250,3 +250,26 @@ def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(re
     assert rows(stopped) == got
     ref = rows(reference[0])
     assert [r for r in got if r["generation"] < 5] == [r for r in ref if r["generation"] < 5]
+
+
+@pytest.mark.parametrize("search", [
+    '[search]\nmode = "map-elites"\ndescriptors = ["undulation", "n_regions"]\n'
+    'ranges = [[0.0, 1.0], [1.0, 9.0]]\nbins = [2, 4]\n',
+    '[search]\nmode = "pareto"\n',
+])
+def test_a_search_mode_run_resumed_equals_the_uninterrupted_one_archive_included(pool, tmp_path, search):
+    """The MAP-Elites archive travels in the rows (each generation starts with its cells' elites), so a
+    killed and resumed run has the same archive, row for row; likewise Pareto ranks."""
+    toml = tiny_toml(islands=2, generations=5) + search
+    whole = tmp_path / "whole"
+    new_run(whole, toml)
+    assert drive_to_end(whole, pool)[0].status == "complete"
+    cut = tmp_path / "cut"
+    new_run(cut, toml)
+    assert drive_to_end(cut, pool, on_generation=stop_at(2))[0].status == "interrupted"
+    assert drive_to_end(cut, pool)[0].status == "complete"
+    assert rows(cut) == rows(whole)
+    if "map-elites" in search:
+        assert any(r["cell"] is not None for r in rows(whole))
+        assert any(r["origin"] == "elite" for r in rows(whole) if r["generation"] > 0)
+    assert all(r["pareto_rank"] is not None for r in rows(whole))
