@@ -11,6 +11,8 @@ import argparse
 import sys
 from typing import Any
 
+from genr8_dist.cli._args import int32
+
 __all__ = ["register"]
 
 
@@ -28,19 +30,8 @@ def _generation(text: str) -> int:
     return value
 
 
-def _int(text: str) -> int:
-    """A whole number that fits the run store's 32-bit columns."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if not -(2**31) <= value < 2**31:
-        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
-    return value
-
-
 def _count(text: str) -> int:
-    value = _int(text)
+    value = int32(text)
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value}: must be 0 or more")
     return value
@@ -63,7 +54,7 @@ def register(subparsers: Any) -> None:
         description="Per generation and island: best, median and worst total fitness of the valid "
                     "individuals and each criterion's value closest to its target.")
     _run_arg(p)
-    p.add_argument("--island", type=_int, help="only this island")
+    p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--png", metavar="OUT.png", help="also draw the fitness curves to this PNG")
     p.add_argument("--csv", metavar="OUT.csv", help="write the table as CSV instead of printing it")
     p.set_defaults(handler=_history)
@@ -72,9 +63,9 @@ def register(subparsers: Any) -> None:
         "top", help="the best individuals, with their criteria (and rewrite systems)",
         description="The k best valid individuals of the run, a generation or an island.")
     _run_arg(p)
-    p.add_argument("-k", type=_int, default=10, help="how many (default 10)")
+    p.add_argument("-k", type=int32, default=10, help="how many (default 10)")
     p.add_argument("--generation", type=_generation, help="only this generation (-1: the last)")
-    p.add_argument("--island", type=_int, help="only this island")
+    p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
     p.add_argument("--pareto", action="store_true",
@@ -87,7 +78,7 @@ def register(subparsers: Any) -> None:
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
     p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
-    p.add_argument("--depth", type=_int, help="only this many generations back")
+    p.add_argument("--depth", type=int32, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
     p.add_argument("--png", metavar="OUT.png", help="also draw the ancestry to this PNG")
@@ -127,14 +118,14 @@ def register(subparsers: Any) -> None:
                     "side by side, each tile labelled with its id and fitness.")
     _run_arg(p)
     p.add_argument("--generation", type=_generation, default=-1, help="the generation (default -1: the last)")
-    p.add_argument("-k", type=_int, default=12,
+    p.add_argument("-k", type=int32, default=12,
                    help="how many surfaces (default 12; per island with --per-island)")
-    p.add_argument("--island", type=_int, help="only this island")
+    p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
     p.add_argument("--duplicates", action="store_true",
                    help="also show individuals whose surface equals a better one's (elites, copies)")
     view = p.add_mutually_exclusive_group()
-    view.add_argument("--clusters", type=_int, metavar="K",
+    view.add_argument("--clusters", type=int32, metavar="K",
                       help="instead: K kinds of form among the whole run's distinct surfaces "
                            "(k-means over criteria and counts), the design nearest each centroid")
     view.add_argument("--archive", action="store_true",
@@ -149,8 +140,8 @@ def register(subparsers: Any) -> None:
                     "Images are embedded; it needs no network to view.")
     _run_arg(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.html", help="the HTML file to write")
-    p.add_argument("-k", type=_int, default=10, help="individuals in the table (default 10)")
-    p.add_argument("--gallery", type=_int, default=12, metavar="K",
+    p.add_argument("-k", type=int32, default=10, help="individuals in the table (default 10)")
+    p.add_argument("--gallery", type=int32, default=12, metavar="K",
                    help="surfaces in the gallery (default 12)")
     p.set_defaults(handler=_report)
 

@@ -11,17 +11,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from genr8_dist.cli._args import int32
+
 __all__ = ["register"]
-
-
-def _int32(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if not -(2**31) <= value < 2**31:
-        raise argparse.ArgumentTypeError(f"{text}: out of range (at most {2**31 - 1} either way)")
-    return value
 
 
 def _ray_options(parser: argparse.ArgumentParser) -> None:
@@ -187,9 +179,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--hand-fitness", action="append", metavar="ID=FITNESS",
                    help="give individual ID this fitness (lower is better) when the next generation's "
                         "elites and parents are chosen (interactive evolution; repeatable)")
-    p.add_argument("--island", type=_int32, default=None, metavar="N",
+    p.add_argument("--island", type=int32, default=None, metavar="N",
                    help="the island injected individuals go to (default: a copy's own island, else 0)")
-    p.add_argument("--generations", type=_int32, default=None, metavar="N",
+    p.add_argument("--generations", type=int32, default=None, metavar="N",
                    help="go on for N more generations after the last committed one")
     _trust_option(p)
     p.set_defaults(handler=_edit)

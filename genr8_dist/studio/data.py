@@ -163,7 +163,9 @@ class RunView:
         if status != "running":
             ends = [e["time"] for e in events if e["kind"] in ("complete", "interrupt", "pause")
                     and e["time"] is not None and e["time"] >= since["time"]]
-            now = ends[-1] if ends else now
+            if not ends:   # stopped without a trace (killed): no rate can be told, and nothing is left
+                return None, None
+            now = ends[-1]
         elapsed = now - since["time"]
         if done <= 0 or elapsed <= 0:
             return None, None

@@ -84,6 +84,8 @@ def test_state_curves_generation_and_a_design(studio):
     state = json.loads(body)
     assert status == 200 and kind == "application/json"
     assert (state["status"], state["generation"], state["last_generation"]) == ("stopped", 1, 4)
+    # stopped with no trace of how (no interrupt event): no rate and no time left are made up
+    assert (state["individuals_per_second"], state["seconds_left"]) == (None, None)
     assert [i["generation"] for i in state["islands"]] == [1, 1]
     assert [c["name"] for c in state["criteria"]][:2] == ["size", "smoothness"]
     curves = json.loads(get(studio, "/api/curves")[2])
