@@ -3,6 +3,7 @@ file and the field."""
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -190,3 +191,31 @@ def test_a_stored_configuration_needs_neither_its_mesh_nor_its_universe_files(tm
                    "BranchAngle 30\n")
     digests = {grow(system, c.environment).surface.digest() for c in (config, again)}
     assert len(digests) == 1
+
+
+@pytest.mark.parametrize("data, field", [
+    ({"search": {"mode": "nope"}}, "search.mode"),
+    ({"search": {"mode": "pareto", "objectives": ["size"]}}, "search.objectives"),
+    ({"search": {"mode": "pareto", "objectives": ["size", "wobble"]}}, "search.objectives"),
+    ({"search": {"mode": "map-elites", "descriptors": ["wobble"], "ranges": [[0, 1]], "bins": [2]}},
+     "search.descriptors"),
+    ({"search": {"ranges": [[1, 0], [0, 1]]}}, "search.ranges[0]"),
+    ({"search": {"bins": [2]}}, "search.bins"),
+    ({"search": {"offspring": 0.0}}, "search.offspring"),
+    ({"ea": {"init": "sensible"}}, "ea.init"),
+    ({"ea": {"founder_retries": -1}}, "ea.founder_retries"),
+    ({"ea": {"unique_retries": 1001}}, "ea.unique_retries"),
+    ({"ea": {"within_used": "yes"}}, "ea.within_used"),
+    ({"islands": {"emigrants": "far"}}, "islands.emigrants"),
+])
+def test_search_settings_refuse_bad_values_naming_the_field(data, field):
+    with pytest.raises(ConfigError, match=re.escape(f"field '{field}'")):
+        RunConfig.from_dict(data)
+
+
+def test_search_settings_round_trip_through_toml():
+    config = RunConfig.from_dict({"search": {"mode": "map-elites", "descriptors": ["cells", "undulation"],
+                                             "ranges": [[1, 33], [0, 2]], "bins": [4, 3]},
+                                  "ea": {"init": "ramped", "within_used": True},
+                                  "islands": {"emigrants": "best"}})
+    assert RunConfig.from_dict(tomllib.loads(config.to_toml())) == config
