@@ -585,10 +585,13 @@ def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any
     """The MAP-Elites archive as a map of thumbnails: one tile per cell of the first two descriptors
     (the best over a third), empty cells blank."""
     from genr8_dist.evolution.archive import Grid
+    from genr8_dist.history._run import dataset
     from genr8_dist.history._search import _newest_config, archive
+    from genr8_dist.history._tables import _resolve_generation
 
     store = open_run(run)
     grid = Grid.from_settings(_newest_config(store).search)
+    generation = _resolve_generation(dataset(store), generation)
     table = archive(store, generation=generation)
     names = grid.descriptors
     cols = grid.bins[0]
@@ -615,6 +618,6 @@ def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any
     fig.suptitle(f"{getattr(store, 'run_id', run_label(store))}: MAP-Elites archive {where}, "
                  f"{len(table)} of {grid.size} cells held (best fitness per cell)", x=0.01, ha="left",
                  fontsize=12, fontweight="bold")
-    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.05, top=1 - 0.6 / (2.3 * rows + 0.9),
+    fig.subplots_adjust(left=0.03, right=0.99, bottom=0.05, top=1 - 1.0 / (2.3 * rows + 0.9),
                         wspace=0.02, hspace=0.1)
     return fig, f"{len(table)} of {grid.size} cells"
