@@ -165,6 +165,18 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
     kwargs: dict[str, Any] = {"logging_level": logging.ERROR, "log_to_driver": False}
     handlers = _signal_handlers()
     helper = _meanwhile(meanwhile)
+    # Ray's SIGTERM handler exits by raising SystemExit; landing inside a fork callback (logging's lock
+    # release) the exit is swallowed and printed as "Exception ignored". Keep it, and honour it below.
+    swallowed: list[BaseException] = []
+    previous_hook = sys.unraisablehook
+
+    def keep_exits(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, (SystemExit, KeyboardInterrupt)):
+            swallowed.append(unraisable.exc_value)
+        else:
+            previous_hook(unraisable)
+
+    sys.unraisablehook = keep_exits
     try:
         if address is None:
             # "local": a new Ray of our own, even when `ray start` left a cluster (or its address file);
@@ -182,9 +194,13 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         ray.shutdown()
         raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
     finally:
+        sys.unraisablehook = previous_hook
         _restore_signal_handlers(handlers)  # ray.init installs a SIGTERM handler that exits at once
         if helper is not None:
             helper.join()
+    if swallowed:
+        ray.shutdown()
+        raise KeyboardInterrupt("SIGTERM while Ray was starting")
     try:
         yield ray
     finally:

@@ -31,3 +31,32 @@ def test_meanwhile_runs_beside_the_caller_and_keeps_its_errors_to_itself():
     assert failing is not None
     failing.join()   # no exception escapes; the main thread meets it again where it needs the module
     assert _meanwhile(None) is None
+
+
+def test_a_sigterm_swallowed_inside_ray_start_up_still_stops_without_a_traceback(monkeypatch, capsys):
+    """Ray's SIGTERM handler raises SystemExit; landing in a fork callback it is only printed as
+    "Exception ignored". connect_ray keeps it and stops as for any SIGTERM while Ray starts."""
+    import gc
+
+    import pytest
+    import ray
+
+    from genr8_dist.distributed import reaper, session
+
+    class ExitsWhenCollected:
+        def __del__(self) -> None:
+            raise SystemExit(15)
+
+    def init(*args: object, **kwargs: object) -> None:
+        ExitsWhenCollected()   # collected at once: an unraisable SystemExit, as in a fork callback
+        gc.collect()
+
+    shutdowns: list[bool] = []
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", init)
+    monkeypatch.setattr(ray, "shutdown", lambda: shutdowns.append(True))
+    monkeypatch.setattr(reaper, "start_reaper", lambda: None)
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM while Ray was starting"), session.connect_ray():
+        pass
+    assert shutdowns == [True]
+    assert "Exception ignored" not in capsys.readouterr().err
