@@ -6,8 +6,7 @@ from __future__ import annotations
 import io
 
 import pytest
-
-from tests.fuzz.harness import fuzz, mutate
+from harness import fuzz, mutate
 
 
 @pytest.mark.slow

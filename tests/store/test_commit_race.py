@@ -12,12 +12,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from test_runstore import CONFIG, epoch
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store import Event, RunStore
 from genr8_dist.store._fs import resolve
 from genr8_dist.store.runstore import _list_manifests, _read_manifest, file_entries
-from tests.store.test_runstore import CONFIG, epoch
 
 STEPS = ("write_new", "write_exclusive", "write_atomic", "delete")
 

@@ -19,11 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from test_runstore import CONFIG, epoch
 
 from genr8_dist.cli import main
 from genr8_dist.store import Event, RunStore
 from genr8_dist.store.runstore import file_entries
-from tests.store.test_runstore import CONFIG, epoch
 
 READERS = (["history"], ["top", "-k", "50"], ["query", "select island, generation, count(*), sum(fitness) "
                                                "from individuals group by all order by all"],
