@@ -334,7 +334,7 @@ class Universe:
             self._repair_hook(ctx)
         except StopIteration:
             raise
-        except Exception as exc:  # a plugin's bug: this genome fails at the map stage, naming the hook
+        except (Exception, SystemExit) as exc:  # a plugin's bug (sys.exit too): the genome fails at map
             first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
             raise HookError(f"hook repair of universe '{self.name}' raised {type(exc).__name__}"
                             + (f": {first}" if first else "")) from None

@@ -117,6 +117,14 @@ def test_a_hook_that_raises_is_a_map_failure_naming_it(tmp_path, capsys):
     assert result.error == "hook repair of universe 'raising' raised ValueError: no luck"
 
 
+def test_a_hook_that_calls_sys_exit_is_a_map_failure_not_a_silent_end(tmp_path, capsys):
+    folder = plugin(tmp_path, "exiting", "import sys\n\n\ndef repair(ctx):\n    sys.exit(0)\n")
+    status = main(["map", "--universe", str(folder), "--random", "--seed", "1"])
+    captured = capsys.readouterr()
+    assert status == 1 and "Traceback" not in captured.err
+    assert captured.err == "genr8: invalid genome: hook repair of universe 'exiting' raised SystemExit: 0\n"
+
+
 def test_one_broken_plugin_breaks_no_other_universe(tmp_path, monkeypatch, capsys):
     two = tmp_path / "plugins" / "twofold"
     two.mkdir(parents=True)
