@@ -10,6 +10,7 @@ import re
 import shlex
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -91,7 +92,11 @@ def test_a_plugin_run_submitted_as_a_ray_job(tmp_path):
                   json.dumps(runtime), "--", sys.executable, "-m", "genr8_dist.cli", "run", "run.toml",
                   "--run-dir", str(tmp_path / "on-cluster"), "--quiet"]
         job_env = dict(env, **assignments)
-        done = subprocess.run(submit, env=job_env, capture_output=True, text=True, timeout=400)
+        for _ in range(24):   # the head's job agent registers a few seconds after the dashboard answers
+            done = subprocess.run(submit, env=job_env, capture_output=True, text=True, timeout=400)
+            if "No available agent to submit job" not in done.stdout + done.stderr:
+                break
+            time.sleep(5)
         assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-2000:]
         assert "run complete: generations 0..3 of 2 island(s)" in done.stdout
     finally:
