@@ -13,6 +13,7 @@
 #   GENR8_CLUSTER_DIR     where PID files and logs are kept    (default /tmp/genr8-local-cluster-$USER)
 #   GENR8_DASHBOARD=1     start Ray's dashboard, for `ray job submit --address http://127.0.0.1:8265`
 #   GENR8_DASHBOARD_PORT  its port                             (default 8265)
+#   GENR8_DASHBOARD_AGENT_PORT  the head's job agent's HTTP port  (default 52366)
 #   RAY                   the ray command                      (default: the one on PATH)
 #   PYTHON                a Python with ray installed          (default: the python next to RAY)
 #
@@ -23,6 +24,7 @@ PORT="${GENR8_RAY_PORT:-6390}"
 HEAD_CPUS="${GENR8_HEAD_CPUS:-1}"
 WORKER_CPUS="${GENR8_WORKER_CPUS:-1}"
 DASHBOARD_PORT="${GENR8_DASHBOARD_PORT:-8265}"
+AGENT_PORT="${GENR8_DASHBOARD_AGENT_PORT:-52366}"
 STATE="${GENR8_CLUSTER_DIR:-/tmp/genr8-local-cluster-${USER:-$(id -u)}}"
 RAY="${RAY:-$(command -v ray || true)}"
 PY="${PYTHON:-$(dirname "${RAY:-/usr/bin/ray}")/python}"
@@ -74,7 +76,12 @@ cmd_start() {
   if compgen -G "$STATE/*.pid" >/dev/null; then die "already started (PID files in $STATE); stop it first"; fi
   mkdir -p "$STATE"
   local dashboard=(--include-dashboard false)
-  if [[ "${GENR8_DASHBOARD:-0}" == 1 ]]; then dashboard=(--include-dashboard true --dashboard-port "$DASHBOARD_PORT"); fi
+  if [[ "${GENR8_DASHBOARD:-0}" == 1 ]]; then
+    # the head's dashboard agent takes job submissions; its own port, so another Ray on this machine
+    # (which holds Ray's default agent port) cannot leave the cluster without one
+    dashboard=(--include-dashboard true --dashboard-port "$DASHBOARD_PORT"
+               --dashboard-agent-listen-port "$AGENT_PORT")
+  fi
   start_node head --head --port "$PORT" --num-cpus "$HEAD_CPUS" "${dashboard[@]}"
   wait_for_port "$PORT" || { cmd_stop; die "the head did not come up; see $STATE/head.log"; }
   # one node at a time: nodes on one machine register by IP, and concurrent starts race
