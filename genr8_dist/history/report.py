@@ -233,6 +233,18 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
             f"<main>{''.join(parts)}</main></body></html>\n")
 
 
+def _figure_section(title: str, draw: Any, dpi: int, note: Any, failed: str = "") -> str:
+    """A section holding the figure ``draw()`` returns with ``note(info)`` under it, or the one-line
+    reason it could not be drawn (prefixed by ``failed``)."""
+    from genr8_dist.history import pictures
+
+    try:
+        fig, info = draw()
+    except Genr8Error as exc:
+        return _section(title, f'<p class="note">{failed}{html.escape(str(exc))}</p>')
+    return _section(title, _img(pictures.png_bytes(fig, dpi=dpi), info) + note(info))
+
+
 def _search_sections(store: Any, label: str) -> list[str]:
     """The search modes' sections: the Pareto front (``pareto`` mode), the MAP-Elites archive
     (``map-elites`` mode), and in every mode the kinds of form the run found (12 clusters)."""
@@ -242,34 +254,24 @@ def _search_sections(store: Any, label: str) -> list[str]:
     mode = store.config(store.configs()[-1]).search.mode
     shown = html.escape(str(label))
     if mode == "pareto":
-        try:
-            fig, info = pictures.pareto_figure_of(store)
-            sections.append(_section("The Pareto front", _img(pictures.png_bytes(fig, dpi=80), info)
-                                     + f'<p class="note">{html.escape(info)} over the run; the first two '
-                                     "objectives drawn, the thumbnails numbered as on the plot. "
-                                     f"<code>genr8 top {shown} --pareto</code> lists them all.</p>"))
-        except Genr8Error as exc:
-            sections.append(_section("The Pareto front", f'<p class="note">{html.escape(str(exc))}</p>'))
+        sections.append(_figure_section(
+            "The Pareto front", lambda: pictures.pareto_figure_of(store), 80,
+            lambda info: f'<p class="note">{html.escape(info)} over the run; the first two '
+                         "objectives drawn, the thumbnails numbered as on the plot. "
+                         f"<code>genr8 top {shown} --pareto</code> lists them all.</p>"))
     if mode == "map-elites":
-        try:
-            fig, info = pictures.archive_figure_of(store)
-            sections.append(_section("The MAP-Elites archive", _img(pictures.png_bytes(fig, dpi=70), info)
-                                     + f'<p class="note">{html.escape(info)} held after the last '
-                                     "generation: each tile the best surface of its cell. "
-                                     f"<code>genr8 gallery {shown} --archive -o map.png</code>.</p>"))
-        except Genr8Error as exc:
-            sections.append(_section("The MAP-Elites archive",
-                                     f'<p class="note">{html.escape(str(exc))}</p>'))
-    try:
-        fig, info = pictures.clusters_figure_of(store, 12)
-        sections.append(_section("Kinds of form the run found", _img(pictures.png_bytes(fig, dpi=80), info)
-                                 + '<p class="note">The run\'s distinct surfaces grouped by k-means over '
-                                 "their criteria and region and vertex counts; each tile is the design "
-                                 "nearest its cluster's centre, the cluster's size in brackets. "
-                                 f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>"))
-    except Genr8Error as exc:
-        sections.append(_section("Kinds of form the run found",
-                                 f'<p class="note">No clusters: {html.escape(str(exc))}</p>'))
+        sections.append(_figure_section(
+            "The MAP-Elites archive", lambda: pictures.archive_figure_of(store), 70,
+            lambda info: f'<p class="note">{html.escape(info)} held after the last '
+                         "generation: each tile the best surface of its cell. "
+                         f"<code>genr8 gallery {shown} --archive -o map.png</code>.</p>"))
+    sections.append(_figure_section(
+        "Kinds of form the run found", lambda: pictures.clusters_figure_of(store, 12), 80,
+        lambda info: '<p class="note">The run\'s distinct surfaces grouped by k-means over '
+                     "their criteria and region and vertex counts; each tile is the design "
+                     "nearest its cluster's centre, the cluster's size in brackets. "
+                     f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>",
+        failed="No clusters: "))
     return sections
 
 
