@@ -27,6 +27,7 @@ so regrowing an individual checks it is bit-identical to what the run scored.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -51,7 +52,7 @@ class Developed:
     counts: Mapping[str, int] = field(default_factory=dict)
 
 
-class Phenotype:
+class Phenotype(ABC):
     """The interface a universe's phenotype implements (subclass it, or write the same attributes).
 
     ``name``: the phenotype kind; its criteria are those registered under it
@@ -78,14 +79,17 @@ class Phenotype:
 
         return criterion_names(self.name)
 
+    @abstractmethod
     def develop(self, text: str, config: Any) -> Developed:
-        raise NotImplementedError
+        """The phenotype of ``text`` (raise to fail the individual at ``stage``)."""
 
+    @abstractmethod
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
-        raise NotImplementedError
+        """A raw value for each of the run's criteria."""
 
+    @abstractmethod
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
-        raise NotImplementedError
+        """The run's fitness from the raw values, lower is better."""
 
     def trivial(self, evaluation: Any) -> bool:
         """Whether a valid evaluation (its stored counts and ``criteria``) is not worth a founder's
