@@ -270,7 +270,7 @@ _EXACT_MAX = 64          # regions up to this many vertices get the exact best t
 _QUALITY_FLOOR = 1e-9    # a triangle of lower quality costs as much as a degenerate one
 _OUTSIDE = 1e12          # extra cost of a triangle not counter-clockwise in the region's plane
 _EPS = 1e-10             # tolerance of orientation tests in coordinates scaled to the region's extent
-_SIZE_CLASSES = (3, 4, 8, 16, 32, _EXACT_MAX)  # polygons solved together, padded
+_GROWTH = 1.25           # polygons solved together: the largest at most this x the smallest
 _CHUNK = 2_000_000       # elements of the (regions, triangles) cost arrays handled at once
 
 
@@ -288,16 +288,17 @@ def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.n
         cyc = cycles[offsets[f]:offsets[f + 1]]
         parts.append(cyc[_clip_and_flip(vertices[cyc])])
         owners.append(np.full(len(cyc) - 2, f, dtype=np.int64))
-    low = 3
-    for top in _SIZE_CLASSES:
-        # polygons of low..top vertices, smallest first, padded to the largest of a chunk by repeating
-        # their last vertex: the programme's sub-polygons i..j of an m-gon never reach past m - 1
-        sel = np.flatnonzero((sizes >= low) & (sizes <= top))
-        sel = sel[np.argsort(sizes[sel], kind="stable")]
-        low = top + 1
-        per = max(1, _CHUNK // max(1, len(_triples(top)[0])))
-        for lo in range(0, len(sel), per):
-            chunk = sel[lo:lo + per]
+    # the rest together, smallest first, in groups whose largest is at most _GROWTH x their smallest,
+    # each padded to its largest by repeating a polygon's last vertex: the programme's sub-polygons
+    # i..j of an m-gon never reach past m - 1
+    sel = np.flatnonzero((sizes >= 3) & (sizes <= _EXACT_MAX))
+    sel = sel[np.argsort(sizes[sel], kind="stable")]
+    while len(sel):
+        group = sel[:int(np.searchsorted(sizes[sel], _GROWTH * sizes[sel[0]], side="right"))]
+        sel = sel[len(group):]
+        per = max(1, _CHUNK // max(1, len(_triples(int(sizes[group[-1]]))[0])))
+        for lo in range(0, len(group), per):
+            chunk = group[lo:lo + per]
             m = sizes[chunk]
             size = int(m[-1])
             pos = np.minimum(np.arange(size)[None, :], m[:, None] - 1)

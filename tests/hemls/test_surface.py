@@ -119,7 +119,6 @@ def test_a_large_region_is_clipped_and_flipped_inside_its_outline(monkeypatch):
     assert np.isclose(twice.sum() / 2, _polygon_area(points))
     assert np.all(_inside(points, points[tri].mean(axis=1)[:, :2]))
     monkeypatch.setattr(module, "_EXACT_MAX", 128)
-    monkeypatch.setattr(module, "_SIZE_CLASSES", (128,))
     exact = _one_region(points).triangles()
     assert np.all(_twice_areas(points, exact) > 1e-9)
     assert triangle_min_angles(points, tri).min() >= triangle_min_angles(points, exact).min() - 1e-9
