@@ -19,16 +19,16 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
    With ``ea.within_used`` the cut and the flips fall within the codons the mapper read.
 
-No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to 5
-times) while it is the first one or has its text; an offspring whose rewrite system repeats a parent's
-or an earlier member's of the generation is mutated again before it is evaluated, and one whose
-phenotype (its digest) repeats a parent's or an earlier member's after it, each up to
-``ea.unique_retries`` times (draws from the generation's ``revary`` streams; each redraws at least one
-codon the mapper read, since a copy's read codons are what make it a copy). Generation 0 likewise
-redraws a founder that is trivial (invalid, or trivial as its phenotype says: a surface of at most one
-region, the axiom left as it was) or repeats an earlier founder's phenotype, up to
-``ea.founder_retries`` times; founders are random genomes or, with ``ea.init = "ramped"``, ramped
-half-and-half derivation trees (``grammar.derivations``).
+No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
+5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
+parent's or an earlier member's of the generation, or that maps to none, is mutated again before it is
+evaluated, and one that is invalid (its growth capped) or whose phenotype (its digest) repeats a
+parent's or an earlier member's after it, each up to ``ea.unique_retries`` times (draws from the
+generation's ``revary`` streams; each redraws at least one codon the mapper read, since a copy's read
+codons are what make it a copy). Generation 0 likewise redraws a founder that is trivial (invalid, or
+trivial as its phenotype says: a surface of at most one region, the axiom left as it was) or repeats
+an earlier founder's phenotype, up to ``ea.founder_retries`` times; founders are random genomes or,
+with ``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -91,6 +91,7 @@ class IslandStats:
     mates_redrawn: int = 0      # second parents drawn again (the first one, or its text)
     revaried_text: int = 0      # offspring varied again because their text repeated another's
     revaried_phenotype: int = 0  # offspring varied again because their phenotype repeated another's
+    revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
     unresolved: int = 0         # offspring or founders still repeating after every retry
 
 
@@ -242,6 +243,7 @@ class Island:
             mates_redrawn=counted.mates_redrawn,
             revaried_text=counted.revaried_text,
             revaried_phenotype=counted.revaried_phenotype,
+            revaried_invalid=counted.revaried_invalid,
             unresolved=counted.unresolved,
         )
         for hook in self.hooks:
@@ -363,11 +365,14 @@ class Island:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
-                        if text is None or (text not in avoid and text not in texts):
+                        if text is not None and text not in avoid and text not in texts:
                             break
+                        if text is None:
+                            self.stats.revaried_invalid += 1
+                        else:
+                            self.stats.revaried_text += 1
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
-                        self.stats.revaried_text += 1
                         if origin == "crossover":
                             origin = "crossover+mutation"
                     texts.add(text)
@@ -492,23 +497,27 @@ class Island:
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
-        """An offspring whose phenotype repeats a parent's or an earlier member's, varied again."""
+        """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
+        an earlier member's, varied again."""
         genome, origin = birth.genome, birth.origin
 
-        def repeats(ev: Evaluation) -> bool:
-            return ev.valid and (ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid)
+        def wasted(ev: Evaluation) -> bool:
+            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
-            if not repeats(evaluation):
+            if not wasted(evaluation):
                 return genome, evaluation, origin
+            if evaluation.valid:
+                self.stats.revaried_phenotype += 1
+            else:
+                self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
             genome = self._revary(rng, genome, evaluation.codons_used)
             evaluation = self.evaluate(genome)
-            self.stats.revaried_phenotype += 1
             if origin == "crossover":
                 origin = "crossover+mutation"
-        if repeats(evaluation):
+        if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation, origin
 

@@ -259,6 +259,31 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
     assert bounded.stats.revaried_phenotype <= offspring and bounded.stats.revaried_text <= offspring
 
 
+def test_invalid_offspring_are_varied_again_within_the_bound():
+    # a small edge cap and no wraps: many offspring are capped or map to nothing
+    config = small_config(ea={"population": 16}, genome={"length": 40, "max_wraps": 0},
+                          environment={"steps": 3, "max_edges": 60})
+    hist = Island(config, 0).run(1)
+    offspring = ("crossover", "mutation", "crossover+mutation")
+
+    def invalid(gen):
+        return sum(1 for i in gen if i.origin in offspring and not i.valid)
+
+    failing = Island(config.replace(ea={"unique_retries": 0}), 0)
+    plain = failing.step(hist[1], 2)
+    revarying = Island(config, 0)
+    gen = revarying.step(hist[1], 2)
+    assert invalid(plain) >= 3
+    assert invalid(gen) < invalid(plain)
+    assert invalid(gen) <= revarying.stats.unresolved
+    assert revarying.stats.revaried_invalid > 0 and failing.stats.revaried_invalid == 0
+    born = sum(i.origin in offspring for i in gen)
+    assert revarying.stats.revaried_invalid <= born * config.ea.unique_retries
+    # deterministic: the same generation again, row for row
+    again = Island(config, 0).step(hist[1], 2)
+    assert [untimed(i) for i in again] == [untimed(i) for i in gen]
+
+
 def test_no_individual_is_mated_with_itself_when_others_differ():
     config = small_config(ea={"population": 16, "crossover_rate": 1.0, "tournament": 1})
     hist = Island(config, 0).run(1)
