@@ -419,7 +419,8 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
         except Genr8Error as exc:
             raise HistoryError(f"gallery: cannot regrow {ident}: {exc}") from None
         count += 1
-        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result))
+        # + 0.0: a maximising phenotype's negated score of 0 (-0.0) shows as 0
+        tiles.append((f"{ident}   fitness {result.row['fitness'] + 0.0:.4g}", result))
         noun = result.phenotype.noun
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
@@ -488,7 +489,7 @@ def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = No
     store = open_run(run)
     table = clusters(store, k, generation=generation, island=island)
     tiles = _regrown_tiles(store, table, lambda r: f"cluster {r['cluster']} ({r['members']})   "
-                                                   f"{r['id']}  {r['fitness']:.3g}")
+                                                   f"{r['id']}  {r['fitness'] + 0.0:.3g}")
     where = "the whole run" if generation is None else f"generation {generation}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: {len(tiles)} kinds of form in {where} "
              "(k-means; the design nearest each centroid, cluster size in brackets)")
@@ -569,7 +570,7 @@ def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any
     for (i, j), r in best.items():
         ax = fig.add_subplot(rows, cols, (rows - 1 - j) * cols + i + 1, projection="3d")
         _draw_tile(ax, regrow(store, r["id"]))
-        ax.set_title(f"{r['id']}  {r['fitness']:.3g}", fontsize=7, pad=-4)
+        ax.set_title(f"{r['id']}  {r['fitness'] + 0.0:.3g}", fontsize=7, pad=-4)
     (lo0, hi0), n0 = grid.ranges[0], grid.bins[0]
     xlabel = f"{names[0]} →  ({lo0:g} to {hi0:g}, {n0} bins)"
     ylabel = (f"{names[1]} →  ({grid.ranges[1][0]:g} to {grid.ranges[1][1]:g}, {grid.bins[1]} bins)"
