@@ -43,7 +43,7 @@ DEFAULT_CONFIGS = ("examples/quick.toml", "examples/subdivide.toml")
 
 def trivial(ind: Any) -> bool:
     """Invalid, or a surface of at most one region."""
-    return not ind.valid or ind.n_regions <= 1
+    return not ind.valid or ind.sizes.get("regions", 0) <= 1
 
 
 def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], list[int]]:
@@ -81,13 +81,13 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict
     for g, gen in enumerate(history):
         pops = [ind for pop in gen for ind in pop]
         trivial_share.append(sum(map(trivial, pops)) / len(pops))
-        distinct = [len({ind.surface_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
+        distinct = [len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
         distinct_share.append(statistics.fmean(distinct))
         offspring = [ind for ind in pops if ind.origin not in COPIES and ind.generation > 0]
         copies = 0
         for ind in offspring:
             parents = [by_id[p] for p in ind.parents if p in by_id]
-            if any(p.text == ind.text or (ind.valid and p.surface_digest == ind.surface_digest)
+            if any(p.text == ind.text or (ind.valid and p.phenotype_digest == ind.phenotype_digest)
                    for p in parents):
                 copies += 1
         if offspring:
@@ -102,7 +102,7 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict
     bests = []
     for pop in last:
         top = min(pop, key=lambda ind: ind.fitness)
-        bests.append(top.surface_digest if top.valid else None)
+        bests.append(top.phenotype_digest if top.valid else None)
     return {"trivial": trivial_share, "distinct": distinct_share, "copies": copy_share, "curve": curve,
             "evaluations": evaluations, "best": best, "reach": reach,
             "distinct_island_bests": len(set(bests)), "islands": len(last),
@@ -200,7 +200,7 @@ def founders(universes: Sequence[str], count: int, base: Any) -> None:
         t0 = time.perf_counter()
         pop = Island(config, 0).initial()
         seconds = time.perf_counter() - t0
-        distinct = len({ind.surface_digest for ind in pop if ind.valid}) / len(pop)
+        distinct = len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop)
         print(f"| {name} | {sum(map(trivial, pop)) / len(pop):.3f} | {distinct:.3f} | {seconds:.1f} |")
 
 
