@@ -38,10 +38,11 @@ __all__ = ["BRANCH_JOINS", "BRANCH_TIES", "Environment", "SizeIncrease", "load_e
 #: the other's vertex within BranchAngle).
 BRANCH_JOINS = ("orientation", "cone")
 
-#: What a region does when its best join ties with another (docs/environment.md): "first" joins the
-#: branch drawn first, "none" joins neither (mirror-image joins that cross keep a symmetric surface
-#: symmetric).
-BRANCH_TIES = ("first", "none")
+#: What a region does when its best join ties with others (docs/environment.md), whatever order the
+#: branches were drawn in: "crossing" makes every tied join that conflicts with no other (crosses it,
+#: or shares a branch) and none of those that do, so mirror-image joins keep a symmetric surface
+#: symmetric; "none" makes none of them; "first" (before issue 14) joins the branch drawn first.
+BRANCH_TIES = ("crossing", "none", "first")
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -102,7 +103,7 @@ class Environment:
     seed_masses: tuple[float, ...] | None = None
     branch_length: float = -1.0
     branch_join: str = "orientation"
-    branch_ties: str = "first"
+    branch_ties: str = "crossing"
     label_noise: float = 0.0
     position_noise: float = 0.0
     vertex_mass: float = 1.0
