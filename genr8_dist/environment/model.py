@@ -115,7 +115,8 @@ class Environment:
     uniform_cells: bool = False
     uniform_iterations: int = 20
     repelling_points: float = 0.0
-    repelling_radius: float = 1.0
+    repelling_radius: float = -1.0
+    repelling_theta: float = 0.5
     gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     attractors: tuple[PointForce, ...] = ()
     repellers: tuple[PointForce, ...] = ()
@@ -172,6 +173,8 @@ class Environment:
             raise fail(src, "repelling_radius",
                        f"must be -1 (every vertex, the thesis) or > 0, got {self.repelling_radius!r}")
         put(self, "repelling_radius", radius)
+        put(self, "repelling_theta", read_float(self.repelling_theta, src, "repelling_theta", minimum=0.0,
+                                                maximum=1.0))
         put(self, "gravity", _read_gravity(self.gravity, src))
         for name in ("attractors", "repellers"):
             items = getattr(self, name)
@@ -333,7 +336,8 @@ class Environment:
         if self.repelling_points <= 0.0:
             return np.zeros_like(positions)
         radius = math.inf if self.repelling_radius == -1.0 else self.repelling_radius * length
-        return repelling_displacement(positions, masses, self.repelling_points, radius, length)
+        return repelling_displacement(positions, masses, self.repelling_points, radius, length,
+                                      theta=self.repelling_theta)
 
 
 def load_environment(path: str | Path) -> Environment:
