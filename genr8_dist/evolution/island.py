@@ -21,13 +21,14 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
 
 No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
-parent's or an earlier member's of the generation is mutated again before it is evaluated, and one
-whose surface repeats a parent's or an earlier member's after it, each up to ``ea.unique_retries``
-times (draws from the generation's ``revary`` streams; each redraws at least one codon the mapper
-read, since a copy's read codons are what make it a copy). Generation 0 likewise redraws a founder that is
-trivial (invalid, or a surface of at most one region: the axiom left as it was) or repeats an earlier
-founder's surface, up to ``ea.founder_retries`` times; founders are random genomes or, with
-``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
+parent's or an earlier member's of the generation, or that maps to none, is mutated again before it is
+evaluated, and one that is invalid (its growth capped) or whose phenotype (its digest) repeats a
+parent's or an earlier member's after it, each up to ``ea.unique_retries`` times (draws from the
+generation's ``revary`` streams; each redraws at least one codon the mapper read, since a copy's read
+codons are what make it a copy). Generation 0 likewise redraws a founder that is trivial (invalid, or
+trivial as its phenotype says: a surface of at most one region, the axiom left as it was) or repeats
+an earlier founder's phenotype, up to ``ea.founder_retries`` times; founders are random genomes or,
+with ``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -86,10 +87,11 @@ class IslandStats:
     grown: int = 0           # distinct texts grown this generation
     cache_hits: int = 0
     invalid: int = 0
-    founders_redrawn: int = 0   # founder draws replaced (trivial or a repeated surface)
+    founders_redrawn: int = 0   # founder draws replaced (trivial or a repeated phenotype)
     mates_redrawn: int = 0      # second parents drawn again (the first one, or its text)
     revaried_text: int = 0      # offspring varied again because their text repeated another's
-    revaried_surface: int = 0   # offspring varied again because their surface repeated another's
+    revaried_phenotype: int = 0  # offspring varied again because their phenotype repeated another's
+    revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
     unresolved: int = 0         # offspring or founders still repeating after every retry
 
 
@@ -102,7 +104,7 @@ class Birth:
     origin: str
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
-    avoid: frozenset[str] = frozenset()   # the parents' texts and surface digests (copies to avoid)
+    avoid: frozenset[str] = frozenset()   # the parents' texts and phenotype digests (copies to avoid)
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
@@ -130,8 +132,8 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
     keys = set()
     if ind.text is not None:
         keys.add(ind.text)
-    if ind.valid and ind.surface_digest is not None:
-        keys.add(ind.surface_digest)
+    if ind.valid and ind.phenotype_digest is not None:
+        keys.add(ind.phenotype_digest)
     return keys
 
 
@@ -240,7 +242,8 @@ class Island:
             founders_redrawn=counted.founders_redrawn,
             mates_redrawn=counted.mates_redrawn,
             revaried_text=counted.revaried_text,
-            revaried_surface=counted.revaried_surface,
+            revaried_phenotype=counted.revaried_phenotype,
+            revaried_invalid=counted.revaried_invalid,
             unresolved=counted.unresolved,
         )
         for hook in self.hooks:
@@ -362,11 +365,14 @@ class Island:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
-                        if text is None or (text not in avoid and text not in texts):
+                        if text is not None and text not in avoid and text not in texts:
                             break
+                        if text is None:
+                            self.stats.revaried_invalid += 1
+                        else:
+                            self.stats.revaried_text += 1
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
-                        self.stats.revaried_text += 1
                         if origin == "crossover":
                             origin = "crossover+mutation"
                     texts.add(text)
@@ -424,7 +430,7 @@ class Island:
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
                 self.evaluator.adopt(genome, made)
         population = []
-        seen: set[str] = set()   # the surfaces of this generation so far
+        seen: set[str] = set()   # the phenotype digests of this generation so far
         for index, birth in enumerate(births):
             kept = birth.evaluation
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
@@ -436,8 +442,8 @@ class Island:
             elif origin in _OFFSPRING and self.config.ea.unique_retries:
                 genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
                                                                     seen)
-            if evaluation.valid and evaluation.surface_digest is not None:
-                seen.add(evaluation.surface_digest)
+            if evaluation.valid and evaluation.phenotype_digest is not None:
+                seen.add(evaluation.phenotype_digest)
             population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
         return self._finish(generation, self._placed(population), before)
 
@@ -473,41 +479,45 @@ class Island:
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
-        """A founder that is trivial or repeats an earlier founder's surface, drawn again."""
+        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again."""
         retries = self.config.ea.founder_retries
         if not retries:
             return genome, evaluation
         rng = None
         for _ in range(retries):
-            if not is_trivial(evaluation, self.phenotype) and evaluation.surface_digest not in seen:
+            if not is_trivial(evaluation, self.phenotype) and evaluation.phenotype_digest not in seen:
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
             genome = tuple(self._founders(rng, 1, first=index)[0])
             evaluation = self.evaluate(genome)
             self.stats.founders_redrawn += 1
-        if is_trivial(evaluation, self.phenotype) or evaluation.surface_digest in seen:
+        if is_trivial(evaluation, self.phenotype) or evaluation.phenotype_digest in seen:
             self.stats.unresolved += 1
         return genome, evaluation
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
-        """An offspring whose surface repeats a parent's or an earlier member's, varied again."""
+        """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
+        an earlier member's, varied again."""
         genome, origin = birth.genome, birth.origin
 
-        def repeats(ev: Evaluation) -> bool:
-            return ev.valid and (ev.surface_digest in seen or ev.surface_digest in birth.avoid)
+        def wasted(ev: Evaluation) -> bool:
+            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
-            if not repeats(evaluation):
+            if not wasted(evaluation):
                 return genome, evaluation, origin
+            if evaluation.valid:
+                self.stats.revaried_phenotype += 1
+            else:
+                self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
             genome = self._revary(rng, genome, evaluation.codons_used)
             evaluation = self.evaluate(genome)
-            self.stats.revaried_surface += 1
             if origin == "crossover":
                 origin = "crossover+mutation"
-        if repeats(evaluation):
+        if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation, origin
 

@@ -211,7 +211,7 @@ def test_founders_are_redrawn_until_they_are_not_trivial_nor_repeated():
     bare = Island(config.replace(ea={"founder_retries": 0}), 0).initial()
     assert sum(is_trivial(i) for i in founders) < sum(is_trivial(i) for i in bare)
     assert sum(is_trivial(i) for i in founders) <= alive.stats.unresolved
-    digests = [i.surface_digest for i in founders if i.valid]
+    digests = [i.phenotype_digest for i in founders if i.valid]
     assert len(set(digests)) == len(digests)
     assert alive.stats.founders_redrawn > 0
     assert [untimed(i) for i in founders] == [untimed(i) for i in Island(config, 0).initial()]
@@ -234,11 +234,11 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
         seen, count = set(), 0
         for ind in gen:
             if ind.origin in ("crossover", "mutation", "crossover+mutation") and ind.valid and (
-                    ind.surface_digest in seen
-                    or any(parents[p].surface_digest == ind.surface_digest for p in ind.parents)):
+                    ind.phenotype_digest in seen
+                    or any(parents[p].phenotype_digest == ind.phenotype_digest for p in ind.parents)):
                 count += 1
             if ind.valid:
-                seen.add(ind.surface_digest)
+                seen.add(ind.phenotype_digest)
         return count
 
     unique = Island(config, 0)
@@ -247,16 +247,41 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
     gen_copies = wasteful.step(hist[2], 3)
     assert repeats(gen, hist[2]) <= unique.stats.unresolved
     assert repeats(gen_copies, hist[2]) > repeats(gen, hist[2])
-    assert unique.stats.revaried_surface + unique.stats.revaried_text > 0
-    assert wasteful.stats.revaried_surface == wasteful.stats.revaried_text == 0
+    assert unique.stats.revaried_phenotype + unique.stats.revaried_text > 0
+    assert wasteful.stats.revaried_phenotype == wasteful.stats.revaried_text == 0
     # bounded: never more re-variations than retries per offspring
     offspring = sum(i.origin != "elite" for i in gen)
-    assert unique.stats.revaried_surface <= offspring * config.ea.unique_retries
+    assert unique.stats.revaried_phenotype <= offspring * config.ea.unique_retries
     assert unique.stats.revaried_text <= offspring * config.ea.unique_retries
     one = config.replace(ea={"unique_retries": 1})
     bounded = Island(one, 0)
     bounded.step(hist[2], 3)
-    assert bounded.stats.revaried_surface <= offspring and bounded.stats.revaried_text <= offspring
+    assert bounded.stats.revaried_phenotype <= offspring and bounded.stats.revaried_text <= offspring
+
+
+def test_invalid_offspring_are_varied_again_within_the_bound():
+    # a small edge cap and no wraps: many offspring are capped or map to nothing
+    config = small_config(ea={"population": 16}, genome={"length": 40, "max_wraps": 0},
+                          environment={"steps": 3, "max_edges": 60})
+    hist = Island(config, 0).run(1)
+    offspring = ("crossover", "mutation", "crossover+mutation")
+
+    def invalid(gen):
+        return sum(1 for i in gen if i.origin in offspring and not i.valid)
+
+    failing = Island(config.replace(ea={"unique_retries": 0}), 0)
+    plain = failing.step(hist[1], 2)
+    revarying = Island(config, 0)
+    gen = revarying.step(hist[1], 2)
+    assert invalid(plain) >= 3
+    assert invalid(gen) < invalid(plain)
+    assert invalid(gen) <= revarying.stats.unresolved
+    assert revarying.stats.revaried_invalid > 0 and failing.stats.revaried_invalid == 0
+    born = sum(i.origin in offspring for i in gen)
+    assert revarying.stats.revaried_invalid <= born * config.ea.unique_retries
+    # deterministic: the same generation again, row for row
+    again = Island(config, 0).step(hist[1], 2)
+    assert [untimed(i) for i in again] == [untimed(i) for i in gen]
 
 
 def test_no_individual_is_mated_with_itself_when_others_differ():
@@ -274,8 +299,9 @@ def test_no_individual_is_mated_with_itself_when_others_differ():
 def test_map_elites_carries_the_best_of_every_cell_into_the_next_generation():
     from genr8_dist.evolution.archive import Grid
 
-    config = small_config(ea={"population": 16}, search={"mode": "map-elites", "descriptors": ["n_regions"],
-                                                         "ranges": [[1, 17]], "bins": [8], "offspring": 0.5})
+    config = small_config(ea={"population": 16},
+                          search={"mode": "map-elites", "descriptors": ["size_regions"], "ranges": [[1, 17]],
+                                  "bins": [8], "offspring": 0.5})
     hist = Island(config, 0).run(3)
     grid = Grid.from_settings(config.search)
     for previous, gen in itertools.pairwise(hist):
