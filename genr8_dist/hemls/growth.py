@@ -925,6 +925,8 @@ class _Grower:
         or hb's own corner goes by where its heading points (``_in_sweep``)."""
         m = self.m
         t = len(tied)
+        if t < 2:   # the others were already joined by an edge
+            return np.zeros(t, dtype=bool)
         self._spend(pairs=t * t)
         a, b = pi[tied], pj[tied]
         ha, hb = corner[a], corner[b]

@@ -439,3 +439,13 @@ def test_mirror_image_joins_run_mirror_image_ways():
     line = default.mirror_line()
     assert line is not None and abs(line[0]) < 1e-9   # the vertical midline
     assert first.mirror_line() is None
+
+
+def test_tied_joins_between_vertices_already_joined_are_dropped_before_they_are_weighed():
+    """Found by the property test: every tied pair of a region but one joins two vertices that an
+    edge already joins; the one left has no tie to settle."""
+    system = parse("~ Edge0 + ~ Edge1 + Edge0 + Edge0\nEdge0_i -> Edge1 + Edge0\n"
+                   "Edge1_i -> [ [ + Edge0 ] - Edge0 ] [ [ + Edge0 ] - Edge0 ] Edge0\n"
+                   "Angle 30\nBranchAngle 90\n")
+    result = grow(system, Environment(steps=1))
+    assert result.capped is None and result.surface.validate() == []
