@@ -274,7 +274,8 @@ _EXACT_MAX = 64          # regions up to this many vertices get the exact best t
 _QUALITY_FLOOR = 1e-9    # a triangle of lower quality costs as much as a degenerate one
 _OUTSIDE = 1e12          # extra cost of a triangle not counter-clockwise in the region's plane
 _EPS = 1e-10             # tolerance of orientation tests in coordinates scaled to the region's extent
-_GROWTH = 1.25           # polygons solved together: the largest at most this x the smallest
+_WASTE = 1.5             # polygons solved together: padded work at most this x their own ...
+_CALL = 5_000            # ... plus about what one more call costs, in triangles
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
@@ -292,13 +293,17 @@ def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.n
         cyc = cycles[offsets[f]:offsets[f + 1]]
         parts.append(cyc[_clip_and_flip(vertices[cyc])])
         owners.append(np.full(len(cyc) - 2, f, dtype=np.int64))
-    # the rest together, smallest first, in groups whose largest is at most _GROWTH x their smallest,
-    # each padded to its largest by repeating a polygon's last vertex: the programme's sub-polygons
-    # i..j of an m-gon never reach past m - 1
+    # the rest together, smallest first, in groups each padded to its largest by repeating a polygon's
+    # last vertex (the programme's sub-polygons i..j of an m-gon never reach past m - 1); a group grows
+    # while the padded work stays within _WASTE x the work itself plus what one more call would cost
     sel = np.flatnonzero((sizes >= 3) & (sizes <= _EXACT_MAX))
     sel = sel[np.argsort(sizes[sel], kind="stable")]
     while len(sel):
-        group = sel[:int(np.searchsorted(sizes[sel], _GROWTH * sizes[sel[0]], side="right"))]
+        m = sizes[sel]
+        work = m * (m - 1) * (m - 2) // 6                       # triangles (i, k, j) of an m-gon
+        padded = np.arange(1, len(sel) + 1) * work
+        over = np.flatnonzero(padded > _WASTE * np.cumsum(work) + _CALL)
+        group = sel[:max(int(over[0]) if len(over) else len(sel), 1)]
         sel = sel[len(group):]
         per = max(1, _CHUNK // max(1, len(_triples(int(sizes[group[-1]]))[0])))
         for lo in range(0, len(group), per):
@@ -367,12 +372,18 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     number of a simple polygon is 1 inside, 0 outside), so no diagonal test is needed."""
     R, M, _ = points.shape
     ik, kj, ij, ji, spans = _triples(M)
-    xy = _plane_coordinates(points)
-    xy -= xy.mean(axis=1, keepdims=True)
     rel = points - points.mean(axis=1, keepdims=True)
-    # pairwise values, flat (R, M * M): squared distances in 3D, 2D cross products x_a y_b - y_a x_b
+    rel /= np.maximum(np.abs(rel).max(axis=(1, 2), keepdims=True), 1e-300)     # unit extent
+    x, y, z = rel[..., 0], rel[..., 1], rel[..., 2]
+    xn, yn, zn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1), np.roll(z, -1, axis=1)
+    normal = np.stack([(y * zn - z * yn).sum(1), (z * xn - x * zn).sum(1), (x * yn - y * xn).sum(1)], 1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)  # Newell's, unit
+    # pairwise values, flat (R, M * M): squared distances, and (p_a x p_b) . normal, the cross
+    # product in the polygon's plane: a triangle's turn about the normal is a sum of three of them
     d2 = np.sum((rel[:, :, None, :] - rel[:, None, :, :]) ** 2, axis=-1).reshape(R, M * M)
-    cr = (xy[:, :, None, 0] * xy[:, None, :, 1] - xy[:, :, None, 1] * xy[:, None, :, 0]).reshape(R, M * M)
+    nx, ny, nz = normal[:, None, 0], normal[:, None, 1], normal[:, None, 2]
+    side = np.stack([y * nz - z * ny, z * nx - x * nz, x * ny - y * nx], -1)     # p_b x normal
+    cr = np.einsum("rak,rbk->rab", rel, side).reshape(R, M * M)
     a2, b2, c2 = d2[:, ik], d2[:, kj], d2[:, ij]
     sides = a2 + b2 + c2
     # Heron: 16 area^2 = sides^2 - 2 (a^4 + b^4 + c^4); cost = sides / (4 sqrt(3) area), floored
