@@ -12,8 +12,10 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    parent their id, fitness kept (re-evaluated when their ``config_version`` differs);
 2. injected individuals (a genome, a hand-written rewrite system inverted through the universe, or a
    copy of an existing ``Individual``): origin ``injected``, evaluated;
-3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``);
-4. offspring until the population is full: two parents by tournament, one-point crossover with
+3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``)
+   (by ``search.mode``: see ``_selection``);
+4. offspring until the population is full: two parents by tournament (by ``search.mode``), one-point
+   crossover with
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
@@ -321,9 +323,11 @@ class Island:
         for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
 
-        def pick(rng) -> int:
-            if mates:
-                return mates[int(rng.integers(0, len(mates)))]
+        mate_scores = [scores[i] for i in mates]
+
+        def pick(rng, first: bool = True) -> int:
+            if mates:   # the archive: the first parent by tournament, its mate uniformly
+                return mates[tournament_select(rng, mate_scores, ea.tournament if first else 1)]
             return tournament_select(rng, scores, ea.tournament)
 
         select_rng = self.rng(generation, "selection")
@@ -334,11 +338,11 @@ class Island:
         texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
         while len(births) < ea.population:
             a = pick(select_rng)
-            b = pick(select_rng)
+            b = pick(select_rng, first=False)
             tries = 0
             while unique and tries < _MATE_RETRIES and (
                     b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
-                b = pick(select_rng)
+                b = pick(select_rng, first=False)
                 tries += 1
             self.stats.mates_redrawn += tries
             used_a, used_b = pool[a].codons_used, pool[b].codons_used
@@ -383,14 +387,16 @@ class Island:
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
                    ) -> tuple[list[float], list[int], list[int]]:
         """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
-        of the elites to keep, and the positions parents are drawn from uniformly (empty: by
-        tournament).
+        of the elites to keep, and the positions parents are drawn from (empty: the whole pool).
 
         ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
         crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
-        first front, least crowded first, at least ``ea.elites`` and up to half the room. ``map-elites``:
+        first front: its best ``ea.elites`` by the fitness first (the weighted sum, whose minimum is on
+        the front when the objectives are the weighted criteria), then the least crowded, up to half
+        the room. ``map-elites``:
         the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
-        the population, and parents drawn uniformly from it."""
+        the population; each pair's first parent drawn from it by a tournament of ``ea.tournament``, its
+        mate uniformly (``ea.tournament = 1``: both uniformly, as in the original MAP-Elites)."""
         ea, search = self.config.ea, self.config.search
         if search.mode == "pareto":
             from genr8_dist.evolution.pareto import objectives_of, pareto_order
@@ -401,8 +407,9 @@ class Island:
             scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
             front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
                            key=lambda i: scores[i])
-            keep = min(room, max(min(ea.elites, room), min(len(front), room // 2)))
-            return scores, front[:keep], []
+            best = sorted(front, key=lambda i: (fitnesses[i], i))[:min(ea.elites, room)]
+            keep = min(room, max(len(best), min(len(front), room // 2)))
+            return scores, (best + [i for i in front if i not in best])[:keep], []
         if search.mode == "map-elites":
             from genr8_dist.evolution.archive import Grid
 

@@ -331,6 +331,32 @@ def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
     front = {p.id for p, r in zip(previous, ranks, strict=True) if r == 0 and p.valid}
     kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
     assert kept <= front and len(kept) == min(len(front), 8)
+    # the objectives are the weighted criteria: the fitness is their sum, its best is on the front
+    # and kept first
+    best = min(previous, key=lambda p: (p.fitness, p.index))
+    assert best.id in front and gen[0].origin == "elite" and gen[0].parents == (best.id,)
+
+
+def test_map_elites_draws_first_parents_by_tournament_and_mates_uniformly_from_the_archive():
+    from genr8_dist.evolution.archive import Grid
+
+    search = {"mode": "map-elites", "descriptors": ["n_regions"], "ranges": [[1, 17]], "bins": [8],
+              "offspring": 0.5}
+    hist = Island(small_config(ea={"population": 16}, search=search), 0).run(1)
+    grid = Grid.from_settings(small_config(search=search).search)
+    elites = grid.elites(hist[1], 8)
+    archive = {ind.id for ind in elites}
+    share = {}
+    for size in (1, 16):
+        config = small_config(ea={"population": 16, "tournament": size, "crossover_rate": 1.0},
+                              search=search)
+        gen = Island(config, 0).step(hist[1], 2)
+        born = [ind for ind in gen if ind.origin != "elite"]
+        assert all(set(ind.parents) <= archive for ind in born)
+        share[size] = sum(elites[0].id in ind.parents for ind in born) / len(born)
+        assert len({p for ind in born for p in ind.parents}) > 2   # mates from other cells too
+    # 16 contestants of 8 cells: the best cell wins nearly every first draw; uniformly, about 1 in 4
+    assert share[16] >= 0.75 > share[1]
 
 
 def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(history):
