@@ -13,8 +13,9 @@
 3. symmetric share: random genomes (seed 0, 50-150 codons) of the symmetric universes grown 4 steps
    in the empty environment; the share of grown (uncapped) surfaces with a mirror line
    (``Surface.mirror_line``: a vertical plane through the centre mapping every vertex onto one), with
-   ties between joins going to the branch drawn first (the default) and, for ``symmetric``, with
-   ``branch_ties = "none"``; ``regions`` is the mean number of regions of the grown surfaces.
+   ties between joins settled whatever the drawing order (``branch_ties = "crossing"``, the default)
+   and, for ``symmetric``, with the rule before (``"first"``: the tie to the branch drawn first) and
+   with ``"none"``; ``regions`` is the mean number of regions of the grown surfaces.
 
 ``--pictures DIR`` draws four_sided_tiles in examples/environments/box_corner*.toml (slide, cut-off,
 reflect: thesis Figs 2-13 and 2-14) side by side into DIR/boundary_behaviours.png.
@@ -68,7 +69,7 @@ def symmetric_share(n_genomes: int) -> None:
     print(f"\nsymmetric share: {n_genomes} random genomes per universe, grown 4 steps, empty environment")
     print(f"{'universe':>20} {'ties':>5} {'mapped':>6} {'grown':>6} {'capped':>6} {'mirror':>6} {'share':>7} "
           f"{'regions':>7} {'s':>6}")
-    for name, ties in [(n, "first") for n in names] + [("symmetric", "none")]:
+    for name, ties in [(n, "crossing") for n in names] + [("symmetric", t) for t in ("first", "none")]:
         env = Environment(max_edges=20_000, max_seconds=10.0, branch_ties=ties)
         universe = load_universe(name)
         rng = stream(0, "bench", "fidelity", name)
