@@ -7,7 +7,8 @@
 
     [genome]                      # length, codon_max, max_depth, max_wraps
     [ea]                          # population, generations, tournament, elites, crossover_rate,
-                                  # mutation_rate, init, founder_retries, unique_retries, within_used
+                                  # mutation_rate, init, founder_retries, unique_retries, unique_redraws,
+                                  # within_used
     [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
     [environment]                 # inline (genr8_dist.environment's format), or
     # environment = "env.toml"    # a path, resolved relative to this file
@@ -119,6 +120,7 @@ class EASettings:
     init: str = "random"         # founders: "random" genomes or "ramped" half-and-half derivations
     founder_retries: int = 20    # redraws of a founder that is trivial or repeats another's surface
     unique_retries: int = 10     # re-variations of an offspring that repeats a parent or a sibling
+    unique_redraws: int = 3      # newcomers drawn for an offspring still wasted after those
     within_used: bool = False    # crossover and mutation only within the codons the mapper read
 
     def __post_init__(self) -> None:
@@ -131,6 +133,7 @@ class EASettings:
         _set(self, "init", _choice(self.init, "ea.init", INITS))
         _set(self, "founder_retries", _int(self.founder_retries, "ea.founder_retries", 0, 1000))
         _set(self, "unique_retries", _int(self.unique_retries, "ea.unique_retries", 0, 1000))
+        _set(self, "unique_redraws", _int(self.unique_redraws, "ea.unique_redraws", 0, 1000))
         _set(self, "within_used", _bool(self.within_used, "ea.within_used"))
 
 

@@ -205,6 +205,7 @@ def test_a_stored_configuration_needs_neither_its_mesh_nor_its_universe_files(tm
     ({"ea": {"init": "sensible"}}, "ea.init"),
     ({"ea": {"founder_retries": -1}}, "ea.founder_retries"),
     ({"ea": {"unique_retries": 1001}}, "ea.unique_retries"),
+    ({"ea": {"unique_redraws": -1}}, "ea.unique_redraws"),
     ({"ea": {"within_used": "yes"}}, "ea.within_used"),
     ({"islands": {"emigrants": "far"}}, "islands.emigrants"),
 ])

@@ -27,10 +27,12 @@ parent's or an earlier member's of the generation, or that maps to none, is muta
 evaluated, and one that is invalid (its growth capped) or whose phenotype (its digest) repeats a
 parent's or an earlier member's after it, each up to ``ea.unique_retries`` times (draws from the
 generation's ``revary`` streams; each redraws at least one codon the mapper read, since a copy's read
-codons are what make it a copy). Generation 0 likewise redraws a founder that is trivial (invalid, or
-trivial as its phenotype says: a surface of at most one region, the axiom left as it was) or repeats
-an earlier founder's phenotype, up to ``ea.founder_retries`` times; founders are random genomes or,
-with ``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
+codons are what make it a copy); one still wasted after them is replaced by a newcomer (a founder's
+draw, origin ``random``, no parents), up to ``ea.unique_redraws`` times. Generation 0 likewise redraws a
+founder that is trivial (invalid, or trivial as its phenotype says: a surface of at most one region,
+the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
+times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
+trees (``grammar.derivations``).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -94,6 +96,7 @@ class IslandStats:
     revaried_text: int = 0      # offspring varied again because their text repeated another's
     revaried_phenotype: int = 0  # offspring varied again because their phenotype repeated another's
     revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
+    redrawn: int = 0            # offspring replaced by a newcomer after every re-variation failed
     unresolved: int = 0         # offspring or founders still repeating after every retry
 
 
@@ -246,6 +249,7 @@ class Island:
             revaried_text=counted.revaried_text,
             revaried_phenotype=counted.revaried_phenotype,
             revaried_invalid=counted.revaried_invalid,
+            redrawn=counted.redrawn,
             unresolved=counted.unresolved,
         )
         for hook in self.hooks:
@@ -451,7 +455,8 @@ class Island:
                                                                     seen)
             if evaluation.valid and evaluation.phenotype_digest is not None:
                 seen.add(evaluation.phenotype_digest)
-            population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
+            parents = () if origin == "random" else birth.parents
+            population.append(self._make(generation, index, genome, origin, parents, evaluation))
         return self._finish(generation, self._placed(population), before)
 
     def _placed(self, population: list[Individual]) -> list[Individual]:
@@ -505,7 +510,8 @@ class Island:
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
         """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
-        an earlier member's, varied again."""
+        an earlier member's, varied again; still so after ``ea.unique_retries``, replaced by a
+        newcomer (origin ``random``, no parents) up to ``ea.unique_redraws`` times."""
         genome, origin = birth.genome, birth.origin
 
         def wasted(ev: Evaluation) -> bool:
@@ -524,6 +530,17 @@ class Island:
             evaluation = self.evaluate(genome)
             if origin == "crossover":
                 origin = "crossover+mutation"
+        # Still wasted (its neighbourhood all fails or repeats, as round the bare axiom): a newcomer,
+        # drawn as a founder is, with no parents.
+        fresh = None
+        for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
+            fresh = fresh or self.rng(generation, "redraw", index)
+            genome = tuple(self._founders(fresh, 1, first=index)[0])
+            evaluation = self.evaluate(genome)
+            origin = "random"
+            self.stats.redrawn += 1
+            if not wasted(evaluation):
+                break
         if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation, origin

@@ -277,10 +277,40 @@ def test_invalid_offspring_are_varied_again_within_the_bound():
     assert invalid(gen) < invalid(plain)
     assert invalid(gen) <= revarying.stats.unresolved
     assert revarying.stats.revaried_invalid > 0 and failing.stats.revaried_invalid == 0
-    born = sum(i.origin in offspring for i in gen)
-    assert revarying.stats.revaried_invalid <= born * config.ea.unique_retries
+    born = sum(i.origin in (*offspring, "random") for i in gen)
+    # at most unique_retries before evaluation (no rewrite system) and as many after (capped)
+    assert revarying.stats.revaried_invalid <= born * 2 * config.ea.unique_retries
     # deterministic: the same generation again, row for row
     again = Island(config, 0).step(hist[1], 2)
+    assert [untimed(i) for i in again] == [untimed(i) for i in gen]
+
+
+def test_offspring_still_wasted_after_the_retries_are_replaced_by_newcomers_within_the_bound():
+    # one re-variation only: many offspring stay invalid or repeat; newcomers replace them
+    config = small_config(ea={"population": 16, "unique_retries": 1, "unique_redraws": 0},
+                          genome={"length": 40, "max_wraps": 0}, environment={"steps": 3, "max_edges": 60})
+    hist = Island(config, 0).run(1)
+    offspring = ("crossover", "mutation", "crossover+mutation")
+
+    def wasted(gen):
+        seen, count = set(), 0
+        for ind in gen:
+            if ind.origin in (*offspring, "random") and (not ind.valid or ind.phenotype_digest in seen):
+                count += 1
+            if ind.valid:
+                seen.add(ind.phenotype_digest)
+        return count
+
+    without = Island(config, 0)
+    plain = without.step(hist[1], 2)
+    redrawing = Island(config.replace(ea={"unique_redraws": 3}), 0)
+    gen = redrawing.step(hist[1], 2)
+    assert without.stats.redrawn == 0 and wasted(plain) >= 2
+    assert 0 < redrawing.stats.redrawn <= 3 * 16
+    assert wasted(gen) < wasted(plain) and wasted(gen) <= redrawing.stats.unresolved
+    newcomers = [ind for ind in gen if ind.origin == "random"]
+    assert newcomers and all(ind.parents == () for ind in newcomers)
+    again = Island(config.replace(ea={"unique_redraws": 3}), 0).step(hist[1], 2)
     assert [untimed(i) for i in again] == [untimed(i) for i in gen]
 
 
