@@ -998,7 +998,10 @@ class _Grower:
         d = points[pj] - points[pi]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
         n = normal[pi] + normal[pj]
-        n /= np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), 1e-300)[:, None]
+        size = np.sqrt(np.einsum("ij,ij->i", n, n))
+        # opposite normals (a fold) leave no plane: compare in space, not in the plane of the
+        # rounding error's direction
+        n = np.where((size > 1e-6)[:, None], n / np.maximum(size, 1e-300)[:, None], 0.0)
 
         def flat(v):
             v = v - np.einsum("ij,ij->i", v, n)[:, None] * n
