@@ -41,6 +41,9 @@ extra = {k: v for k, v in json.loads(extra_json).items() if k in known}
 config = load_config(config_path).to_dict()
 config.setdefault("environment", {}).update(extra)
 
+def toml_key(k):
+    return k if k and all(c.isalnum() or c in "_-" for c in k) else json.dumps(k)
+
 def toml_value(v):
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -51,7 +54,7 @@ def toml_value(v):
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
+        return "{" + ", ".join(f"{toml_key(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(v)
 
 def write(table, prefix, out):
@@ -59,9 +62,9 @@ def write(table, prefix, out):
     tables = {k: v for k, v in table.items() if isinstance(v, dict)}
     if prefix:
         out.append(f"[{prefix}]")
-    out.extend(f"{k} = {toml_value(v)}" for k, v in scalars.items())
+    out.extend(f"{toml_key(k)} = {toml_value(v)}" for k, v in scalars.items())
     for k, v in tables.items():
-        write(v, f"{prefix}.{k}" if prefix else k, out)
+        write(v, f"{prefix}.{toml_key(k)}" if prefix else toml_key(k), out)
 
 lines = []
 write(config, "", lines)

@@ -442,18 +442,23 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
     Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge
     (so it agrees with the map's orientation, and tiny regions count little); where that sum is
     negligible or along the edge, the normal the edge was drawn with."""
-    s, t = m.ev[idx, 0], m.ev[idx, 1]
+    ends = m.ev[idx]
+    s, t = ends[:, 0], ends[:, 1]
     p, q = m.pos[s], m.pos[t]
     d = q - p
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    safe = np.where(length > 1e-300, length, 1.0)
+    long = length > 1e-300
+    safe = np.where(long, length, 1.0)
     h = d / safe[:, None]
-    h[length <= 1e-300] = (1.0, 0.0, 0.0)
-    n = areas[m.face[2 * idx]] + areas[m.face[2 * idx + 1]]
+    if not long.all():
+        h[length <= 1e-300] = (1.0, 0.0, 0.0)
+    half = 2 * idx
+    n = areas[m.face[half]] + areas[m.face[half + 1]]
     size = np.sqrt(np.einsum("ij,ij->i", n, n))
     weak = size <= 1e-9 * safe * safe
     n = n / np.where(weak, 1.0, size)[:, None]
-    n[weak] = m.up[idx[weak]]
+    if weak.any():
+        n[weak] = m.up[idx[weak]]
     for fallback in (None, (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
         u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
         un = np.sqrt(np.einsum("ij,ij->i", u, u))
@@ -644,37 +649,39 @@ class _Grower:
         m = self.m
         n, k = len(idx), tpl.n_segments
         s, t, p, length, h, left, up = _frames(m, idx, areas)
-        pts = tpl.points
+        pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
         world = (p[:, None, :] + length[:, None, None]
                  * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
                     + pts[None, :, 2, None] * up[:, None, :]))
         nv0, ne0 = m.nv, m.ne
-        m.reserve(nv0 + n * (k - 1), ne0 + n * k)
-        new_v = nv0 + np.arange(n * (k - 1), dtype=np.int64).reshape(n, k - 1)
-        m.pos[nv0:nv0 + n * (k - 1)] = world[:, 1:k, :].reshape(-1, 3)
-        m.mass[nv0:nv0 + n * (k - 1)] = self.env.vertex_mass
-        m.stopped[nv0:nv0 + n * (k - 1)] = False
+        nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
+        m.reserve(nv1, ne1)
+        new_v = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
+        m.pos[nv0:nv1] = world.reshape(-1, 3)
+        m.mass[nv0:nv1] = self.env.vertex_mass
+        m.stopped[nv0:nv1] = False
         # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
         # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
-        frozen = np.repeat(m.stopped[s] & m.stopped[t], k - 1).nonzero()[0]
-        if len(frozen):
-            self._stop_later.append(nv0 + frozen)
-        m.nv = nv0 + n * (k - 1)
+        both = m.stopped[s] & m.stopped[t]
+        if both.any():
+            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+        m.nv = nv1
         chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
-        new_e = ne0 + np.arange(n * k, dtype=np.int64).reshape(n, k)
+        new_e = np.arange(ne0, ne1, dtype=np.int64).reshape(n, k)
         rev = tpl.main_reversed
         a, b = chain[:, :k], chain[:, 1:]
-        m.ev[new_e, 0] = np.where(rev, b, a)
-        m.ev[new_e, 1] = np.where(rev, a, b)
-        m.label[new_e] = self._noisy(tpl.main_labels, n).reshape(n, k)
+        ev = m.ev[ne0:ne1]
+        ev[:, 0] = np.where(rev, b, a).ravel()
+        ev[:, 1] = np.where(rev, a, b).ravel()
+        m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
         old_age = m.age[idx]
         ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
-        m.age[new_e] = np.maximum(ages, 0)
-        m.alive[new_e] = True
-        m.up[new_e] = up[:, None, :]
-        m.ne = ne0 + n * k
+        m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        m.alive[ne0:ne1] = True
+        m.up[ne0:ne1] = np.repeat(up, k, axis=0)
+        m.ne = ne1
         # half-edges along the main line (start to end) and back
-        fwd = 2 * new_e + rev.astype(np.int64)
+        fwd = 2 * new_e + rev
         bwd = fwd ^ 1
         ho, ht = 2 * idx, 2 * idx + 1
         next_ho, next_ht = m.nxt[ho].copy(), m.nxt[ht].copy()
@@ -909,14 +916,13 @@ class _Grower:
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
         n = normal[pi] + normal[pj]
         n /= np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), 1e-300)[:, None]
-
-        def flat(v):
-            v = v - np.einsum("ij,ij->i", v, n)[:, None] * n
-            return v / np.maximum(np.sqrt(np.einsum("ij,ij->i", v, v)), 1e-300)[:, None]
-
-        u, hi, hj = flat(d), flat(heading[pi]), flat(heading[pj])
-        return (np.einsum("ij,ij->i", hi, u), -np.einsum("ij,ij->i", hj, u), dist,
-                -np.einsum("ij,ij->i", hi, hj))
+        # d and both headings projected on the plane and normalised, the three in one pass each
+        v = np.stack([d, heading[pi], heading[pj]])
+        v = v - np.einsum("kij,ij->ki", v, n)[:, :, None] * n
+        v = v / np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
+        u, hi, hj = v
+        toward = np.einsum("kij,ij->ki", v[1:], u)
+        return toward[0], -toward[1], dist, -np.einsum("ij,ij->i", hi, hj)
 
     def _pair_ok(self, pi, pj, points, heading, normal, max_dist) -> np.ndarray:
         """Branch pairs whose orientations fit (``Environment.branch_join``) within the distance limit.
