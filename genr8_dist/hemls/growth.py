@@ -95,6 +95,12 @@ class _CompiledRule:
     templates: tuple[Template, ...]
     cumulative: np.ndarray  # cumulative normalized weights
 
+    @property
+    def unconditional(self) -> bool:
+        """Whether the rule applies to every edge with its predecessor's label (no context, chain
+        or condition)."""
+        return self.left is None and self.right is None and not self.chain and self.condition is None
+
 
 @dataclass(frozen=True)
 class _Compiled:
@@ -254,9 +260,11 @@ class _Map:
 
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
-        h = self.alive_halves()
-        f = self.face[h]
-        cr = _cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
+        e = self.alive[:self.ne].nonzero()[0]
+        ends = self.ev[e]
+        c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
+        cr = np.concatenate([c, -c])  # half-edges 2e (start to end), then 2e + 1 (end to start)
+        f = np.concatenate([self.face[2 * e], self.face[2 * e + 1]])
         key = (3 * f)[:, None] + _XYZ  # one bincount for the three axes: the same sums, in order
         out = 0.5 * np.bincount(key.ravel(), weights=cr.ravel(), minlength=3 * self.nf).reshape(-1, 3)
         out[0] = 0.0
@@ -396,11 +404,13 @@ class _Branches:
         # branches [0, checked) have met each other in a join already: positions and headings do
         # not change within a step and faces only split, so such pairs never need testing again
         self.checked = 0
+        self.size = 0
 
     def add(self, vertex, corner, label, age, heading, reversed_, normal) -> None:
         if len(vertex):
             self._flush_cat()
             self.parts.append((vertex, corner, label, age, heading, reversed_, normal))
+            self.size += len(vertex)
 
     def _flush_cat(self) -> None:
         if self._cat is not None:
@@ -421,9 +431,11 @@ class _Branches:
     def keep(self, mask: np.ndarray) -> None:
         """Keep the branches where ``mask`` holds; all of them count as checked from now on."""
         self._cat = tuple(a[mask] for a in self.arrays())
-        self.checked = len(self._cat[0])
+        self.checked = self.size = len(self._cat[0])
 
     def remap_corners(self, repl: np.ndarray) -> None:
+        if not self.size:
+            return
         arrs = list(self.arrays())
         c = arrs[1]
         ok = c >= 0
@@ -433,7 +445,7 @@ class _Branches:
         self._cat = tuple(arrs)
 
     def __len__(self) -> int:
-        return len(self.arrays()[0])
+        return self.size
 
 
 def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
@@ -593,35 +605,39 @@ class _Grower:
         idx = (m.alive[:m.ne] & (m.label[:m.ne] == group.label)).nonzero()[0]
         if not len(idx):
             return
-        choice = np.full(len(idx), -1, dtype=np.int64)
         self._keys = None
-        for r, rule in enumerate(group.rules):
-            free = choice < 0
-            if not free.any():
-                break
-            ok = free.copy()
-            if rule.condition is not None:
-                ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
-            if rule.left is not None:
-                ok[ok] = self._context_ok(idx[ok], 0, rule.left)
-            if rule.right is not None:
-                ok[ok] = self._context_ok(idx[ok], 1, rule.right)
-            if rule.chain:
-                ok[ok] = self._chain_ok(idx[ok], rule.chain)
-            choice[ok] = r
+        rules = group.rules
+        if len(rules) == 1 and rules[0].unconditional:
+            chosen = [(rules[0], idx)]   # every edge with the label takes the one rule
+        else:
+            choice = np.full(len(idx), -1, dtype=np.int64)
+            for r, rule in enumerate(rules):
+                free = choice < 0
+                if not free.any():
+                    break
+                ok = free.copy()
+                if rule.condition is not None:
+                    ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
+                if rule.left is not None:
+                    ok[ok] = self._context_ok(idx[ok], 0, rule.left)
+                if rule.right is not None:
+                    ok[ok] = self._context_ok(idx[ok], 1, rule.right)
+                if rule.chain:
+                    ok[ok] = self._chain_ok(idx[ok], rule.chain)
+                choice[ok] = r
+            chosen = [(rule, idx[choice == r]) for r, rule in enumerate(rules)]
         batches: list[tuple[np.ndarray, Template]] = []
         grow_edges = 0
-        for r, rule in enumerate(group.rules):
-            sel = idx[choice == r]
+        for rule, sel in chosen:
             if not len(sel):
                 continue
             if len(rule.templates) == 1:
-                which = np.zeros(len(sel), dtype=np.int64)
+                parts = [(sel, rule.templates[0])]
             else:
                 which = np.searchsorted(rule.cumulative, self.rng.random(len(sel)), side="right")
                 which = np.minimum(which, len(rule.templates) - 1)
-            for j, tpl in enumerate(rule.templates):
-                part = sel[which == j]
+                parts = [(sel[which == j], tpl) for j, tpl in enumerate(rule.templates)]
+            for part, tpl in parts:
                 if len(part):
                     batches.append((part, tpl))
                     grow_edges += len(part) * (tpl.n_segments - 1)
