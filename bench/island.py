@@ -57,8 +57,8 @@ def run(steps: int, population: int, generations: int, seed: int, universe: str)
         "score_share": scored / measured if measured else 0.0,
         "other_share": max(0.0, 1.0 - measured / wall),
         "valid_share": len(valid) / len(everyone),
-        "median_vertices": statistics.median(ind.n_vertices for ind in valid) if valid else 0,
-        "max_vertices": max((ind.n_vertices for ind in valid), default=0),
+        "median_vertices": statistics.median(ind.sizes.get("vertices", 0) for ind in valid) if valid else 0,
+        "max_vertices": max((ind.sizes.get("vertices", 0) for ind in valid), default=0),
         "best_fitness": min((ind.fitness for ind in valid), default=float("inf")),
     }
 

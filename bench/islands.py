@@ -3,6 +3,7 @@
     python bench/islands.py                 # default configuration, local Ray of 2 CPUs (about 4 minutes)
     python bench/islands.py --cpus 4 --islands 1 2 4 8 --generations 20 --repeat 1
     python bench/islands.py --islands 1 2 --seeds 0 1 2 3 4 5 6 7    # 2 islands vs 1 over 8 run seeds
+    python bench/islands.py --cpus 16 --scaling 16 --generations 6 --population 20   # parallel efficiency
 
 For each island count it runs the default run configuration (``RunConfig()``: 30 individuals of 100
 codons per island, the default environment) on a local Ray ``--repeat`` times (default 3) and prints
@@ -25,6 +26,10 @@ Besides 1, 2, 4 and 8 islands, it runs the 2-island work on 1 host (1 CPU): the 
 speedup (the same individuals, the same surfaces), since 1 island and 2 islands do not grow equally
 costly surfaces. The "2 islands vs 1" line is the issue's own measure, printed as well; ``--seeds``
 repeats it over several run seeds, since which island grows costly surfaces is a matter of the seed.
+
+``--scaling N`` measures parallel efficiency on fixed work instead: the same N-island run (the same
+individuals and surfaces, whatever the number of hosts, since every draw comes from (seed, island,
+generation)) on 1, 2, 4, ... N hosts of one CPU each; efficiency on h hosts = wall(1) / (h * wall(h)).
 
 Wall time is the coordinator's life (its store reads and writes included, actor start-up excluded).
 Ray's workers run at nice 15 by default; the benchmark runs them at nice 0 so that, on a busy machine,
@@ -97,6 +102,32 @@ def run_once(n_islands: int, generations: int | None, workdir: Path, population:
     }
 
 
+def scaling(args: argparse.Namespace) -> int:
+    """Print wall time, individuals/s and parallel efficiency of one fixed N-island run on 1..N hosts."""
+    n = args.scaling
+    counts = sorted({h for h in (1, 2, 4, 8, 16, 32, 64) if h < n} | {n})
+    gens = args.generations or 6
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="genr8-bench-") as tmp:
+        for hosts in counts:
+            runs = [run_once(n, gens, Path(tmp) / f"{hosts}-{k}", args.population, max_hosts=hosts)
+                    for k in range(max(1, args.repeat))]
+            rows.append(sorted(runs, key=lambda r: r["wall_s"])[len(runs) // 2])
+            print(f"islands={n} hosts={rows[-1]['hosts']}: {rows[-1]['wall_s']:.1f} s", file=sys.stderr,
+                  flush=True)
+    print(f"# bench/islands.py --scaling {n}: {n} islands x {gens} generations, the same work on 1..{n} "
+          f"hosts; local Ray with {args.cpus} CPUs, {os.cpu_count()} cores on this machine")
+    print(f"{'hosts':>5} {'wall s':>7} {'ind/s':>8} {'speedup':>8} {'efficiency':>10} {'busy CPUs':>9} "
+          f"{'coordinator%':>12} {'store%':>7} {'help%':>6}")
+    base = rows[0]
+    for r in rows:
+        speedup = base["wall_s"] / r["wall_s"]
+        print(f"{r['hosts']:>5} {r['wall_s']:>7.1f} {r['ind_per_s']:>8.1f} {speedup:>8.2f} "
+              f"{100 * speedup / r['hosts']:>9.1f}% {r['busy']:>9.2f} {r['coordinator_pct']:>12.2f} "
+              f"{r['store_pct']:>7.2f} {r['help_pct']:>6.1f}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--islands", type=int, nargs="+", default=[1, 2, 4, 8])
@@ -107,6 +138,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="*", default=[],
                         help="also run 1 and 2 islands once with each of these run seeds and compare "
                              "their individuals/s pooled over the seeds")
+    parser.add_argument("--scaling", type=int, default=None, metavar="N",
+                        help="parallel efficiency: the same N-island work on 1, 2, 4, ... N hosts")
     parser.add_argument("--repeat", type=int, default=3,
                         help="runs of each configuration; the one of median wall time is shown (default 3)")
     args = parser.parse_args(argv)
@@ -117,6 +150,11 @@ def main(argv: list[str] | None = None) -> int:
 
     ray.init(address="local", num_cpus=args.cpus, include_dashboard=False, log_to_driver=False,
              logging_level=logging.ERROR, _system_config={"worker_niceness": 0})
+    if args.scaling:
+        try:
+            return scaling(args)
+        finally:
+            ray.shutdown()
     results = []
     try:
         with tempfile.TemporaryDirectory(prefix="genr8-bench-") as tmp:

@@ -5,12 +5,13 @@
     python bench/same_rows.py BEFORE AFTER --env branch_join=cone     # a key only one checkout knows
 
 Each checkout runs ``genr8 run CONFIG`` (a local Ray of 2 CPUs, as a user would) in a fresh directory;
-then the rows of both runs are compared column by column, all columns but the ``*_seconds`` timings
-(and columns only one checkout's store has, which are listed). ``--env KEY=VALUE`` adds an environment
-field to the configuration of each checkout whose Environment has that field (a checkout that predates
-it runs without it), so a cap or an option added later can be switched off or pinned. Prints the
-number of rows, how many rows a growth cap touched in each run, the rows that differ (first few shown)
-and ``SAME`` or ``DIFFERENT``; exits 1 when they differ.
+then the rows of both runs are compared column by column, all columns but the ``*_seconds`` timings (and
+columns only one checkout's store has, which are listed; a checkout from before store schema 3 has its
+surface-named digest and sizes compared under their current names). ``--env KEY=VALUE`` adds an
+environment field to the configuration of each checkout whose Environment has that field (a checkout
+that predates it runs without it), so a cap or an option added later can be switched off or pinned.
+Prints the number of rows, how many rows a growth cap touched in each run, the rows that differ (first
+few shown) and ``SAME`` or ``DIFFERENT``; exits 1 when they differ.
 """
 
 from __future__ import annotations
@@ -41,9 +42,6 @@ extra = {k: v for k, v in json.loads(extra_json).items() if k in known}
 config = load_config(config_path).to_dict()
 config.setdefault("environment", {}).update(extra)
 
-def toml_key(k):
-    return k if k and all(c.isalnum() or c in "_-" for c in k) else json.dumps(k)
-
 def toml_value(v):
     if isinstance(v, bool):
         return "true" if v else "false"
@@ -54,17 +52,20 @@ def toml_value(v):
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{toml_key(k)} = {toml_value(x)}" for k, x in v.items()) + "}"
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(v)
+
+def key(k):   # a bare key, else quoted (a stored universe's file names hold dots)
+    return k if k and all(c.isalnum() or c in "_-" for c in k) else json.dumps(k)
 
 def write(table, prefix, out):
     scalars = {k: v for k, v in table.items() if not isinstance(v, dict)}
     tables = {k: v for k, v in table.items() if isinstance(v, dict)}
     if prefix:
         out.append(f"[{prefix}]")
-    out.extend(f"{toml_key(k)} = {toml_value(v)}" for k, v in scalars.items())
+    out.extend(f"{key(k)} = {toml_value(v)}" for k, v in scalars.items())
     for k, v in tables.items():
-        write(v, f"{prefix}.{toml_key(k)}" if prefix else toml_key(k), out)
+        write(v, f"{prefix}.{key(k)}" if prefix else key(k), out)
 
 lines = []
 write(config, "", lines)
@@ -75,6 +76,11 @@ done = subprocess.run([sys.executable, "-m", "genr8_dist.cli", "run", str(workdi
 if done.returncode != 0:
     sys.exit("genr8 run failed: " + (done.stderr.strip().splitlines() or ["?"])[-1])
 table = pq.read_table(run / "individuals")
+# a checkout from before store schema 3 names the digest and the sizes after surfaces: compare them
+# under the current names (genr8_dist.evolution.individual.SCHEMA_2_NAMES)
+renamed = {"surface_digest": "phenotype_digest", "n_vertices": "size_vertices", "n_edges": "size_edges",
+           "n_regions": "size_regions"}
+table = table.rename_columns([renamed.get(n, n) for n in table.column_names])
 print(json.dumps({"applied": extra}))
 for row in table.to_pylist():
     print(json.dumps(row, default=repr, sort_keys=True))

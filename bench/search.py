@@ -13,8 +13,10 @@ figures are the engine's, not the cluster's. Sections:
    of distinct surfaces, the share of offspring equal to a parent (same text or same surface); the
    best fitness against evaluations; the best of a random sample of the same number of evaluations
    (one generation of that size, same seed), and the evolved best's margin over it; the evaluations
-   until the best reaches the ``four_sided_tiles`` score on that fitness; MAP-Elites archive coverage
-   where the configuration's mode is ``map-elites``.
+   until the best reaches the ``four_sided_tiles`` score on that fitness. Each mode is also judged on
+   what it optimises, against the same random sample: ``pareto`` on the hypervolume of the run's
+   non-dominated front over its objectives (``front_volumes``), ``map-elites`` on the coverage and
+   QD-score of the archive the run filled on its grid (``archive_figures``).
 3. *islands*: the configuration's islands against one population of the same total size: evaluations
    until the best reaches the single population's median final best, and how many islands' best
    surfaces are distinct at the end.
@@ -41,7 +43,7 @@ DEFAULT_CONFIGS = ("examples/quick.toml", "examples/subdivide.toml")
 
 def trivial(ind: Any) -> bool:
     """Invalid, or a surface of at most one region."""
-    return not ind.valid or ind.n_regions <= 1
+    return not ind.valid or ind.sizes.get("regions", 0) <= 1
 
 
 def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], list[int]]:
@@ -79,13 +81,13 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict
     for g, gen in enumerate(history):
         pops = [ind for pop in gen for ind in pop]
         trivial_share.append(sum(map(trivial, pops)) / len(pops))
-        distinct = [len({ind.surface_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
+        distinct = [len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
         distinct_share.append(statistics.fmean(distinct))
         offspring = [ind for ind in pops if ind.origin not in COPIES and ind.generation > 0]
         copies = 0
         for ind in offspring:
             parents = [by_id[p] for p in ind.parents if p in by_id]
-            if any(p.text == ind.text or (ind.valid and p.surface_digest == ind.surface_digest)
+            if any(p.text == ind.text or (ind.valid and p.phenotype_digest == ind.phenotype_digest)
                    for p in parents):
                 copies += 1
         if offspring:
@@ -100,23 +102,65 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict
     bests = []
     for pop in last:
         top = min(pop, key=lambda ind: ind.fitness)
-        bests.append(top.surface_digest if top.valid else None)
+        bests.append(top.phenotype_digest if top.valid else None)
     return {"trivial": trivial_share, "distinct": distinct_share, "copies": copy_share, "curve": curve,
             "evaluations": evaluations, "best": best, "reach": reach,
             "distinct_island_bests": len(set(bests)), "islands": len(last),
             "everyone": [ind for gen in history for pop in gen for ind in pop]}
 
 
-def random_best(config: Any, evaluations: int) -> float:
-    """The best fitness among ``evaluations`` random genomes (one generation 0 of that size, no
-    founder redrawn: every evaluation a random genome)."""
+def random_sample(config: Any, evaluations: int) -> list[Any]:
+    """``evaluations`` random genomes, evaluated (one generation 0 of that size, no founder redrawn:
+    every evaluation a random genome)."""
     from genr8_dist.evolution import Island
 
     ea = {"population": max(2, evaluations), "elites": 0, "tournament": 1}
     if "founder_retries" in getattr(config.ea, "__dataclass_fields__", {}):
         ea |= {"founder_retries": 0, "init": "random"}
     one = config.replace(ea=ea, islands={"count": 1, "migrants": 0})
-    return min(ind.fitness for ind in Island(one, 0).initial())
+    return Island(one, 0).initial()
+
+
+def mode_of(config: Any) -> str:
+    return getattr(getattr(config, "search", None), "mode", "weighted")
+
+
+def front_volumes(config: Any, evolved: Sequence[Any], sampled: Sequence[Any]) -> tuple[float, float]:
+    """The hypervolumes of the evolved run's front and of the random sample's, over the Pareto
+    objectives (their weighted deviations), both normalised by the ideal and nadir points of the two
+    fronts together, the reference point 1.1 in each objective: the share of the box between the
+    best and worst front values that each front dominates (ideal 1.1^k)."""
+    import numpy as np
+
+    from genr8_dist.evolution.island import pareto_objectives
+    from genr8_dist.evolution.pareto import hypervolume, non_dominated, objectives_of
+
+    names = pareto_objectives(config)
+
+    def front(individuals: Sequence[Any]) -> Any:
+        valid = [ind for ind in individuals if ind.valid]
+        f = objectives_of([ind.criteria for ind in valid], [True] * len(valid), config.fitness, names)
+        f = f[np.isfinite(f).all(axis=1)]
+        return f[non_dominated(f)] if len(f) else f.reshape(0, len(names))
+
+    a, b = front(evolved), front(sampled)
+    both = np.vstack([a, b])
+    ideal, nadir = both.min(axis=0), both.max(axis=0)
+    span = np.where(nadir > ideal, nadir - ideal, 1.0)
+    ref = np.full(len(names), 1.1)
+    return (hypervolume((a - ideal) / span, ref), hypervolume((b - ideal) / span, ref))
+
+
+def archive_figures(config: Any, individuals: Sequence[Any]) -> tuple[float, float]:
+    """(coverage, QD-score) of the MAP-Elites archive that ``individuals`` fill on the configuration's
+    grid: the share of cells held, and the sum over held cells of 1 / (1 + the cell's best fitness)
+    (fitness is a sum of non-negative deviations, so a perfect surface counts 1 and a cell counts
+    more the better its elite: the score grows with coverage and quality, with no offset to choose)."""
+    from genr8_dist.evolution.archive import Grid
+
+    grid = Grid.from_settings(config.search)
+    held = grid.archive(individuals)
+    return len(held) / grid.size, math.fsum(1.0 / (1.0 + ind.fitness) for ind in held.values())
 
 
 def tiles_score(config: Any) -> float:
@@ -126,24 +170,22 @@ def tiles_score(config: Any) -> float:
     return evaluate_text((systems_dir() / "four_sided_tiles.hemls").read_text(), config).fitness
 
 
-def coverage(config: Any, everyone: Sequence[Any]) -> float | None:
-    """Share of the MAP-Elites grid's cells held at the end (``None`` outside that mode)."""
-    search = getattr(config, "search", None)
-    if search is None or getattr(search, "mode", "weighted") != "map-elites":
-        return None
-    from genr8_dist.evolution.archive import Grid
-
-    grid = Grid.from_settings(search)
-    cells = {grid.cell(ind) for ind in everyone if ind.valid}
-    cells.discard(None)
-    return len(cells) / grid.size
-
-
 def spread(values: Sequence[float], fmt: str = "{:.3f}") -> str:
     values = [v for v in values if v is not None]
     if not values:
         return "-"
     return f"{fmt.format(statistics.median(values))} [{fmt.format(min(values))}, {fmt.format(max(values))}]"
+
+
+def against_random(measure: str, margins: Sequence[float]) -> None:
+    """One line: the evolved run's margin over the random sample on ``measure`` (a share of the
+    random sample's figure, positive when evolution is better), per seed and whether it meets the
+    target (better in every seed, by at least 20% in the median)."""
+    met = all(m > 0 for m in margins) and statistics.median(margins) >= 0.2
+    print(f"- margin over random on {measure}: {spread(margins)}; evolved better in "
+          f"{sum(m > 0 for m in margins)} of {len(margins)} seeds; per seed "
+          f"{', '.join(f'{m:+.3f}' for m in margins)}; {'MEETS' if met else 'MISSES'} the target "
+          f"(every seed better, median >= 0.20)")
 
 
 def founders(universes: Sequence[str], count: int, base: Any) -> None:
@@ -158,7 +200,7 @@ def founders(universes: Sequence[str], count: int, base: Any) -> None:
         t0 = time.perf_counter()
         pop = Island(config, 0).initial()
         seconds = time.perf_counter() - t0
-        distinct = len({ind.surface_digest for ind in pop if ind.valid}) / len(pop)
+        distinct = len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop)
         print(f"| {name} | {sum(map(trivial, pop)) / len(pop):.3f} | {distinct:.3f} | {seconds:.1f} |")
 
 
@@ -174,10 +216,17 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None) -> list
         t0 = time.perf_counter()
         figures = describe(run_islands(config, last), tiles)
         figures["seconds"] = time.perf_counter() - t0
-        figures["random"] = random_best(config, figures["evaluations"])
-        figures["coverage"] = coverage(config, figures["everyone"])
+        sample = random_sample(config, figures["evaluations"])
+        figures["random"] = min(ind.fitness for ind in sample)
+        mode = mode_of(config)
+        if mode == "pareto":
+            figures["volumes"] = front_volumes(config, figures["everyone"], sample)
+        if mode == "map-elites":
+            figures["archive"] = archive_figures(config, figures["everyone"])
+            figures["random_archive"] = archive_figures(config, sample)
+        del figures["everyone"]
         runs.append(figures)
-    mode = getattr(getattr(base, "search", None), "mode", "weighted")
+    mode = mode_of(base)
     print(f"\n## {path} (mode {mode}, {base.islands.count} island(s) x {base.ea.population}, "
           f"{last} generations, {len(seeds)} seeds; four_sided_tiles scores {tiles:.4f})\n")
     print("| generation | trivial | distinct surfaces | offspring equal to a parent | best (median) |")
@@ -190,13 +239,24 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None) -> list
               f"| {g} | {statistics.median(r['trivial'][g] for r in runs):.3f} | "
               f"{statistics.median(r['distinct'][g] for r in runs):.3f} | - | ", end="")
         print(f"{statistics.median(r['curve'][g][1] for r in runs):.4f} |")
-    margins = [(r["random"] - r["best"]) / r["random"] if r["random"] > 0 else 0.0 for r in runs]
     print()
-    print(f"- evaluations per run: {runs[0]['evaluations']}")
+    print(f"- evaluations per run: {spread([r['evaluations'] for r in runs], '{:.0f}')}")
     print(f"- evolved best: {spread([r['best'] for r in runs], '{:.4f}')}")
     print(f"- random best, same evaluations: {spread([r['random'] for r in runs], '{:.4f}')}")
-    print(f"- margin of evolved over random (share of the random best): {spread(margins)}; "
-          f"evolved better in {sum(m > 0 for m in margins)} of {len(runs)} seeds")
+    against_random("best fitness (lower is better)",
+                   [(r["random"] - r["best"]) / r["random"] if r["random"] > 0 else 0.0 for r in runs])
+    if mode == "pareto":
+        print(f"- hypervolume of the run's front (normalised, reference 1.1): "
+              f"{spread([r['volumes'][0] for r in runs])}; of the random sample's front: "
+              f"{spread([r['volumes'][1] for r in runs])}")
+        against_random("hypervolume", [(e - r) / r if r > 0 else math.inf for e, r in
+                                       (x["volumes"] for x in runs)])
+    if mode == "map-elites":
+        for i, name in enumerate(("coverage", "QD-score")):
+            print(f"- archive {name} of the run: {spread([r['archive'][i] for r in runs])}; of the random "
+                  f"sample on the same grid: {spread([r['random_archive'][i] for r in runs])}")
+            against_random(f"archive {name}", [(r["archive"][i] - r["random_archive"][i])
+                                               / r["random_archive"][i] for r in runs])
     reached = [r["reach"] for r in runs if r["reach"] is not None]
     print(f"- evaluations to reach the four_sided_tiles score: reached in {len(reached)} of {len(runs)}"
           f"; {spread(reached, '{:.0f}')}")
@@ -206,8 +266,6 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None) -> list
           f"generation), {spread([statistics.fmean(r['distinct']) for r in runs])} (mean)")
     copies = [statistics.fmean(r["copies"]) for r in runs if r["copies"]]
     print(f"- offspring equal to a parent: {spread(copies)}")
-    if runs[0]["coverage"] is not None:
-        print(f"- MAP-Elites coverage at the end: {spread([r['coverage'] for r in runs])}")
     print(f"- seconds per run: {spread([r['seconds'] for r in runs], '{:.1f}')}")
     return runs
 

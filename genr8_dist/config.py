@@ -175,7 +175,7 @@ class SearchSettings:
 
     mode: str = "weighted"                 # "weighted", "pareto" or "map-elites"
     objectives: tuple[str, ...] = ()       # pareto: criteria as separate objectives (empty: weight > 0)
-    descriptors: tuple[str, ...] = ("undulation", "n_regions")   # map-elites: the grid's axes
+    descriptors: tuple[str, ...] = ("undulation", "size_regions")   # map-elites: the grid's axes
     ranges: tuple[tuple[float, float], ...] = ((0.0, 2.0), (1.0, 65.0))
     bins: tuple[int, ...] = (4, 8)
     offspring: float = 0.5                 # map-elites: the least share of a generation bred anew
@@ -267,28 +267,36 @@ def _check_source(source: Any) -> None:
 _CHECKED: set[str] = set()
 
 
-def phenotype_kind(source: Any) -> str:
-    """The name of the phenotype the universe ``source`` (a ``UniverseSource``; ``None``: the default
-    universe) develops into, under which its criteria are registered: ``surface`` for HEMLS.
+def run_phenotype(source: Any) -> Any:
+    """The phenotype (``genr8_dist.phenotype.Phenotype``) the universe ``source`` (a
+    ``UniverseSource``; ``None``: the default universe) develops into: the built-in surfaces for HEMLS.
 
     Only a universe's code can say, and code runs only where the trust rule lets it
     (:mod:`genr8_dist.grammar.trust`): an installed plugin's or a remembered digest is consented to
-    here; other code is not run and the kind read as ``surface`` (``genr8 run`` reads its file again
-    once the user's universe is consented to)."""
+    here; other code is not run and the phenotype read as the built-in surfaces (``genr8 run`` reads
+    its file again once the user's universe is consented to)."""
+    from genr8_dist.phenotype import SURFACES
+
     digest = getattr(source, "code_digest", "") if source is not None else ""
     if not digest:
-        return SURFACE
+        return SURFACES
     from genr8_dist.grammar.discovery import installed_code_digest
     from genr8_dist.grammar.trust import consent, may_run, remembered
 
     if not may_run(digest):
         if installed_code_digest(source.name) != digest and digest not in remembered():
-            return SURFACE
+            return SURFACES
         consent(digest)
     from genr8_dist.grammar.universe import build_universe
     from genr8_dist.phenotype import phenotype_of
 
-    return phenotype_of(build_universe(source, check=False)).name
+    return phenotype_of(build_universe(source, check=False))
+
+
+def phenotype_kind(source: Any) -> str:
+    """The name of the phenotype ``source`` develops into (``run_phenotype``), under which its
+    criteria are registered: ``surface`` for HEMLS."""
+    return str(run_phenotype(source).name)
 
 
 @dataclass(frozen=True, slots=True)
@@ -341,12 +349,13 @@ class RunConfig:
             _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
         elif not hasattr(self.environment, "to_dict"):
             raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
-        from genr8_dist.evolution.archive import DESCRIPTOR_COUNTS
+        from genr8_dist.evolution.archive import descriptor_sizes
 
         criteria = tuple(self.fitness.names)
         _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
         if self.search.mode == "map-elites":
-            _names(self.search.descriptors, "search.descriptors", criteria + DESCRIPTOR_COUNTS, 1, 3)
+            sizes = descriptor_sizes(run_phenotype(self.universe_source).sizes)
+            _names(self.search.descriptors, "search.descriptors", criteria + sizes, 1, 3)
         if self.islands.migrants >= self.ea.population:
             raise _fail(
                 "islands.migrants",

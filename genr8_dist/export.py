@@ -33,6 +33,8 @@ __all__ = [
     "MESH_FORMATS",
     "SCAFFOLD_FORMATS",
     "SurfaceLike",
+    "draw_surface",
+    "export_3dm",
     "export_mesh",
     "export_scaffold",
     "mesh_of",
@@ -398,4 +400,79 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
             fig.savefig(tmp, format="png", bbox_inches="tight", pad_inches=0.15, facecolor="white")
     finally:
         plt.close(fig)
+    return path
+
+
+def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
+    """Draw ``surface`` on the 3D axes ``ax``: its regions (triangulated) shaded by height and lit from
+    above, its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    plt = _pyplot()
+    v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    centre = (lo + hi) / 2.0
+    radius = max(float((hi - lo).max()) / 2.0, 1e-9)
+    if len(faces):
+        tri = v[faces]
+        z = tri[:, :, 2].mean(axis=1)
+        zn = (z - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else np.full(len(z), 0.55)
+        colours = plt.get_cmap("viridis")(0.18 + 0.64 * zn)
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        length = np.linalg.norm(normal, axis=1)
+        light = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
+        lit = np.where(length > 0, np.abs(normal @ light) / np.where(length > 0, length, 1.0), 0.8)
+        colours[:, :3] *= (0.55 + 0.45 * lit)[:, None]
+        # edges in the face colour close the hairline seams between the triangles of one region
+        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors=colours,
+                                             linewidths=0.35))
+    if len(edges):
+        ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
+                                             alpha=0.85))
+    ax.set_xlim(centre[0] - radius, centre[0] + radius)
+    ax.set_ylim(centre[1] - radius, centre[1] + radius)
+    ax.set_zlim(centre[2] - radius, centre[2] + radius)
+    ax.set_box_aspect((1, 1, 1))
+    ax.view_init(elev=elev, azim=azim)
+    ax.set_axis_off()
+
+
+def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str) -> Path:
+    """A Rhino file holding the surface as one mesh named ``name`` (every vertex, in order; the regions'
+    triangles) and its edges as a line layer, the scaffold a designer builds on (the ``rhino`` extra)."""
+    path = Path(path)
+    try:
+        import importlib
+
+        rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
+    except ImportError:
+        raise ConfigError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
+    vertices, edges, faces = _arrays(surface)
+    mesh = rhino3dm.Mesh()
+    for x, y, z in vertices.tolist():
+        mesh.Vertices.Add(x, y, z)
+    for a, b, c in faces.tolist():
+        mesh.Faces.AddFace(a, b, c)
+    mesh.Normals.ComputeNormals()
+    model = rhino3dm.File3dm()
+    surface_layer = rhino3dm.Layer()
+    surface_layer.Name = "genr8 surface"
+    scaffold_layer = rhino3dm.Layer()
+    scaffold_layer.Name = "genr8 scaffold"
+    surface_index = model.Layers.Add(surface_layer)
+    scaffold_index = model.Layers.Add(scaffold_layer)
+    attributes = rhino3dm.ObjectAttributes()
+    attributes.Name = name
+    attributes.LayerIndex = surface_index
+    model.Objects.AddMesh(mesh, attributes)
+    line_attributes = rhino3dm.ObjectAttributes()
+    line_attributes.LayerIndex = scaffold_index
+    for a, b in edges.tolist():
+        p, q = vertices[a], vertices[b]
+        model.Objects.AddLine(rhino3dm.Point3d(*p), rhino3dm.Point3d(*q), line_attributes)
+    with _atomic(path) as tmp:
+        if not model.Write(str(tmp), 7):
+            raise OSError(5, "rhino3dm could not write the file", str(path))
     return path

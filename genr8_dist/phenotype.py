@@ -8,12 +8,15 @@ worked example); the evaluator, the islands, the run store, the history commands
 the report only ever talk to a phenotype through this interface:
 
 ``develop(text, config) -> Developed``     the phenotype of one text (raise to fail the individual)
+``sizes``                                  the names of its sizes (``Developed.counts``), stored as
+                                           ``size_<name>`` columns beside the criteria
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
 ``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
                                            returns its negation and says so in ``direction``)
+``export_formats``                         the file suffixes ``export`` writes
 ``export(developed, path, config)``        a file a CAD tool or a 3D printer reads (suffix decides)
 ``preview(developed, path, title, config)`` a PNG picture
 ``draw(ax, developed)``                    the same picture on a matplotlib 3D axes (gallery tiles)
@@ -41,9 +44,9 @@ class Developed:
     """One text developed: the phenotype ``value`` and the facts the run store keeps about it.
 
     ``digest``: equal digests, equal phenotypes; ``steps``: derivation steps done; ``capped``: what
-    cut development short (``None`` when nothing did); ``counts``: the sizes stored with the row
-    (``n_vertices``, ``n_edges``, ``n_regions`` for surfaces; a phenotype without such parts leaves
-    them out and they are stored as 0)."""
+    cut development short (``None`` when nothing did); ``counts``: its sizes, one per name in the
+    phenotype's ``sizes`` (a surface: ``vertices``, ``edges``, ``regions``), stored with the row as
+    ``size_<name>`` (a size left out is stored as 0)."""
 
     value: Any
     digest: str
@@ -62,7 +65,10 @@ class Phenotype(ABC):
     ``"minimise"`` when ``fitness`` is the paper's own measure, ``"maximise"`` when it is the negated
     score of a paper that maximises; ``noun``: what one is called in titles; ``capped_is_invalid``:
     whether a development that hit a cap fails the individual; ``export_formats``: suffixes
-    ``export`` writes; ``stage``: the name of the failing stage when ``develop`` raises.
+    ``export`` writes; ``stage``: the name of the failing stage when ``develop`` raises; ``sizes``:
+    the names of the sizes ``develop`` counts (``Developed.counts``), which a run stores as
+    ``size_<name>`` integer columns (fixed when the run is created, like its criteria) and a
+    MAP-Elites grid may use as descriptors (``size_<name>``).
     """
 
     name: str = "phenotype"
@@ -71,6 +77,7 @@ class Phenotype(ABC):
     capped_is_invalid: bool = True
     export_formats: tuple[str, ...] = ()
     stage: str = "grow"
+    sizes: tuple[str, ...] = ()
 
     @property
     def criteria(self) -> tuple[str, ...]:
@@ -98,23 +105,27 @@ class Phenotype(ABC):
 
     def describe(self, developed: Developed) -> str:
         """One line saying what was developed (``genr8 show``): its counts, else its kind."""
-        parts = [f"{n} {k.removeprefix('n_')}" for k, n in developed.counts.items()]
+        parts = [f"{n} {k}" for k, n in developed.counts.items()]
         return ", ".join(parts) if parts else f"a {self.name} phenotype"
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         """Why a measured phenotype cannot be scored (``None``: it can), from its stored ``counts``
-        (``n_vertices``, ``n_edges``, ``n_regions``, ``steps_done``) and raw values; by default, raw
-        values that are not finite."""
+        (its sizes by name, and ``steps_done``) and raw values; by default, raw values that are not
+        finite."""
         bad = [name for name, value in raw.items() if not math.isfinite(value)]
         return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
 
-    def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
+    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
+        """Write ``developed`` to ``path``, in the format its suffix names (one of ``export_formats``);
+        ``name`` is what to call it inside the file, where the format keeps names."""
         raise NotImplementedError(f"phenotype {self.name} exports nothing")
 
     def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+        """A PNG picture of ``developed`` at ``path``, titled ``title``."""
         raise NotImplementedError(f"phenotype {self.name} draws no preview")
 
     def draw(self, ax: Any, developed: Developed) -> None:
+        """Draw ``developed`` on the matplotlib 3D axes ``ax`` (a gallery tile)."""
         raise NotImplementedError(f"phenotype {self.name} draws no preview")
 
 
@@ -126,6 +137,9 @@ class SurfacePhenotype(Phenotype):
     direction = "minimise"
     capped_is_invalid = True
     stage = "grow"
+    sizes = ("vertices", "edges", "regions")
+    # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
+    export_formats = ("obj", "ply", "stl", "glb", "3dm")
 
     def parse(self, text: str) -> Any:
         """Read a derived text (a rewrite system); raises for a text no individual could grow from.
@@ -148,8 +162,8 @@ class SurfacePhenotype(Phenotype):
         steps = result.steps
         capped = result.capped
         n_regions = getattr(surface, "n_regions", None)
-        counts = {"n_vertices": len(surface.vertices), "n_edges": len(surface.edges),
-                  "n_regions": int(n_regions) if n_regions is not None else len(surface.regions)}
+        counts = {"vertices": len(surface.vertices), "edges": len(surface.edges),
+                  "regions": int(n_regions) if n_regions is not None else len(surface.regions)}
         return Developed(surface, surface.digest(),
                          len(steps) if isinstance(steps, (list, tuple)) else int(steps),
                          (capped if isinstance(capped, str) else "cap") if capped else None, counts)
@@ -161,15 +175,38 @@ class SurfacePhenotype(Phenotype):
 
     def trivial(self, evaluation: Any) -> bool:
         """At most one region: the axiom polygon as it was, or grown without a subdivision."""
-        return evaluation.n_regions <= 1
+        return evaluation.sizes.get("regions", 0) <= 1
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
-        if not counts.get("n_vertices") or not counts.get("n_edges"):
+        if not counts.get("vertices") or not counts.get("edges"):
             return "degenerate surface: no vertices or no edges"
         return super().problem(counts, raw)
 
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)
+
+    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
+        """The surface as a triangle mesh (.obj .ply .stl .glb, every vertex in order) or as a Rhino
+        .3dm file (the mesh, named ``name``, and the scaffold's edges as lines)."""
+        from genr8_dist.export import export_3dm, export_mesh
+
+        if Path(path).suffix.lower() == ".3dm":
+            return export_3dm(developed.value, path, name=name or "genr8 surface")
+        return export_mesh(developed.value, path)
+
+    def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+        """The shaded surface in the run's environment (boundaries, attractors, repellers, gravity)."""
+        from genr8_dist.export import render_png
+
+        return render_png(developed.value, Path(path), title=title,
+                          env=getattr(config, "environment", None))
+
+    def draw(self, ax: Any, developed: Developed) -> None:
+        """The shaded surface and its edges (nothing for a surface without vertices)."""
+        from genr8_dist.export import draw_surface
+
+        if len(developed.value.vertices):
+            draw_surface(ax, developed.value)
 
 
 SURFACES = SurfacePhenotype()

@@ -2,7 +2,7 @@
 
 Genr8's output window, for runs of any size: the fitness curves, the population ranked with each
 individual's criteria and rewrite system, where an individual came from, re-growing one to export it,
-SQL over everything, a contact sheet of the best surfaces, and one HTML page that holds it all.
+SQL over everything, a contact sheet of the best designs, and one HTML page that holds it all.
 """
 
 from __future__ import annotations
@@ -69,7 +69,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
     p.add_argument("--pareto", action="store_true",
-                   help="list the non-dominated surfaces over the Pareto objectives instead")
+                   help="list the non-dominated designs over the Pareto objectives instead")
     p.set_defaults(handler=_top)
 
     p = subparsers.add_parser(
@@ -87,12 +87,14 @@ def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "show", help="regrow one individual, check it is bit-identical, export it",
         description="Regrow an individual from its row and the configuration version it was evaluated "
-                    "under, check the surface against the recorded digest, and export it.")
+                    "under, check its phenotype (a surface, a table...) against the recorded digest and "
+                    "sizes, and export it.")
     _run_arg(p)
     p.add_argument("id", metavar="ID", help="the individual, as island-generation-index")
     p.add_argument("-o", "--output", action="append", default=[], metavar="OUT",
-                   help="export the surface: .obj .ply .stl .glb (trimesh) or .3dm (Rhino); repeatable")
-    p.add_argument("--png", metavar="OUT.png", help="a picture of the surface")
+                   help="export it in a format of its phenotype (a surface: .obj .ply .stl .glb through "
+                        "trimesh or .3dm for Rhino; a table: .obj .ply .stl .glb); repeatable")
+    p.add_argument("--png", metavar="OUT.png", help="a picture of it (its phenotype's preview)")
     p.add_argument("--grammar", metavar="OUT.txt", help="save its rewrite system")
     p.add_argument("--genome", metavar="OUT.txt", help="save its genome (codons, one line)")
     p.set_defaults(handler=_show)
@@ -113,20 +115,20 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=_query)
 
     p = subparsers.add_parser(
-        "gallery", help="a contact sheet of the best surfaces of a generation",
+        "gallery", help="a contact sheet of the best designs of a generation",
         description="Regrow the k best individuals of a generation (or of each island) and draw them "
                     "side by side, each tile labelled with its id and fitness.")
     _run_arg(p)
     p.add_argument("--generation", type=_generation, default=-1, help="the generation (default -1: the last)")
     p.add_argument("-k", type=int32, default=12,
-                   help="how many surfaces (default 12; per island with --per-island)")
+                   help="how many designs (default 12; per island with --per-island)")
     p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--per-island", action="store_true", help="one row of the best k per island")
     p.add_argument("--duplicates", action="store_true",
-                   help="also show individuals whose surface equals a better one's (elites, copies)")
+                   help="also show individuals whose phenotype equals a better one's (elites, copies)")
     view = p.add_mutually_exclusive_group()
     view.add_argument("--clusters", type=int32, metavar="K",
-                      help="instead: K kinds of form among the whole run's distinct surfaces "
+                      help="instead: K kinds of form among the whole run's distinct designs "
                            "(k-means over criteria and counts), the design nearest each centroid")
     view.add_argument("--archive", action="store_true",
                       help="instead: the MAP-Elites archive after the generation, as a map")
@@ -135,14 +137,14 @@ def register(subparsers: Any) -> None:
 
     p = subparsers.add_parser(
         "report", help="one self-contained HTML page: curves, gallery, top individuals, interventions",
-        description="Write one HTML file with the fitness curves, a gallery of the best surfaces, the "
+        description="Write one HTML file with the fitness curves, a gallery of the best designs, the "
                     "top individuals with their rewrite systems and criteria, and the interventions. "
                     "Images are embedded; it needs no network to view.")
     _run_arg(p)
     p.add_argument("-o", "--output", required=True, metavar="OUT.html", help="the HTML file to write")
     p.add_argument("-k", type=int32, default=10, help="individuals in the table (default 10)")
     p.add_argument("--gallery", type=int32, default=12, metavar="K",
-                   help="surfaces in the gallery (default 12)")
+                   help="designs in the gallery (default 12)")
     p.set_defaults(handler=_report)
 
 
@@ -185,7 +187,7 @@ def _top(args: argparse.Namespace) -> int:
         devs = [c for c in table.column_names if c.startswith("dev_")]
         columns = [*_text.shown_columns(table.column_names), *devs]
         headings = {name: _text.heading(name) for name in columns} | {d: d for d in devs}
-        _print(f"{table.num_rows} non-dominated surfaces (dev_: weighted deviation from the target)")
+        _print(f"{table.num_rows} non-dominated designs (dev_: weighted deviation from the target)")
         _print(_text.format_table(table, columns, headings=headings))
         return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,

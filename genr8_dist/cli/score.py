@@ -63,9 +63,7 @@ def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> d
     return {
         "system": name,
         "text": text,
-        "vertices": judged.n_vertices,
-        "edges": judged.n_edges,
-        "regions": judged.n_regions,
+        **{name: judged.sizes.get(name, 0) for name in ("vertices", "edges", "regions")},
         "steps": judged.steps_done,
         "capped": judged.capped,
         "criteria": {key: {"raw": _finite(raw[key]), "target": spec[key].target,

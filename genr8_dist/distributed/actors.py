@@ -4,7 +4,7 @@
 An actor holds each island's latest generation and the configuration versions it was sent, so they are
 not sent back and forth: per generation the coordinator sends the generation number, the configuration
 version in force (the configuration itself only the first time), the incoming migrants and any injected
-individuals, and receives the new generation (genomes, criteria, provenance; never surfaces). A host
+individuals, and receives the new generation (genomes, criteria, provenance; never phenotypes). A host
 that lacks the generation before the one asked for (it was just created to replace a dead actor, or
 it adopted an island from one) reads it from the run store: per-generation traffic stays small, and a
 restarted actor rebuilds its state from the last commit. Because ``Island.step`` is a pure function of

@@ -16,7 +16,7 @@ computes is a pure function of the committed history, so:
 - when a host dies (its process, or its node), its islands restart from their last committed
   generation on a new host (``recovery`` event) and the run's rows are those of a fault-free run.
 
-Islands grow surfaces of different cost, so some hosts finish an epoch early. A host with no island
+Islands develop phenotypes of different cost, so some hosts finish an epoch early. A host with no island
 left to advance in the epoch is lent to one generation at a time: named as a helper of the next
 generation submitted, or offered to one under way (the island with the most generations left). It
 evaluates a share of that generation's genomes (``actors.IslandHost``), which changes where the work

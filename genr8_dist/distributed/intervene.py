@@ -279,7 +279,7 @@ def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], Ed
         source = _individual(store, ident, "hand fitness")
         if not source.valid:
             raise ConfigError(f"hand fitness for {ident}: it failed at {source.stage} ({source.error}) "
-                              "and has no surface to judge; favour or score a valid design")
+                              "and has no phenotype to judge; favour or score a valid design")
         hand.append({"id": source.id, "island": source.island % n, "fitness": float(value),
                      "computed": float(source.fitness)})
 

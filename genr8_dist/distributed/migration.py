@@ -60,25 +60,27 @@ def select_emigrants(population: Sequence[Individual], k: int) -> list[Individua
 
 def _features(individuals: Sequence[Individual]) -> list[list[float]]:
     names = sorted({name for ind in individuals for name in ind.criteria})
+    sizes = sorted({name for ind in individuals for name in ind.sizes})
     rows = []
     for ind in individuals:
         row = [float(ind.criteria.get(name, math.nan)) for name in names]
-        rows.append([v if math.isfinite(v) else 0.0 for v in row] + [math.log1p(ind.n_regions)])
+        rows.append([v if math.isfinite(v) else 0.0 for v in row]
+                    + [math.log1p(max(ind.sizes.get(name, 0), 0)) for name in sizes])
     return rows
 
 
 def select_novel(population: Sequence[Individual], destination: Sequence[Individual], k: int
                  ) -> list[Individual]:
     """``k`` emigrants unlike ``destination``: among the valid individuals of the better half of
-    ``population`` whose surface the destination does not hold, the ``k`` farthest from every member
-    of the destination (criteria and log region count, each scaled by its spread over both
+    ``population`` whose phenotype the destination does not hold, the ``k`` farthest from every member
+    of the destination (criteria and the logs of the phenotype's sizes, each scaled by its spread over both
     populations), ties to the fitter; topped up with the best when too few qualify."""
     if k <= 0:
         return []
     ranked = sorted(population, key=_rank_key)
-    held = {ind.surface_digest for ind in destination if ind.valid}
+    held = {ind.phenotype_digest for ind in destination if ind.valid}
     half = ranked[:max(k, (len(ranked) + 1) // 2)]
-    candidates = [ind for ind in half if ind.valid and ind.surface_digest not in held]
+    candidates = [ind for ind in half if ind.valid and ind.phenotype_digest not in held]
     there = [ind for ind in destination if ind.valid]
     if candidates and there:
         rows = _features(candidates + there)
@@ -125,7 +127,7 @@ def plan_migration(
     every island to its incoming migrants (at most ``k``), ordered best first. ``emigrants``:
     ``"best"`` sends each island's best ``k``; ``"novel"`` sends, to each destination, ``k`` of the
     source's better half that are unlike the destination's population (``select_novel``), so that
-    islands exchange what they lack rather than converge on one surface.
+    islands exchange what they lack rather than converge on one design.
     """
     n = len(populations)
     if sorted(populations) != list(range(n)):

@@ -384,7 +384,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
-            store = RunStore.create(run_dir, config.to_toml(), criteria=config.fitness.names)
+            store = RunStore.create(run_dir, config.to_toml())
             stack.enter_context(hold_run_lock(store))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,

@@ -1,9 +1,10 @@
 """The MAP-Elites archive (Mouret and Clune 2015): a grid over behaviour descriptors, one elite per cell.
 
-A *descriptor* is a stored per-surface value (a criterion's raw value, or ``n_vertices``, ``n_edges``,
-``n_regions``); the designer gives each a range and a number of bins, and a surface falls in the cell
-of its binned descriptors (values outside a range go to its edge bins). A cell keeps the lowest-fitness
-valid individual that fell in it, ties to the earlier one.
+A *descriptor* is a stored value of an individual: a criterion's raw value, or one of its phenotype's
+sizes (``size_<name>``: a surface's ``size_vertices``, ``size_edges``, ``size_regions``); the designer
+gives each a range and a number of bins, and an individual falls in the cell of its binned descriptors
+(values outside a range go to its edge bins). A cell keeps the lowest-fitness valid individual that fell
+in it, ties to the earlier one.
 
 The archive of an island is carried in its population: each generation starts with the previous
 generation's archive (its cells' elites, origin ``elite``), so the archive after generation g is a
@@ -18,16 +19,25 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["DESCRIPTOR_COUNTS", "Grid", "descriptor_value"]
+from genr8_dist.evolution.individual import SCHEMA_2_NAMES
 
-# The per-surface counts a descriptor may name besides the criteria.
-DESCRIPTOR_COUNTS: tuple[str, ...] = ("n_vertices", "n_edges", "n_regions")
+__all__ = ["Grid", "descriptor_sizes", "descriptor_value"]
+
+_SIZE = "size_"
+
+
+def descriptor_sizes(sizes: Iterable[str]) -> tuple[str, ...]:
+    """The descriptor names a phenotype's ``sizes`` give besides its criteria: ``size_<name>`` each,
+    and the names schemas 1 and 2 gave them (``n_regions``...), which older configurations use."""
+    names = tuple(f"{_SIZE}{s}" for s in sizes)
+    return names + tuple(old for old, new in SCHEMA_2_NAMES.items() if new in names)
 
 
 def descriptor_value(individual: Any, name: str) -> float:
-    """The value of descriptor ``name`` of an individual (a count, or a criterion's raw value)."""
-    if name in DESCRIPTOR_COUNTS:
-        return float(getattr(individual, name))
+    """The value of descriptor ``name`` of an individual (one of its sizes, or a criterion's raw value)."""
+    name = SCHEMA_2_NAMES.get(name, name)
+    if name.startswith(_SIZE) and name[len(_SIZE):] in individual.sizes:
+        return float(individual.sizes[name[len(_SIZE):]])
     return float(individual.criteria.get(name, math.nan))
 
 

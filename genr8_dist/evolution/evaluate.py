@@ -1,11 +1,11 @@
 """Evaluate one genome: map it with the universe, develop the text into its phenotype, score it.
 
 Failure is data: whatever goes wrong (the genome wraps too often, the text does not parse, growth raises
-or hits a cap, the surface is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
+or hits a cap, the phenotype is degenerate) comes back as an ``Evaluation`` with ``valid=False``, the
 ``stage`` that failed, the ``error`` and the worst fitness (``inf``); nothing raises for an int genome.
 
 An ``Evaluator`` keeps two caches for one configuration: genome -> evaluation, and rewrite-system text
--> grown and scored surface (many genomes map to the same text, since GE genomes carry unread codons).
+-> developed and scored phenotype (many genomes map to the same text, since GE genomes carry unread codons).
 Every Evaluator of a process (an island host) also shares a bounded cache keyed by (text,
 ``development_key``): growing and measuring a text depends on the universe and the environment only,
 so a text grown for one configuration is not grown again for another that differs in its fitness
@@ -38,7 +38,6 @@ __all__ = [
     "development_key",
     "evaluate_genome",
     "evaluate_text",
-    "regions_of",
     "rescore",
     "steps_of",
     "universe_for",
@@ -87,12 +86,6 @@ def steps_of(result: Any) -> int:
     return len(steps) if isinstance(steps, (list, tuple)) else int(steps)
 
 
-def regions_of(surface: Any) -> int:
-    """The number of regions of ``surface`` (without building the cycles when it can say)."""
-    n = getattr(surface, "n_regions", None)
-    return int(n) if n is not None else len(surface.regions)
-
-
 def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     """Develop ``text`` into the universe's phenotype and score it (no mapping fields set).
 
@@ -109,11 +102,9 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     except Exception as exc:  # failure is data, whatever development raised
         return Evaluation(text=text, stage=getattr(exc, "genr8_stage", phenotype.stage), error=_describe(exc),
                           grow_seconds=time.perf_counter() - t0)
-    counts = developed.counts
-    grown = Evaluation(text=text, n_vertices=int(counts.get("n_vertices", 0)),
-                       n_edges=int(counts.get("n_edges", 0)), n_regions=int(counts.get("n_regions", 0)),
-                       steps_done=int(developed.steps), capped=developed.capped,
-                       grow_seconds=time.perf_counter() - t0, surface_digest=developed.digest)
+    sizes = {name: int(developed.counts.get(name, 0)) for name in phenotype.sizes}
+    grown = Evaluation(text=text, sizes=sizes, steps_done=int(developed.steps), capped=developed.capped,
+                       grow_seconds=time.perf_counter() - t0, phenotype_digest=developed.digest)
     t1 = time.perf_counter()
     try:
         criteria = phenotype.measure(developed, config)
@@ -135,8 +126,7 @@ def _judge(grown: Evaluation, config: RunConfig) -> Evaluation:
     if grown.capped and phenotype.capped_is_invalid:
         error = f"growth capped ({grown.capped}) in derivation step {grown.steps_done}"
         return replace(grown, stage=phenotype.stage, error=error)
-    counts = {"n_vertices": grown.n_vertices, "n_edges": grown.n_edges, "n_regions": grown.n_regions,
-              "steps_done": grown.steps_done}
+    counts = {**grown.sizes, "steps_done": grown.steps_done}
     problem = phenotype.problem(counts, criteria)
     if problem:
         return replace(grown, stage="score", error=problem)
@@ -155,14 +145,14 @@ _DEVELOPED: OrderedDict[tuple[str, str], Evaluation] = OrderedDict()
 DEVELOPED_CACHE_SIZE = 8192
 
 # The fields of an evaluation that growing and measuring its text produced (rescore keeps them).
-_GROWN_FIELDS = ("text", "n_vertices", "n_edges", "n_regions", "steps_done", "capped", "surface_digest",
-                 "grow_seconds", "score_seconds")
+_GROWN_FIELDS = ("text", "sizes", "steps_done", "capped", "phenotype_digest", "grow_seconds",
+                 "score_seconds")
 
 
 def development_key(config: RunConfig) -> str:
     """What growing and measuring a text depends on besides the text: the universe (whose phenotype
-    it is) and the environment. Configurations with the same key grow every text into the same
-    surface and measure the same raw criteria; their fitness may differ."""
+    it is) and the environment. Configurations with the same key develop every text into the same
+    phenotype and measure the same raw criteria; their fitness may differ."""
     env = config.environment
     table = env.to_dict() if hasattr(env, "to_dict") else env
     blob = json.dumps([config.universe, table], sort_keys=True, default=repr)

@@ -1,11 +1,14 @@
 """The individual: one genome and everything learned about it, the row the run store keeps.
 
 The stored row is declared once, here: every field of ``Evaluation`` (what evaluating a genome finds)
-and of ``Individual`` (an evaluation plus where it sits in the run) carries a ``Column`` in its
-metadata (its Arrow type, nullability, whether it is a timing, whether ``genr8 top`` lists it), and
-``register_column`` adds a column a plugin computes (its values travel in ``Individual.extra``). The
-store's schema, the timing columns, the synthetic writer, the history's column order and ``top``'s
-display are all derived from ``stored_columns()``.
+and of ``Individual`` (an evaluation plus where it sits in the run) carries a ``Column`` in its metadata
+(its Arrow type, nullability, whether it is a timing, whether ``genr8 top`` lists it), and
+``register_column`` adds a column a plugin computes (its values travel in ``Individual.extra``). Two
+fields stand for several columns each, named by the run's phenotype (``genr8_dist.phenotype``):
+``criteria`` one ``crit_<name>`` float column per criterion, ``sizes`` one ``size_<name>`` integer
+column per size the phenotype declares (a surface: vertices, edges, regions). The store's schema, the
+timing columns, the synthetic writer, the history's column order and ``top``'s display are all derived
+from ``stored_columns()``.
 
 Failure is data: an individual that cannot be mapped, parsed, grown or scored is still an
 ``Individual``, with ``valid=False``, the ``stage`` that failed, the ``error``, and the worst fitness
@@ -23,6 +26,7 @@ from typing import Any
 
 __all__ = [
     "ORIGINS",
+    "SCHEMA_2_NAMES",
     "Column",
     "Evaluation",
     "Individual",
@@ -49,7 +53,18 @@ ORIGINS: tuple[str, ...] = (
 # The Arrow types a column may have, by name (the store turns them into pyarrow types).
 ARROW_TYPES: tuple[str, ...] = ("bool", "int32", "int64", "float64", "string", "list<int32>", "list<string>")
 CRITERIA_KIND = "criteria"  # the field that stands for one ``crit_<name>`` float64 column per criterion
+SIZES_KIND = "sizes"        # the field that stands for one ``size_<name>`` int64 column per size
 EXTRA_KIND = "extra"        # the field that stands for the registered columns
+
+# Store schemas 1 and 2 named the phenotype's digest and sizes after the built-in surface phenotype;
+# schema 3 renamed them. A run keeps the names it was created with: the store reads an older run's
+# columns under the names on the right, and writes them under the names on the left.
+SCHEMA_2_NAMES: dict[str, str] = {
+    "surface_digest": "phenotype_digest",
+    "n_vertices": "size_vertices",
+    "n_edges": "size_edges",
+    "n_regions": "size_regions",
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,7 +89,7 @@ class Column:
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
             raise ValueError(f"column name {self.name!r}: must be an identifier")
-        if self.arrow not in ARROW_TYPES and self.arrow not in (CRITERIA_KIND, EXTRA_KIND):
+        if self.arrow not in ARROW_TYPES and self.arrow not in (CRITERIA_KIND, SIZES_KIND, EXTRA_KIND):
             raise ValueError(f"column {self.name!r}: Arrow type {self.arrow!r} is not one of "
                              f"{', '.join(ARROW_TYPES)}")
         if not self.heading:
@@ -122,13 +137,12 @@ class Evaluation:
                                        metadata=_meta(arrow=CRITERIA_KIND, top=6, shown=5))
     codons_used: int = _col(0, arrow="int32", nullable=False)
     wraps: int = _col(0, arrow="int32", nullable=False)
-    n_vertices: int = _col(0, arrow="int32", nullable=False, top=9)
-    n_edges: int = _col(0, arrow="int32", nullable=False, top=10)
-    n_regions: int = _col(0, arrow="int32", nullable=False, top=11)
+    # the phenotype's sizes (``Phenotype.sizes``; 0 when not developed): one size_<name> column each
+    sizes: dict[str, int] = field(default_factory=dict, metadata=_meta(arrow=SIZES_KIND, top=9))
     steps_done: int = _col(0, arrow="int32", nullable=False, top=12)
     capped: str | None = _col(arrow="string", top=13)     # which growth cap cut it short, if any
-    # the phenotype's digest (a surface: blake2b of its final vertex array; a plugin's: its own)
-    surface_digest: str | None = _col(arrow="string", top=15)
+    # the phenotype's digest (equal digests, equal phenotypes; a surface's: blake2b of its vertices)
+    phenotype_digest: str | None = _col(arrow="string", top=15)
     eval_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     map_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
     grow_seconds: float = _col(0.0, arrow="float64", nullable=False, timing=True)
@@ -213,11 +227,11 @@ def register_column(column: Column) -> Column:
     """Declare a column a plugin or a search mode computes (one entry: the schema of new runs, the
     writers and readers, ``top`` follow). Its value is ``Individual.extra[name]`` (``default`` if
     absent); runs created before it was registered do not have it and read it as null."""
-    if not isinstance(column, Column) or column.arrow in (CRITERIA_KIND, EXTRA_KIND):
+    if not isinstance(column, Column) or column.arrow in (CRITERIA_KIND, SIZES_KIND, EXTRA_KIND):
         raise ValueError(f"register_column takes a Column of an Arrow type, got {column!r}")
     if column.name in _REGISTERED or any(c.name == column.name for c in _DECLARED) \
-            or column.name.startswith("crit_"):
-        raise ValueError(f"column {column.name!r} is already declared (or is a criterion's)")
+            or column.name.startswith(("crit_", "size_")) or column.name in SCHEMA_2_NAMES:
+        raise ValueError(f"column {column.name!r} is already declared (or is a criterion's or a size's)")
     registered = replace(column, since=0)
     _REGISTERED[column.name] = registered
     return registered

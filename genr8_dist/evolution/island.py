@@ -12,8 +12,10 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    parent their id, fitness kept (re-evaluated when their ``config_version`` differs);
 2. injected individuals (a genome, a hand-written rewrite system inverted through the universe, or a
    copy of an existing ``Individual``): origin ``injected``, evaluated;
-3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``);
-4. offspring until the population is full: two parents by tournament, one-point crossover with
+3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``)
+   (by ``search.mode``: see ``_selection``);
+4. offspring until the population is full: two parents by tournament (by ``search.mode``), one-point
+   crossover with
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
@@ -21,13 +23,14 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
 
 No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
-parent's or an earlier member's of the generation is mutated again before it is evaluated, and one
-whose surface repeats a parent's or an earlier member's after it, each up to ``ea.unique_retries``
-times (draws from the generation's ``revary`` streams; each redraws at least one codon the mapper
-read, since a copy's read codons are what make it a copy). Generation 0 likewise redraws a founder that is
-trivial (invalid, or a surface of at most one region: the axiom left as it was) or repeats an earlier
-founder's surface, up to ``ea.founder_retries`` times; founders are random genomes or, with
-``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
+parent's or an earlier member's of the generation, or that maps to none, is mutated again before it is
+evaluated, and one that is invalid (its growth capped) or whose phenotype (its digest) repeats a
+parent's or an earlier member's after it, each up to ``ea.unique_retries`` times (draws from the
+generation's ``revary`` streams; each redraws at least one codon the mapper read, since a copy's read
+codons are what make it a copy). Generation 0 likewise redraws a founder that is trivial (invalid, or
+trivial as its phenotype says: a surface of at most one region, the axiom left as it was) or repeats
+an earlier founder's phenotype, up to ``ea.founder_retries`` times; founders are random genomes or,
+with ``ea.init = "ramped"``, ramped half-and-half derivation trees (``grammar.derivations``).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -86,10 +89,11 @@ class IslandStats:
     grown: int = 0           # distinct texts grown this generation
     cache_hits: int = 0
     invalid: int = 0
-    founders_redrawn: int = 0   # founder draws replaced (trivial or a repeated surface)
+    founders_redrawn: int = 0   # founder draws replaced (trivial or a repeated phenotype)
     mates_redrawn: int = 0      # second parents drawn again (the first one, or its text)
     revaried_text: int = 0      # offspring varied again because their text repeated another's
-    revaried_surface: int = 0   # offspring varied again because their surface repeated another's
+    revaried_phenotype: int = 0  # offspring varied again because their phenotype repeated another's
+    revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
     unresolved: int = 0         # offspring or founders still repeating after every retry
 
 
@@ -102,7 +106,7 @@ class Birth:
     origin: str
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
-    avoid: frozenset[str] = frozenset()   # the parents' texts and surface digests (copies to avoid)
+    avoid: frozenset[str] = frozenset()   # the parents' texts and phenotype digests (copies to avoid)
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
@@ -130,8 +134,8 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
     keys = set()
     if ind.text is not None:
         keys.add(ind.text)
-    if ind.valid and ind.surface_digest is not None:
-        keys.add(ind.surface_digest)
+    if ind.valid and ind.phenotype_digest is not None:
+        keys.add(ind.phenotype_digest)
     return keys
 
 
@@ -240,7 +244,8 @@ class Island:
             founders_redrawn=counted.founders_redrawn,
             mates_redrawn=counted.mates_redrawn,
             revaried_text=counted.revaried_text,
-            revaried_surface=counted.revaried_surface,
+            revaried_phenotype=counted.revaried_phenotype,
+            revaried_invalid=counted.revaried_invalid,
             unresolved=counted.unresolved,
         )
         for hook in self.hooks:
@@ -318,9 +323,11 @@ class Island:
         for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
 
-        def pick(rng) -> int:
-            if mates:
-                return mates[int(rng.integers(0, len(mates)))]
+        mate_scores = [scores[i] for i in mates]
+
+        def pick(rng, first: bool = True) -> int:
+            if mates:   # the archive: the first parent by tournament, its mate uniformly
+                return mates[tournament_select(rng, mate_scores, ea.tournament if first else 1)]
             return tournament_select(rng, scores, ea.tournament)
 
         select_rng = self.rng(generation, "selection")
@@ -331,11 +338,11 @@ class Island:
         texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
         while len(births) < ea.population:
             a = pick(select_rng)
-            b = pick(select_rng)
+            b = pick(select_rng, first=False)
             tries = 0
             while unique and tries < _MATE_RETRIES and (
                     b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
-                b = pick(select_rng)
+                b = pick(select_rng, first=False)
                 tries += 1
             self.stats.mates_redrawn += tries
             used_a, used_b = pool[a].codons_used, pool[b].codons_used
@@ -362,11 +369,14 @@ class Island:
                         avoid |= _keys(pool[i])
                     text, read = self._mapped(genome)
                     for _ in range(ea.unique_retries):
-                        if text is None or (text not in avoid and text not in texts):
+                        if text is not None and text not in avoid and text not in texts:
                             break
+                        if text is None:
+                            self.stats.revaried_invalid += 1
+                        else:
+                            self.stats.revaried_text += 1
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
-                        self.stats.revaried_text += 1
                         if origin == "crossover":
                             origin = "crossover+mutation"
                     texts.add(text)
@@ -377,14 +387,16 @@ class Island:
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
                    ) -> tuple[list[float], list[int], list[int]]:
         """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
-        of the elites to keep, and the positions parents are drawn from uniformly (empty: by
-        tournament).
+        of the elites to keep, and the positions parents are drawn from (empty: the whole pool).
 
         ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
         crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
-        first front, least crowded first, at least ``ea.elites`` and up to half the room. ``map-elites``:
+        first front: its best ``ea.elites`` by the fitness first (the weighted sum, whose minimum is on
+        the front when the objectives are the weighted criteria), then the least crowded, up to half
+        the room. ``map-elites``:
         the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
-        the population, and parents drawn uniformly from it."""
+        the population; each pair's first parent drawn from it by a tournament of ``ea.tournament``, its
+        mate uniformly (``ea.tournament = 1``: both uniformly, as in the original MAP-Elites)."""
         ea, search = self.config.ea, self.config.search
         if search.mode == "pareto":
             from genr8_dist.evolution.pareto import objectives_of, pareto_order
@@ -395,8 +407,9 @@ class Island:
             scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
             front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
                            key=lambda i: scores[i])
-            keep = min(room, max(min(ea.elites, room), min(len(front), room // 2)))
-            return scores, front[:keep], []
+            best = sorted(front, key=lambda i: (fitnesses[i], i))[:min(ea.elites, room)]
+            keep = min(room, max(len(best), min(len(front), room // 2)))
+            return scores, (best + [i for i in front if i not in best])[:keep], []
         if search.mode == "map-elites":
             from genr8_dist.evolution.archive import Grid
 
@@ -424,7 +437,7 @@ class Island:
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
                 self.evaluator.adopt(genome, made)
         population = []
-        seen: set[str] = set()   # the surfaces of this generation so far
+        seen: set[str] = set()   # the phenotype digests of this generation so far
         for index, birth in enumerate(births):
             kept = birth.evaluation
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
@@ -436,8 +449,8 @@ class Island:
             elif origin in _OFFSPRING and self.config.ea.unique_retries:
                 genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
                                                                     seen)
-            if evaluation.valid and evaluation.surface_digest is not None:
-                seen.add(evaluation.surface_digest)
+            if evaluation.valid and evaluation.phenotype_digest is not None:
+                seen.add(evaluation.phenotype_digest)
             population.append(self._make(generation, index, genome, origin, birth.parents, evaluation))
         return self._finish(generation, self._placed(population), before)
 
@@ -473,41 +486,45 @@ class Island:
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
-        """A founder that is trivial or repeats an earlier founder's surface, drawn again."""
+        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again."""
         retries = self.config.ea.founder_retries
         if not retries:
             return genome, evaluation
         rng = None
         for _ in range(retries):
-            if not is_trivial(evaluation, self.phenotype) and evaluation.surface_digest not in seen:
+            if not is_trivial(evaluation, self.phenotype) and evaluation.phenotype_digest not in seen:
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
             genome = tuple(self._founders(rng, 1, first=index)[0])
             evaluation = self.evaluate(genome)
             self.stats.founders_redrawn += 1
-        if is_trivial(evaluation, self.phenotype) or evaluation.surface_digest in seen:
+        if is_trivial(evaluation, self.phenotype) or evaluation.phenotype_digest in seen:
             self.stats.unresolved += 1
         return genome, evaluation
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
-        """An offspring whose surface repeats a parent's or an earlier member's, varied again."""
+        """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
+        an earlier member's, varied again."""
         genome, origin = birth.genome, birth.origin
 
-        def repeats(ev: Evaluation) -> bool:
-            return ev.valid and (ev.surface_digest in seen or ev.surface_digest in birth.avoid)
+        def wasted(ev: Evaluation) -> bool:
+            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
-            if not repeats(evaluation):
+            if not wasted(evaluation):
                 return genome, evaluation, origin
+            if evaluation.valid:
+                self.stats.revaried_phenotype += 1
+            else:
+                self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
             genome = self._revary(rng, genome, evaluation.codons_used)
             evaluation = self.evaluate(genome)
-            self.stats.revaried_surface += 1
             if origin == "crossover":
                 origin = "crossover+mutation"
-        if repeats(evaluation):
+        if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation, origin
 

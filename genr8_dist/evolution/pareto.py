@@ -12,7 +12,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["crowding_distance", "non_dominated", "non_dominated_ranks", "objectives_of", "pareto_order"]
+__all__ = ["crowding_distance", "hypervolume", "non_dominated", "non_dominated_ranks", "objectives_of",
+           "pareto_order"]
 
 
 def objectives_of(criteria: Sequence[Mapping[str, float]], valid: Sequence[bool], spec,
@@ -102,3 +103,43 @@ def pareto_order(objectives: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     position = np.empty(len(ranks), dtype=np.int64)
     position[order] = np.arange(len(ranks))
     return ranks, position
+
+
+def hypervolume(points: np.ndarray, reference: Sequence[float]) -> float:
+    """The volume of objective space (all minimised) that ``points`` (N, k) dominate and that
+    dominates ``reference`` (k,): the standard measure of a front's quality and spread (Zitzler and
+    Thiele 1998). Exact, by slicing along the last objective down to a sweep in two (a front of
+    300 points in four objectives in about a second).
+    Points not strictly better than the reference in every objective add nothing."""
+    f = np.asarray(points, dtype=np.float64)
+    ref = np.asarray(reference, dtype=np.float64)
+    if f.size == 0:
+        return 0.0
+    if f.ndim != 2 or ref.shape != (f.shape[1],):
+        raise ValueError(f"hypervolume needs (N, k) points and a (k,) reference, got {f.shape} and "
+                         f"{ref.shape}")
+    f = f[np.isfinite(f).all(axis=1) & (f < ref).all(axis=1)]
+    return _volume(np.unique(f[non_dominated(f)], axis=0), ref)
+
+
+def _volume(f: np.ndarray, ref: np.ndarray) -> float:
+    if len(f) == 0:
+        return 0.0
+    k = f.shape[1]
+    if k == 1:
+        return float(ref[0] - f[:, 0].min())
+    if k == 2:
+        # sweep x: between consecutive x values the lowest y so far bounds the dominated strip
+        f = f[np.lexsort((f[:, 1], f[:, 0]))]
+        widths = np.diff(np.append(f[:, 0], ref[0]))
+        return float(np.sum(widths * (ref[1] - np.minimum.accumulate(f[:, 1]))))
+    # slices between consecutive values of the last objective: each is the (k-1)-volume of the
+    # points at or below it, times its thickness
+    f = f[np.argsort(f[:, -1], kind="stable")]
+    levels = np.append(f[:, -1], ref[-1])
+    total = 0.0
+    for i in range(len(f)):
+        thickness = levels[i + 1] - levels[i]
+        if thickness > 0:
+            total += thickness * _volume(f[: i + 1, :-1], ref[:-1])
+    return total

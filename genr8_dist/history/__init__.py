@@ -7,8 +7,7 @@ gets the same data the ``genr8 history / top / lineage / query`` commands print.
 from __future__ import annotations
 
 from genr8_dist.history import pictures, report
-from genr8_dist.history._regrow import EXPORT_FORMATS, Regrown, export, regrow, save_text
-from genr8_dist.history._regrow import picture as surface_png
+from genr8_dist.history._regrow import Regrown, export, export_formats, picture, regrow, save_text
 from genr8_dist.history._run import HistoryError, open_run, run_directory_holding, write_table
 from genr8_dist.history._search import archive, clusters, pareto_front
 from genr8_dist.history._tables import (
@@ -24,7 +23,6 @@ from genr8_dist.history._tables import (
 )
 
 __all__ = [
-    "EXPORT_FORMATS",
     "QUERY_TIMEOUT",
     "HistoryError",
     "Regrown",
@@ -33,19 +31,20 @@ __all__ = [
     "configs",
     "events",
     "export",
+    "export_formats",
     "individual",
     "interventions",
     "lineage",
     "open_run",
     "pareto_front",
     "per_generation",
+    "picture",
     "pictures",
     "query",
     "regrow",
     "report",
     "run_directory_holding",
     "save_text",
-    "surface_png",
     "top",
     "write_table",
 ]

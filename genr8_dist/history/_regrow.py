@@ -24,11 +24,10 @@ from genr8_dist.history._run import (
     phenotype_for,
     run_directory_holding,
 )
+from genr8_dist.store.schema import size_column, sizes_of
 
-__all__ = ["EXPORT_FORMATS", "Regrown", "check_export_path", "config_of", "export", "export_formats",
+__all__ = ["Regrown", "check_export_path", "config_of", "export", "export_formats",
            "phenotype_of_run", "picture", "regrow", "save_text"]
-
-EXPORT_FORMATS = ("obj", "ply", "stl", "glb", "3dm")
 
 
 @dataclass(frozen=True)
@@ -46,17 +45,19 @@ class Regrown:
     text_matches: bool | None    # None: not checked (the universe's hooks are code history never runs)
 
     @property
-    def surface(self) -> Any:
-        """The developed phenotype itself (a ``Surface`` for HEMLS universes), ``None`` if none."""
+    def value(self) -> Any:
+        """The developed phenotype itself (``Developed.value``: a ``Surface`` for the built-in surface
+        phenotype), ``None`` if none."""
         return self.developed.value if self.developed is not None else None
 
 
 def regrow(run: RunLike, id: str) -> Regrown:
     """Regrow individual ``id`` of ``run`` and check it against what the run recorded.
 
-    The text grown is the recorded rewrite system (what the run grew); the genome is mapped again to
-    check it still gives that text. The grown surface must have the recorded digest and counts, else a
-    ``HistoryError`` says what differs. An individual that failed before growth has no surface.
+    The text developed is the recorded one (what the run developed); the genome is mapped again to
+    check it still gives that text. The phenotype must have the recorded digest, sizes and derivation
+    steps, else a ``HistoryError`` says what differs. An individual that failed before development
+    has none.
     """
     from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.grammar.trust import may_run
@@ -73,19 +74,18 @@ def regrow(run: RunLike, id: str) -> Regrown:
         mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
                               max_wraps=config.genome.max_wraps)
         text_matches = bool(mapped.valid) and mapped.text == text
-    if text is None or row["surface_digest"] is None:
+    if text is None or row["phenotype_digest"] is None:
         return Regrown(row, config, phenotype, None, 0, None, text_matches)
     developed = phenotype.develop(text, config)
     digest = developed.digest
-    counts = (*(int(developed.counts.get(k, 0)) for k in ("n_vertices", "n_edges", "n_regions")),
-              developed.steps)
-    recorded = (row["n_vertices"], row["n_edges"], row["n_regions"], row["steps_done"])
-    if digest != row["surface_digest"] or counts != recorded:
+    sizes = sizes_of(list(row))   # the run's (a schema 1 or 2 run: a surface's, 0 for other phenotypes)
+    counts = (*(int(developed.counts.get(s, 0)) for s in sizes), developed.steps)
+    recorded = (*(row[size_column(s)] for s in sizes), row["steps_done"])
+    if digest != row["phenotype_digest"] or counts != recorded:
         raise HistoryError(
             f"regrowing {id} did not reproduce the recorded {phenotype.name}: digest {digest} vs "
-            f"{row['surface_digest']}, "
-            f"(vertices, edges, regions, steps) {counts} vs {recorded}; was the run made by another version "
-            f"of genr8_dist?")
+            f"{row['phenotype_digest']}, ({', '.join([*sizes, 'steps'])}) {counts} vs {recorded}; "
+            "was the run made by another version of genr8_dist?")
     return Regrown(row, config, phenotype, developed, developed.steps, digest, text_matches)
 
 
@@ -98,19 +98,17 @@ def phenotype_of_run(run: RunLike, id: str) -> Any:
     return phenotype_for(store, config_of(store, row["config_version"]))
 
 
-def _need_surface(result: Regrown, what: str) -> Any:
+def _need_developed(result: Regrown, what: str) -> Any:
     if result.developed is None:
         row = result.row
         raise HistoryError(f"{row['id']} has no {result.phenotype.name} to {what}: it failed at "
                            f"{row['stage']} ({row['error']})")
-    return result.surface
+    return result.developed
 
 
 def export_formats(phenotype: Any) -> tuple[str, ...]:
-    """The file suffixes ``export`` writes for ``phenotype`` (a surface: meshes and .3dm)."""
-    from genr8_dist.phenotype import SURFACES
-
-    return EXPORT_FORMATS if phenotype is SURFACES else tuple(phenotype.export_formats)
+    """The file suffixes ``export`` writes for ``phenotype`` (its ``export_formats``)."""
+    return tuple(phenotype.export_formats)
 
 
 def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
@@ -121,6 +119,11 @@ def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
     if path.suffix.lower().lstrip(".") not in allowed:
         raise HistoryError(f"{path}: unknown format '{path.suffix or '(no suffix)'}'; use one of "
                            + ", ".join(f".{s}" for s in allowed))
+    return _outside_runs(path)
+
+
+def _outside_runs(path: Path) -> Path:
+    """``path``, unless it is inside a run directory (the history commands never write into a run)."""
     inside = run_directory_holding(path)
     if inside is not None:
         raise HistoryError(f"{path}: is inside the run directory {inside}; the history commands never "
@@ -129,81 +132,22 @@ def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
 
 
 def export(result: Regrown, path: str | os.PathLike) -> Path:
-    """Write the regrown phenotype to ``path``: a surface as .obj .ply .stl .glb through trimesh or
-    .3dm through rhino3dm (the ``rhino`` extra); a plugin's phenotype through its own ``export``. The
-    file is written atomically."""
-    from genr8_dist.phenotype import SURFACES
-
+    """Write the regrown phenotype to ``path`` through its phenotype's ``export`` (the suffix picks the
+    format; a surface: .obj .ply .stl .glb through trimesh, .3dm through rhino3dm), named after the
+    individual where the format keeps names. The file is written atomically."""
     path = check_export_path(path, result.phenotype)
-    suffix = path.suffix.lower().lstrip(".")
-    surface = _need_surface(result, "export")
-    if result.phenotype is not SURFACES:
-        return result.phenotype.export(result.developed, path, result.config)
-    if suffix == "3dm":
-        _export_3dm(surface, path, name=result.row["id"])
-    else:
-        from genr8_dist.export import export_mesh
-
-        export_mesh(surface, path)
-    return path
-
-
-def _export_3dm(surface: Any, path: Path, *, name: str) -> None:
-    """A Rhino file holding the surface as one mesh (every vertex, in order; the regions' triangles)
-    and its edges as a line layer, the scaffold a designer builds on."""
-    import numpy as np
-
-    try:
-        import importlib
-
-        rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
-    except ImportError:
-        raise HistoryError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
-    vertices = np.asarray(surface.vertices, dtype=np.float64)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
-    mesh = rhino3dm.Mesh()
-    for x, y, z in vertices.tolist():
-        mesh.Vertices.Add(x, y, z)
-    for a, b, c in faces.tolist():
-        mesh.Faces.AddFace(a, b, c)
-    mesh.Normals.ComputeNormals()
-    model = rhino3dm.File3dm()
-    surface_layer = rhino3dm.Layer()
-    surface_layer.Name = "genr8 surface"
-    scaffold_layer = rhino3dm.Layer()
-    scaffold_layer.Name = "genr8 scaffold"
-    surface_index = model.Layers.Add(surface_layer)
-    scaffold_index = model.Layers.Add(scaffold_layer)
-    attributes = rhino3dm.ObjectAttributes()
-    attributes.Name = name
-    attributes.LayerIndex = surface_index
-    model.Objects.AddMesh(mesh, attributes)
-    line_attributes = rhino3dm.ObjectAttributes()
-    line_attributes.LayerIndex = scaffold_index
-    for a, b in np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2).tolist():
-        p, q = vertices[a], vertices[b]
-        model.Objects.AddLine(rhino3dm.Point3d(*p), rhino3dm.Point3d(*q), line_attributes)
-
-    def write(tmp: str) -> None:
-        if not model.Write(tmp, 7):
-            raise OSError(5, "rhino3dm could not write the file", str(path))
-
-    atomic_write(path, write)
+    developed = _need_developed(result, "export")
+    return result.phenotype.export(developed, path, result.config, name=result.row["id"])
 
 
 def picture(result: Regrown, path: str | os.PathLike) -> Path:
-    """A shaded PNG of the regrown phenotype (a surface in its environment), titled with its id and
-    fitness."""
-    from genr8_dist.export import render_png
-    from genr8_dist.phenotype import SURFACES
-
-    surface = _need_surface(result, "draw")
+    """A PNG of the regrown phenotype (its phenotype's ``preview``: a surface in its environment),
+    titled with its id and fitness."""
+    developed = _need_developed(result, "draw")
     row = result.row
     title = (f"{row['id']}  fitness {row['fitness']:.4g}  (generation {row['generation']}, "
              f"island {row['island']})")
-    if result.phenotype is not SURFACES:
-        return result.phenotype.preview(result.developed, Path(path), title=title, config=result.config)
-    return render_png(surface, Path(path), title=title, env=result.config.environment)
+    return result.phenotype.preview(developed, _outside_runs(Path(path)), title=title, config=result.config)
 
 
 def save_text(text: str, path: str | os.PathLike, *, what: str, id: str) -> Path:

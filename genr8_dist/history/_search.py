@@ -1,15 +1,15 @@
 """The search modes' views of a run: its Pareto front, its MAP-Elites archive, its clusters of forms.
 
-Each takes a run (directory or open ``RunStore``) and returns an Arrow table of distinct surfaces
-(the best individual of each surface digest), with the columns ``top`` returns plus what the view adds:
+Each takes a run (directory or open ``RunStore``) and returns an Arrow table of distinct phenotypes
+(the best individual of each phenotype digest), with the columns ``top`` returns plus what the view adds:
 
-* ``pareto_front``: the non-dominated surfaces over the Pareto objectives of the configuration in
+* ``pareto_front``: the non-dominated phenotypes over the Pareto objectives of the configuration in
   force at the run's end (``search.objectives``, or every criterion with weight > 0), each objective's
   weighted deviation as ``dev_<name>``;
 * ``archive``: the MAP-Elites archive after a generation (the best of each cell of the grid of
   ``[search]``), with ``cell`` and one ``bin_<descriptor>`` per axis;
-* ``clusters``: k-means (scikit-learn) over the standardised criteria and log region and vertex counts,
-  one representative per cluster (the surface nearest its centroid), with ``cluster`` and ``members``.
+* ``clusters``: k-means (scikit-learn) over the standardised criteria and the logs of the phenotype's
+  sizes, one representative per cluster (the design nearest its centroid), with ``cluster`` and ``members``.
 """
 
 from __future__ import annotations
@@ -32,7 +32,14 @@ from genr8_dist.history._run import (
     run_label,
 )
 from genr8_dist.history._tables import _resolve_generation, _rows_by_ids
-from genr8_dist.store.schema import criterion_column, criterion_of, listed_columns
+from genr8_dist.store.schema import (
+    criterion_column,
+    criterion_of,
+    listed_columns,
+    size_column,
+    size_of,
+    sizes_of,
+)
 
 __all__ = ["archive", "clusters", "pareto_front"]
 
@@ -42,7 +49,7 @@ def _newest_config(store: Any) -> Any:
 
 
 def _distinct(store: Any, generation: int | None, island: int | None, extra: list[str]) -> pa.Table:
-    """The valid rows (of ``generation``, ``island``), one per surface digest (the lowest fitness,
+    """The valid rows (of ``generation``, ``island``), one per phenotype digest (the lowest fitness,
     ties to the earliest), sorted by fitness."""
     if generation is None or generation < 0:
         data = dataset(store)
@@ -55,8 +62,8 @@ def _distinct(store: Any, generation: int | None, island: int | None, extra: lis
         filt &= pc.field("generation") == int(generation)
     if island is not None:
         filt &= pc.field("island") == int(island)
-    columns = ["id", "generation", "island", "index", "fitness", "surface_digest", "n_regions",
-               "n_vertices", "n_edges", *[criterion_column(c) for c in crits]]
+    columns = ["id", "generation", "island", "index", "fitness", "phenotype_digest",
+               *[size_column(s) for s in sizes_of(data.schema.names)], *[criterion_column(c) for c in crits]]
     columns += [c for c in extra if c in data.schema.names and c not in columns]
     table = data.to_table(columns=columns, filter=filt)
     if table.num_rows == 0:
@@ -66,7 +73,7 @@ def _distinct(store: Any, generation: int | None, island: int | None, extra: lis
                         as_numpy(table["generation"], 0), as_numpy(table["fitness"], math.inf)))
     table = table.take(pa.array(order, pa.int64()))
     seen, keep = set(), []
-    for n, digest in enumerate(table["surface_digest"].to_pylist()):
+    for n, digest in enumerate(table["phenotype_digest"].to_pylist()):
         if digest not in seen:
             seen.add(digest)
             keep.append(n)
@@ -77,12 +84,13 @@ def _with_top_columns(store: Any, ids: list[str]) -> pa.Table:
     parsed = [parse_id(i) for i in ids]
     gens = [p[1] for p in parsed if p is not None]
     data = dataset(store, (min(gens), max(gens)) if gens and len(gens) == len(ids) else None)
-    columns = listed_columns(criteria_of(data.schema), available=data.schema.names)
+    columns = listed_columns(criteria_of(data.schema), sizes=sizes_of(data.schema.names),
+                             available=data.schema.names)
     return _rows_by_ids(data, ids, columns)
 
 
 def pareto_front(run: RunLike, *, generation: int | None = None, island: int | None = None) -> pa.Table:
-    """The non-dominated distinct surfaces of the run (or of ``generation``, ``island``), by fitness."""
+    """The non-dominated distinct phenotypes of the run (or of ``generation``, ``island``), by fitness."""
     from genr8_dist.evolution.island import pareto_objectives
     from genr8_dist.evolution.pareto import non_dominated_ranks
 
@@ -105,7 +113,7 @@ def pareto_front(run: RunLike, *, generation: int | None = None, island: int | N
 
 def archive(run: RunLike, *, generation: int | None = -1, island: int | None = None) -> pa.Table:
     """The MAP-Elites archive after ``generation`` (default the last; ``None``: the whole run) of the
-    grid of the run's ``[search]`` settings: each occupied cell's best surface, by fitness."""
+    grid of the run's ``[search]`` settings: each occupied cell's best individual, by fitness."""
     from genr8_dist.evolution.archive import Grid
 
     store = open_run(run)
@@ -138,22 +146,20 @@ def _value(table: pa.Table, ident: str, name: str) -> float:
 
 
 class _Row:
-    """A stored row seen as the fields ``Grid`` reads (valid, criteria, counts)."""
+    """A stored row seen as the fields ``Grid`` reads (valid, criteria, sizes)."""
 
     def __init__(self, row: dict[str, Any]) -> None:
         self.valid = True
         self.fitness = row["fitness"]
-        self.n_vertices = row.get("n_vertices", 0)
-        self.n_edges = row.get("n_edges", 0)
-        self.n_regions = row.get("n_regions", 0)
+        self.sizes = {s: (0 if v is None else v) for k, v in row.items() if (s := size_of(k)) is not None}
         self.criteria = {c: (math.nan if v is None else v)
                          for k, v in row.items() if (c := criterion_of(k)) is not None}
 
 
 def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
              island: int | None = None) -> pa.Table:
-    """``k`` clusters of the run's distinct surfaces (or of ``generation``, ``island``) by k-means over
-    their standardised criteria and log region and vertex counts; per cluster the surface nearest its
+    """``k`` clusters of the run's distinct phenotypes (or of ``generation``, ``island``) by k-means over
+    their standardised criteria and the logs of their sizes; per cluster the design nearest its
     centroid, with its ``cluster`` number and how many ``members`` the cluster has, largest first."""
     if k < 1:
         raise HistoryError(f"clusters: k must be at least 1, got {k}")
@@ -165,8 +171,8 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     table = _distinct(store, generation, island, [])
     crits = criteria_of(table.schema)
     features = [as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits]
-    features += [np.log1p(as_numpy(table["n_regions"], 0).astype(np.float64)),
-                 np.log1p(as_numpy(table["n_vertices"], 0).astype(np.float64))]
+    features += [np.log1p(as_numpy(table[size_column(s)], 0).astype(np.float64))
+                 for s in sizes_of(table.column_names)]
     x = np.column_stack(features)
     x = np.where(np.isfinite(x), x, np.nan)
     fill = np.nanmedian(np.where(np.isnan(x).all(axis=0), 0.0, x), axis=0) if len(x) else 0.0

@@ -28,7 +28,7 @@ from genr8_dist.history._run import (
     run_label,
     targets_by_version,
 )
-from genr8_dist.store.schema import criterion_column, listed_columns
+from genr8_dist.store.schema import criterion_column, listed_columns, sizes_of
 
 __all__ = [
     "configs",
@@ -214,7 +214,7 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     chosen = np.lexsort((idx, isl, gen, score[candidates]))[:k]
     ids = [f"{i}-{g}-{n}" for i, g, n in zip(isl[chosen], gen[chosen], idx[chosen], strict=True)]
 
-    columns = listed_columns(crits, available=data.schema.names)
+    columns = listed_columns(crits, sizes=sizes_of(data.schema.names), available=data.schema.names)
     if systems:
         columns.append("text")
     rows = _rows_by_ids(data, ids, columns)
@@ -426,7 +426,9 @@ _SANDBOX = {
 
 def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table:
     """The result of ``sql`` (DuckDB's dialect) over the tables ``individuals``, ``events`` and
-    ``configs`` of the run. Read-only and confined: the tables are the run's files as the store reads
+    ``configs`` of the run (a run of store schema 1 or 2 has its surface-named columns under both
+    names: ``surface_digest`` and ``phenotype_digest``, ``n_regions`` and ``size_regions``...).
+    Read-only and confined: the tables are the run's files as the store reads
     them (each checked against the manifest's sha256), registered in an in-memory database that can
     reach no file, network or extension and cannot be reconfigured; nothing is written anywhere. A
     statement running over ``timeout`` seconds is interrupted. A malformed or refused statement is a
@@ -444,12 +446,18 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
         raise HistoryError(f"query: the timeout must be a positive number of seconds, got {timeout!r}")
     store = open_run(run)
     individuals = dataset(store)
-    tables = {"individuals": individuals, "events": store.events(), "configs": configs(store)}
+    renamed = getattr(individuals, "renamed", {})   # a schema 1 or 2 run: a view adds the new names
+    stored = getattr(individuals, "stored", individuals)
+    tables = {"stored_individuals" if renamed else "individuals": stored, "events": store.events(),
+              "configs": configs(store)}
     con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
         for name, table in tables.items():
             con.register(name, table)
+        if renamed:
+            aliases = ", ".join(f'"{old}" AS "{new}"' for old, new in renamed.items())
+            con.execute(f"CREATE VIEW individuals AS SELECT *, {aliases} FROM stored_individuals")
         timer.start()
         try:
             relation = con.sql(sql)

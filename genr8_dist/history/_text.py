@@ -27,10 +27,10 @@ def heading(column: str) -> str:
 
 def shown_columns(available: Sequence[str]) -> list[str]:
     """The columns ``genr8 top`` prints of a ``history.top`` table with these columns, in order."""
-    from genr8_dist.store.schema import criterion_of, listed_columns
+    from genr8_dist.store.schema import criterion_of, listed_columns, sizes_of
 
     crits = [c for name in available if (c := criterion_of(name)) is not None]
-    return listed_columns(crits, shown=True, available=available)
+    return listed_columns(crits, sizes=sizes_of(available), shown=True, available=available)
 
 
 def format_value(value: Any, width: int | None = None) -> str:

@@ -1,4 +1,4 @@
-"""Pictures of a run for a person to look at: fitness curves, an ancestry, a gallery of surfaces.
+"""Pictures of a run for a person to look at: fitness curves, an ancestry, a gallery of its designs.
 
 Drawn with matplotlib (the ``viz`` extra) on the non-interactive Agg backend, written atomically.
 """
@@ -20,7 +20,6 @@ from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_ru
 __all__ = [
     "curves_figure",
     "curves_png",
-    "draw_surface",
     "gallery_figure",
     "gallery_figure_of",
     "gallery_png",
@@ -308,77 +307,31 @@ def lineage_figure(table: pa.Table, id: str) -> Any:
     return fig
 
 
-def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
-    """Draw ``surface`` on the 3D axes ``ax``: its regions (triangulated) shaded by height and lit from
-    above, its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
-
-    plt = _pyplot()
-    v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
-    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    centre = (lo + hi) / 2.0
-    radius = max(float((hi - lo).max()) / 2.0, 1e-9)
-    if len(faces):
-        tri = v[faces]
-        z = tri[:, :, 2].mean(axis=1)
-        zn = (z - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else np.full(len(z), 0.55)
-        colours = plt.get_cmap("viridis")(0.18 + 0.64 * zn)
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normal, axis=1)
-        light = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
-        lit = np.where(length > 0, np.abs(normal @ light) / np.where(length > 0, length, 1.0), 0.8)
-        colours[:, :3] *= (0.55 + 0.45 * lit)[:, None]
-        # edges in the face colour close the hairline seams between the triangles of one region
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors=colours,
-                                             linewidths=0.35))
-    if len(edges):
-        ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
-                                             alpha=0.85))
-    ax.set_xlim(centre[0] - radius, centre[0] + radius)
-    ax.set_ylim(centre[1] - radius, centre[1] + radius)
-    ax.set_zlim(centre[2] - radius, centre[2] + radius)
-    ax.set_box_aspect((1, 1, 1))
-    ax.view_init(elev=elev, azim=azim)
-    ax.set_axis_off()
-
-
 def _tile_grid(n: int, columns: int | None = None) -> tuple[int, int]:
     cols = columns or min(max(n, 1), 4 if n <= 8 else 5 if n <= 15 else 6)
     return math.ceil(n / cols), cols
 
 
 def _draw_tile(ax: Any, item: Any) -> bool:
-    """Draw a surface, or a regrown individual through its phenotype; False when there is nothing."""
-    from genr8_dist.phenotype import SURFACES
-
-    if item is None:
+    """Draw a regrown individual (``history._regrow.Regrown``) through its phenotype; False when there
+    is nothing to draw."""
+    if item is None or item.developed is None:
         return False
-    if hasattr(item, "phenotype"):  # a history._regrow.Regrown
-        if item.developed is None:
-            return False
-        if item.phenotype is not SURFACES:
-            item.phenotype.draw(ax, item.developed)
-            return True
-        item = item.surface
-    if not len(item.vertices):
-        return False
-    draw_surface(ax, item)
+    item.phenotype.draw(ax, item.developed)
     return True
 
 
 def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int | None = None,
                    row_labels: Sequence[str] | None = None) -> Any:
-    """A contact sheet: one 3D tile per ``(label, surface)`` (or ``(label, regrown individual)``,
-    drawn by its phenotype); ``None`` shows the label only."""
+    """A contact sheet: one 3D tile per ``(label, regrown individual)``, drawn by its phenotype;
+    ``None`` shows the label only."""
     plt = _pyplot()
     rows, cols = _tile_grid(len(tiles), columns)
     fig = plt.figure(figsize=(3.1 * cols, 3.2 * rows + 0.7), facecolor="white")
-    for n, (label, surface) in enumerate(tiles):
+    for n, (label, regrown) in enumerate(tiles):
         ax = fig.add_subplot(rows, cols, n + 1, projection="3d")
         ax.set_facecolor("white")
-        if not _draw_tile(ax, surface):
+        if not _draw_tile(ax, regrown):
             ax.set_axis_off()
             ax.text2D(0.5, 0.5, "nothing grown", ha="center", va="center", transform=ax.transAxes,
                       color="#999999")
@@ -395,7 +348,7 @@ def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int
 def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
               distinct: bool) -> list[str]:
     """The ids of the ``k`` best valid individuals; with ``distinct``, only the best individual of
-    each distinct surface (same digest: the same surface, e.g. an elite and its copies)."""
+    each distinct phenotype (same digest: the same design, e.g. an elite and its copies)."""
     from genr8_dist.history._tables import top
 
     if not distinct:
@@ -404,7 +357,7 @@ def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
     while True:
         table = top(store, fetch, generation=generation, island=island)
         ids, seen = [], set()
-        for ident, digest in zip(table["id"].to_pylist(), table["surface_digest"].to_pylist(),
+        for ident, digest in zip(table["id"].to_pylist(), table["phenotype_digest"].to_pylist(),
                                  strict=True):
             if digest not in seen:
                 seen.add(digest)
@@ -414,7 +367,7 @@ def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
         fetch *= 4
 
 
-GALLERY_MAX = 144  # surfaces on one contact sheet (a row per island with per_island)
+GALLERY_MAX = 144  # designs on one contact sheet (a row per island with per_island)
 
 
 def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
@@ -422,9 +375,9 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
                       distinct: bool = True) -> tuple[Any, str]:
     """The contact sheet of the ``k`` best valid individuals of ``generation`` (negative counts back
     from the last; ``None``: the whole run), of one ``island``, or the best ``k`` of each island with
-    ``per_island``; each regrown from its row. With ``distinct`` (default) an individual whose surface
-    equals a better one's (an elite, a migrant's copy) is left out, so the sheet shows k different
-    surfaces. Returns the figure and a one-line description."""
+    ``per_island``; each regrown from its row and drawn by its phenotype. With ``distinct`` (default) an
+    individual whose phenotype equals a better one's (an elite, a migrant's copy) is left out, so the
+    sheet shows k different designs. Returns the figure and a one-line description."""
     from genr8_dist.history._regrow import regrow
     from genr8_dist.history._run import dataset
     from genr8_dist.history._tables import _resolve_generation
@@ -432,7 +385,7 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
     if k > GALLERY_MAX:
-        raise HistoryError(f"k: a contact sheet holds at most {GALLERY_MAX} surfaces (per island with "
+        raise HistoryError(f"k: a contact sheet holds at most {GALLERY_MAX} designs (per island with "
                            f"per-island), got {k}")
     store = open_run(run)
     generation = _resolve_generation(dataset(store), generation)
@@ -456,7 +409,7 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
         row_labels, columns = None, None
     tiles: list[tuple[str, Any]] = []
     count = 0
-    noun = "surface"
+    noun = "design"
     for ident in ids:
         if ident is None:
             tiles.append(("", None))
@@ -466,7 +419,8 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
         except Genr8Error as exc:
             raise HistoryError(f"gallery: cannot regrow {ident}: {exc}") from None
         count += 1
-        tiles.append((f"{ident}   fitness {result.row['fitness']:.4g}", result))
+        # + 0.0: a maximising phenotype's negated score of 0 (-0.0) shows as 0
+        tiles.append((f"{ident}   fitness {result.row['fitness'] + 0.0:.4g}", result))
         noun = result.phenotype.noun
     where = "the whole run" if generation is None else f"generation {generation}"
     if island is not None:
@@ -504,16 +458,26 @@ def png_bytes(fig: Any, dpi: int = 100) -> bytes:
 # The search modes' pictures: Pareto front, MAP-Elites archive, clusters.
 
 
+def _noun(store: Any, config: Any) -> str:
+    """What one design of the run is called (its phenotype's ``noun``; "design" when unknown)."""
+    from genr8_dist.history._run import phenotype_for
+
+    try:
+        return str(phenotype_for(store, config).noun)
+    except Genr8Error:
+        return "design"
+
+
 def _regrown_tiles(store: Any, table: Any, label: Any) -> list[tuple[str, Any]]:
     from genr8_dist.history._regrow import regrow
 
     tiles = []
     for row in table.to_pylist():
         try:
-            surface = regrow(store, row["id"]).surface
+            regrown = regrow(store, row["id"])
         except Genr8Error as exc:
             raise HistoryError(f"cannot regrow {row['id']}: {exc}") from None
-        tiles.append((label(row), surface))
+        tiles.append((label(row), regrown))
     return tiles
 
 
@@ -525,7 +489,7 @@ def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = No
     store = open_run(run)
     table = clusters(store, k, generation=generation, island=island)
     tiles = _regrown_tiles(store, table, lambda r: f"cluster {r['cluster']} ({r['members']})   "
-                                                   f"{r['id']}  {r['fitness']:.3g}")
+                                                   f"{r['id']}  {r['fitness'] + 0.0:.3g}")
     where = "the whole run" if generation is None else f"generation {generation}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: {len(tiles)} kinds of form in {where} "
              "(k-means; the design nearest each centroid, cluster size in brackets)")
@@ -533,7 +497,7 @@ def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = No
 
 
 def pareto_figure_of(run: RunLike, *, objectives: Sequence[str] | None = None) -> tuple[Any, str]:
-    """The run's distinct surfaces over two Pareto objectives (weighted deviations, lower is better),
+    """The run's distinct designs over two Pareto objectives (weighted deviations, lower is better),
     the non-dominated front highlighted, with thumbnails of up to 8 front members."""
     from genr8_dist.evolution.island import pareto_objectives
     from genr8_dist.history._search import _distinct, _newest_config, pareto_front
@@ -543,6 +507,7 @@ def pareto_figure_of(run: RunLike, *, objectives: Sequence[str] | None = None) -
     names = list(objectives or pareto_objectives(config))[:2]
     front = pareto_front(store)
     everyone = _distinct(store, None, None, [])
+    noun = _noun(store, config)
     plt = _pyplot()
     fig = plt.figure(figsize=(13, 6.2), facecolor="white")
     ax = fig.add_axes((0.06, 0.1, 0.42, 0.8))
@@ -555,7 +520,7 @@ def pareto_figure_of(run: RunLike, *, objectives: Sequence[str] | None = None) -
 
     x, y = devs(everyone, names[0]), devs(everyone, names[1])
     ok = np.isfinite(x) & np.isfinite(y)
-    ax.scatter(x[ok], y[ok], s=10, color="#b9c2ca", label=f"{int(ok.sum())} distinct surfaces")
+    ax.scatter(x[ok], y[ok], s=10, color="#b9c2ca", label=f"{int(ok.sum())} distinct {noun}s")
     fx, fy = devs(front, names[0]), devs(front, names[1])
     count = len(pareto_objectives(config))
     ax.scatter(fx, fy, s=36, color="#d1495b", zorder=3,
@@ -567,17 +532,16 @@ def pareto_figure_of(run: RunLike, *, objectives: Sequence[str] | None = None) -
                  loc="left")
     shown = front.take(list(range(min(8, front.num_rows))))
     tiles = _regrown_tiles(store, shown, lambda r: f"{r['id']}")
-    for n, (label, surface) in enumerate(tiles):
+    for n, (label, regrown) in enumerate(tiles):
         row, col = divmod(n, 4)
         sub = fig.add_axes((0.52 + col * 0.12, 0.5 - row * 0.42, 0.12, 0.4), projection="3d")
-        if surface is not None and len(surface.vertices):
-            draw_surface(sub, surface)
+        _draw_tile(sub, regrown)
         sub.set_title(label, fontsize=8, pad=-2)
         ax.annotate(str(n + 1), (fx[n], fy[n]), fontsize=8, xytext=(3, 3), textcoords="offset points")
         sub.text2D(0.02, 0.92, str(n + 1), transform=sub.transAxes, fontsize=9, fontweight="bold")
-    fig.suptitle(f"{getattr(store, 'run_id', run_label(store))}: the non-dominated surfaces",
+    fig.suptitle(f"{getattr(store, 'run_id', run_label(store))}: the non-dominated {noun}s",
                  x=0.01, ha="left", fontsize=13, fontweight="bold")
-    return fig, f"front of {front.num_rows} surfaces"
+    return fig, f"front of {front.num_rows} {noun}s"
 
 
 def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any, str]:
@@ -605,8 +569,8 @@ def archive_figure_of(run: RunLike, *, generation: int | None = -1) -> tuple[Any
 
     for (i, j), r in best.items():
         ax = fig.add_subplot(rows, cols, (rows - 1 - j) * cols + i + 1, projection="3d")
-        draw_surface(ax, regrow(store, r["id"]).surface)
-        ax.set_title(f"{r['id']}  {r['fitness']:.3g}", fontsize=7, pad=-4)
+        _draw_tile(ax, regrow(store, r["id"]))
+        ax.set_title(f"{r['id']}  {r['fitness'] + 0.0:.3g}", fontsize=7, pad=-4)
     (lo0, hi0), n0 = grid.ranges[0], grid.bins[0]
     xlabel = f"{names[0]} →  ({lo0:g} to {hi0:g}, {n0} bins)"
     ylabel = (f"{names[1]} →  ({grid.ranges[1][0]:g} to {grid.ranges[1][1]:g}, {grid.bins[1]} bins)"

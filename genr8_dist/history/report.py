@@ -1,12 +1,11 @@
 """One self-contained HTML page about a run: Genr8's output window as a file a designer can open anywhere.
 
-    phenotype = _phenotype(store, configs)
-    parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
-    if phenotype.noun == "surface":
-        parts.extend(_search_sections(store, run_label(store)))
-individuals with their criteria and rewrite systems, the interventions with what each changed, and the
-configuration versions. Images are embedded as base64 PNG; there are no scripts, fonts or links to
-fetch, so it opens offline and can be mailed as one file.
+The page holds the fitness curves, a gallery of the best designs of the last generation (drawn by the
+run's phenotype: surfaces, tables...), the kinds of form the run found (clusters; and the Pareto front
+or the MAP-Elites archive in those modes), the top individuals with their criteria and rewrite systems,
+the interventions with what each changed, and the configuration versions. Images are embedded as
+base64 PNG; there are no scripts, fonts or links to fetch, so it opens offline and can be mailed as
+one file.
 """
 
 from __future__ import annotations
@@ -157,8 +156,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
         gallery = f'<p class="note">No gallery: {html.escape(str(exc))}</p>'
     phenotype = _phenotype(store, configs)
     parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
-    if phenotype.noun == "surface":
-        parts.extend(_search_sections(store, run_label(store)))
+    parts.extend(_search_sections(store, run_label(store), phenotype.noun))
 
     crits = criteria_of(best.schema)
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
@@ -245,7 +243,7 @@ def _figure_section(title: str, draw: Any, dpi: int, note: Any, failed: str = ""
     return _section(title, _img(pictures.png_bytes(fig, dpi=dpi), info) + note(info))
 
 
-def _search_sections(store: Any, label: str) -> list[str]:
+def _search_sections(store: Any, label: str, noun: str) -> list[str]:
     """The search modes' sections: the Pareto front (``pareto`` mode), the MAP-Elites archive
     (``map-elites`` mode), and in every mode the kinds of form the run found (12 clusters)."""
     from genr8_dist.history import pictures
@@ -263,12 +261,12 @@ def _search_sections(store: Any, label: str) -> list[str]:
         sections.append(_figure_section(
             "The MAP-Elites archive", lambda: pictures.archive_figure_of(store), 70,
             lambda info: f'<p class="note">{html.escape(info)} held after the last '
-                         "generation: each tile the best surface of its cell. "
+                         f"generation: each tile the best {noun} of its cell. "
                          f"<code>genr8 gallery {shown} --archive -o map.png</code>.</p>"))
     sections.append(_figure_section(
         "Kinds of form the run found", lambda: pictures.clusters_figure_of(store, 12), 80,
-        lambda info: '<p class="note">The run\'s distinct surfaces grouped by k-means over '
-                     "their criteria and region and vertex counts; each tile is the design "
+        lambda info: f'<p class="note">The run\'s distinct {noun}s grouped by k-means over '
+                     "their criteria and sizes; each tile is the design "
                      "nearest its cluster's centre, the cluster's size in brackets. "
                      f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>",
         failed="No clusters: "))

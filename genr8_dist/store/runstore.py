@@ -46,7 +46,7 @@ from datetime import UTC, datetime
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError, StoreError
-from genr8_dist.evolution.individual import Individual
+from genr8_dist.evolution.individual import SCHEMA_2_NAMES, Individual
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
 from genr8_dist.store.pending import (
     LOCK_NAME,
@@ -68,6 +68,8 @@ from genr8_dist.store.schema import (
     individuals_table,
     reading_schema,
     run_columns,
+    sizes_of,
+    stored_schema,
 )
 
 if TYPE_CHECKING:
@@ -215,6 +217,50 @@ def _check_manifest(m: dict[str, Any]) -> None:
             raise ValueError("generations")
 
 
+def _phenotype_columns(config_toml: str) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The criteria and the sizes a run of ``config_toml`` stores: those of its universe's phenotype,
+    or the built-in surface phenotype's when the text is not a run configuration (a bare store)."""
+    from genr8_dist.config import RunConfig, run_phenotype
+    from genr8_dist.errors import Genr8Error
+    from genr8_dist.store.schema import builtin_sizes, criteria_names
+
+    try:
+        config = RunConfig.from_toml(config_toml)
+    except Genr8Error:
+        return criteria_names(), builtin_sizes()
+    return tuple(config.fitness.names), tuple(run_phenotype(config.universe_source).sizes)
+
+
+class RenamedDataset:
+    """The individuals files of a run of schema 1 or 2 read as a dataset whose columns carry their
+    current names (``SCHEMA_2_NAMES``: ``surface_digest`` is ``phenotype_digest``, ``n_regions`` is
+    ``size_regions``...): what ``RunStore.dataset`` gives for such a run. It answers what readers ask
+    of a ``pyarrow.dataset.Dataset``: ``schema``, ``to_table``, ``count_rows``, ``get_fragments``; a
+    ``filter`` expression names columns as they are stored. ``stored`` is the dataset itself (SQL
+    scans it, see ``history.query``), ``renamed`` maps stored names to current ones."""
+
+    def __init__(self, stored: ds.Dataset, renamed: dict[str, str]) -> None:
+        self.stored = stored
+        self.renamed = dict(renamed)
+        self._back = {new: old for old, new in self.renamed.items()}
+
+    @property
+    def schema(self) -> pa.Schema:
+        return reading_schema(self.stored.schema)
+
+    def to_table(self, columns: Sequence[str] | None = None, filter: pc.Expression | None = None) -> pa.Table:
+        """The rows (matching ``filter``), the ``columns`` asked for (current names), as a table."""
+        cols = [self._back.get(c, c) for c in columns] if columns is not None else None
+        table = self.stored.to_table(columns=cols, filter=filter)
+        return table.rename_columns([self.renamed.get(c, c) for c in table.column_names])
+
+    def count_rows(self, filter: pc.Expression | None = None) -> int:
+        return int(self.stored.count_rows(filter=filter))
+
+    def get_fragments(self, filter: pc.Expression | None = None) -> Iterator[Any]:
+        return iter(self.stored.get_fragments(filter=filter))
+
+
 def _manifest_rel(version: int) -> str:
     return f"{MANIFEST_DIR}/{version:010d}.json"
 
@@ -256,6 +302,7 @@ class RunStore:
         *,
         run_id: str | None = None,
         criteria: Sequence[str] | None = None,
+        sizes: Sequence[str] | None = None,
         filesystem: pafs.FileSystem | None = None,
         compact_every: int | None = COMPACT_EVERY,
     ) -> RunStore:
@@ -264,8 +311,10 @@ class RunStore:
         The directory becomes a run in one step, when manifest 1 is linked into place; a creation that
         stopped before that (a crash, a full disk) left only a half-created directory, which this
         finishes. Refuses a directory that is already a run, or that holds anything else, and leaves it
-        as it was. ``run_id`` defaults to the directory's name; ``criteria`` (default: every
-        registered surface criterion) and the columns declared now are the run's for good (its
+        as it was. ``run_id`` defaults to the directory's name. The run stores the criteria and the
+        sizes of its configuration's phenotype (``genr8_dist.phenotype``: its universe's; the built-in
+        surface phenotype's when ``config_toml`` is not a run configuration); ``criteria`` and
+        ``sizes`` override them. They and the columns declared now are the run's for good (its
         manifest keeps them).
         """
         rfs = resolve(path_or_uri, filesystem)
@@ -305,10 +354,12 @@ class RunStore:
                 f"run_id {run_id!r} is not allowed: use 1-128 letters, digits, '.', '_' or '-', "
                 "starting with a letter or digit"
             )
-        from genr8_dist.store.schema import criteria_names
-
-        names = list(criteria_names() if criteria is None else criteria)
-        columns = [list(c) for c in run_columns(names)]
+        if criteria is None or sizes is None:
+            own_criteria, own_sizes = _phenotype_columns(config_toml)
+            criteria = own_criteria if criteria is None else criteria
+            sizes = own_sizes if sizes is None else sizes
+        names, sized = list(criteria), list(sizes)
+        columns = [list(c) for c in run_columns(names, sizes=sized)]
         for folder in sorted(_LAYOUT):
             rfs.makedirs(folder)
         created = _now().isoformat()
@@ -317,6 +368,7 @@ class RunStore:
             "schema_version": SCHEMA_VERSION,
             "run_id": run_id,
             "criteria": names,
+            "sizes": sized,
             "columns": columns,
             "created": created,
             "version": 0,
@@ -388,6 +440,14 @@ class RunStore:
         return tuple(self._m["criteria"])
 
     @property
+    def sizes(self) -> tuple[str, ...]:
+        """The phenotype's sizes this run stores (its ``size_<name>`` columns; a run of schema 1 or 2:
+        a surface's vertices, edges and regions, stored as ``n_<name>``), fixed when it was created."""
+        if "sizes" in self._m:
+            return tuple(self._m["sizes"])
+        return tuple(sizes_of(self.reading_schema.names))
+
+    @property
     def schema_version(self) -> int:
         """The store schema version this run was created with (it keeps it for good)."""
         return int(self._m["schema_version"])
@@ -403,8 +463,15 @@ class RunStore:
 
     @property
     def reading_schema(self) -> pa.Schema:
-        """What readers see: this run's schema, and every column declared since as nulls."""
+        """What readers see: this run's schema, every column declared since as nulls, and a schema 1
+        or 2 run's surface-named columns under their current names (``SCHEMA_2_NAMES``)."""
         return reading_schema(self.schema)
+
+    @property
+    def renamed(self) -> dict[str, str]:
+        """The columns this run stores under another name than readers see (a run of schema 1 or 2):
+        ``{stored name: current name}``; empty for a run of the current schema."""
+        return {old: new for old, new in SCHEMA_2_NAMES.items() if old in self.schema.names}
 
     @property
     def version(self) -> int:
@@ -611,11 +678,12 @@ class RunStore:
         self._m, self._stale = newest, stale
         return True
 
-    def dataset(self, generations: tuple[int, int] | None = None) -> ds.Dataset:
+    def dataset(self, generations: tuple[int, int] | None = None) -> ds.Dataset | RenamedDataset:
         """The committed individuals files as one pyarrow dataset (DuckDB can scan it), each file
         checked against the manifest's sha256 first. With ``generations=(lo, hi)`` only the files
         holding a generation in that range (any island) are in it, and only they are checked: a
-        reader of a few generations of a long run hashes a few files, not the run."""
+        reader of a few generations of a long run hashes a few files, not the run. A run of schema 1
+        or 2 gives a ``RenamedDataset``: the same, its columns under their current names."""
         import pyarrow.dataset as ds
 
         self._require_current()
@@ -627,12 +695,14 @@ class RunStore:
                 return self.dataset(generations)
             raise
         try:
-            return ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
-                              format="parquet", filesystem=self._fs.fs)
+            data = ds.dataset([self._fs.full(e["path"]) for e in entries],
+                              schema=stored_schema(self.schema), format="parquet", filesystem=self._fs.fs)
         except OSError as exc:
             if self._refreshed():
                 return self.dataset(generations)
             raise StoreError(f"{self._fs.show()}: cannot read individuals: {exc}") from None
+        renamed = self.renamed
+        return RenamedDataset(data, renamed) if renamed else data
 
     def _entries_between(self, lo: int, hi: int) -> list[dict[str, Any]]:
         """The individuals files holding some island's generation in ``lo..hi``."""
@@ -1111,10 +1181,14 @@ class RunStore:
         import pyarrow.dataset as ds
 
         self._verify_files(entries)
+        renamed = self.renamed
+        stored = {new: old for old, new in renamed.items()}
         try:
-            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries], schema=self.reading_schema,
-                                 format="parquet", filesystem=self._fs.fs)
-            return dataset.to_table(columns=list(columns) if columns is not None else None, filter=filter)
+            dataset = ds.dataset([self._fs.full(e["path"]) for e in entries],
+                                 schema=stored_schema(self.schema), format="parquet", filesystem=self._fs.fs)
+            table = dataset.to_table(columns=[stored.get(c, c) for c in columns] if columns is not None
+                                     else None, filter=filter)
+            return table.rename_columns([renamed.get(c, c) for c in table.column_names]) if renamed else table
         except (pa.ArrowException, OSError) as exc:
             for e in entries:
                 if self._check_entry(e, deep=False) is not None:

@@ -2,8 +2,11 @@
 
 Every Parquet file of a run is written with one of these schemas; the schema version is in each
 file's metadata (``genr8.schema_version``) and in the manifest, so a reader knows what it holds.
-Criteria are flat ``crit_<name>`` columns (one per criterion, null when not scored) because flat
-columns are what SQL and column projection want.
+Criteria are flat ``crit_<name>`` columns (one per criterion, null when not scored) and the
+phenotype's sizes flat ``size_<name>`` columns, because flat columns are what SQL and column projection
+want. Schemas 1 and 2 named the digest and the sizes after surfaces (``surface_digest``,
+``n_vertices``, ``n_edges``, ``n_regions``: ``SCHEMA_2_NAMES``); such a run keeps them, readers see them
+under the current names (``current_names``).
 """
 
 from __future__ import annotations
@@ -17,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import (
     CRITERIA_KIND,
+    SCHEMA_2_NAMES,
+    SIZES_KIND,
     Column,
     Individual,
     stored_columns,
@@ -33,6 +38,7 @@ __all__ = [
     "Event",
     "criteria_names",
     "criterion_column",
+    "current_names",
     "events_schema",
     "events_table",
     "individuals_from_table",
@@ -40,11 +46,17 @@ __all__ = [
     "individuals_table",
     "listed_columns",
     "run_columns",
+    "size_column",
+    "size_of",
+    "sizes_of",
 ]
 
 # Bump when a column is added, removed or changes meaning; readers refuse newer versions and read
-# older ones with the columns of their version. 2: the manifest records the run's columns.
-SCHEMA_VERSION = 2
+# older ones with the columns of their version. 2: the manifest records the run's columns. 3: the
+# digest and the sizes are the phenotype's (``phenotype_digest``, ``size_<name>``), not named after
+# surfaces; the manifest records the run's sizes.
+SCHEMA_VERSION = 3
+SIZES_SINCE = 3
 
 # What happened in a run, besides individuals (the ``kind`` column of the events table).
 EVENT_KINDS: tuple[str, ...] = (
@@ -64,6 +76,7 @@ EVENT_KINDS: tuple[str, ...] = (
 TIMING_COLUMNS: tuple[str, ...] = timing_columns()
 
 _CRIT = "crit_"
+_SIZE = "size_"
 _FIELDS = frozenset(Individual.__dataclass_fields__)
 
 # A stored column as the manifest records it: name, Arrow type name, nullable.
@@ -71,10 +84,18 @@ ColumnSpec = tuple[str, str, bool]
 
 
 def criteria_names() -> tuple[str, ...]:
-    """The registered surface criteria (imported lazily: the store does not need them to read)."""
+    """The criteria of the built-in phenotype, HEMLS surfaces (imported lazily: the store does not
+    need them to read)."""
     from genr8_dist.fitness import criterion_names
 
     return criterion_names()
+
+
+def builtin_sizes() -> tuple[str, ...]:
+    """The sizes of the built-in phenotype, HEMLS surfaces (what schemas 1 and 2 stored)."""
+    from genr8_dist.phenotype import SURFACES
+
+    return tuple(SURFACES.sizes)
 
 
 def criterion_column(name: str) -> str:
@@ -87,35 +108,65 @@ def criterion_of(column: str) -> str | None:
     return column[len(_CRIT):] if column.startswith(_CRIT) else None
 
 
-def _check_criteria(names: tuple[str, ...]) -> None:
+def size_column(name: str) -> str:
+    """The column holding the phenotype's size ``name``: ``size_<name>``."""
+    return f"{_SIZE}{name}"
+
+
+def size_of(column: str) -> str | None:
+    """The size a ``size_<name>`` column holds, else ``None``."""
+    return column[len(_SIZE):] if column.startswith(_SIZE) else None
+
+
+def sizes_of(names: Sequence[str]) -> list[str]:
+    """The sizes whose ``size_<name>`` columns are among ``names`` (a schema's), in column order."""
+    return [s for name in names if (s := size_of(name)) is not None]
+
+
+def current_names(names: Sequence[str]) -> list[str]:
+    """Column ``names`` as readers see them: a schema 1 or 2 run's surface-named columns renamed."""
+    return [SCHEMA_2_NAMES.get(name, name) for name in names]
+
+
+def _check_names(names: tuple[str, ...], what: str) -> None:
     for name in names:
         if not name.isidentifier():
-            raise StoreError(f"criterion name {name!r} is not an identifier; it cannot be a column")
+            raise StoreError(f"{what} name {name!r} is not an identifier; it cannot be a column")
     if len(set(names)) != len(names):
-        raise StoreError(f"criterion names repeat: {list(names)}")
+        raise StoreError(f"{what} names repeat: {list(names)}")
 
 
-def run_columns(criteria: Sequence[str], *, version: int | None = None) -> list[ColumnSpec]:
-    """The columns of a run storing ``criteria``: every column declared now (``version=None``, what a
-    new run records in its manifest), or those a run of schema ``version`` has (declared by then)."""
-    names = tuple(criteria)
-    _check_criteria(names)
+def run_columns(criteria: Sequence[str], *, sizes: Sequence[str] = (),
+                version: int | None = None) -> list[ColumnSpec]:
+    """The columns of a run storing ``criteria`` and the phenotype's ``sizes``: every column declared
+    now (``version=None``, what a new run records in its manifest), or those a run of schema
+    ``version`` has (declared by then; before schema 3 the surface-named ones, whatever ``sizes``)."""
+    names, sized = tuple(criteria), tuple(sizes)
+    _check_names(names, "criterion")
+    _check_names(sized, "size")
+    old = version is not None and version < SIZES_SINCE
+    renamed = {new: old_name for old_name, new in SCHEMA_2_NAMES.items()}
     out: list[ColumnSpec] = []
     for column in stored_columns():
         if version is not None and not 1 <= column.since <= version:
             continue
         if column.arrow == CRITERIA_KIND:
             out += [(criterion_column(name), "float64", True) for name in names]
+        elif column.arrow == SIZES_KIND:
+            out += ([(renamed[size_column(s)], "int32", False) for s in builtin_sizes()] if old
+                    else [(size_column(s), "int64", False) for s in sized])
         else:
-            out.append((column.name, column.arrow, column.nullable))
+            out.append((renamed.get(column.name, column.name) if old else column.name, column.arrow,
+                        column.nullable))
     return out
 
 
-def listed_columns(criteria: Sequence[str], *, shown: bool = False,
+def listed_columns(criteria: Sequence[str], *, sizes: Sequence[str] = (), shown: bool = False,
                    available: Sequence[str] | None = None) -> list[str]:
     """The columns ``history.top`` returns (``shown``: those ``genr8 top`` prints), in their declared
-    places, the criteria's ``crit_<name>`` columns where the ``criteria`` field stands; only those in
-    ``available`` when given."""
+    places, the criteria's ``crit_<name>`` columns where the ``criteria`` field stands and the
+    ``size_<name>`` columns of ``sizes`` where the ``sizes`` field does; only those in ``available``
+    when given."""
     def place(column: Column) -> int:
         return column.shown if shown else column.top
 
@@ -123,6 +174,8 @@ def listed_columns(criteria: Sequence[str], *, shown: bool = False,
     for column in sorted((c for c in stored_columns() if place(c)), key=place):
         if column.arrow == CRITERIA_KIND:
             out += [criterion_column(name) for name in criteria]
+        elif column.arrow == SIZES_KIND:
+            out += [size_column(name) for name in sizes]
         else:
             out.append(column.name)
     return out if available is None else [name for name in out if name in set(available)]
@@ -162,24 +215,39 @@ def _schema_of(columns: tuple[ColumnSpec, ...], version: int) -> pa.Schema:
 
 def individuals_schema(criteria: Sequence[str] | None = None,
                        columns: Sequence[Sequence[Any]] | None = None,
-                       version: int = SCHEMA_VERSION) -> pa.Schema:
+                       version: int = SCHEMA_VERSION, *, sizes: Sequence[str] | None = None) -> pa.Schema:
     """The schema of the individuals table: ``columns`` (a run's, as its manifest records them), or
-    every declared column with one ``crit_<name>`` column per criterion of ``criteria`` (default: the
-    registered surface criteria); ``version`` is the schema version written into its metadata."""
+    every declared column with one ``crit_<name>`` column per criterion of ``criteria`` and one
+    ``size_<name>`` column per size of ``sizes`` (default: the built-in surface phenotype's);
+    ``version`` is the schema version written into its metadata."""
     if columns is None:
-        columns = run_columns(tuple(criteria) if criteria is not None else criteria_names())
+        columns = run_columns(tuple(criteria) if criteria is not None else criteria_names(),
+                              sizes=tuple(sizes) if sizes is not None else builtin_sizes())
     return _schema_of(tuple((str(n), str(k), bool(b)) for n, k, b in columns), version)
 
 
-def reading_schema(schema: pa.Schema) -> pa.Schema:
-    """``schema`` (a run's) with every column declared now that it lacks appended as nullable: what
-    readers see, so a column added since the run was written reads as nulls."""
+def stored_schema(schema: pa.Schema) -> pa.Schema:
+    """``schema`` (a run's, as stored) with every column declared now that it lacks appended as
+    nullable: what its files are read with, so a column added since the run was written reads as
+    nulls (a column renamed since is not added: it is there under its old name)."""
     import pyarrow as pa
 
-    have = set(schema.names)
+    have = set(current_names(schema.names))
     missing = [pa.field(name, _arrow(kind), nullable=True) for name, kind, _ in run_columns(())
                if name not in have]
     return pa.schema([*schema, *missing], metadata=schema.metadata) if missing else schema
+
+
+def reading_schema(schema: pa.Schema) -> pa.Schema:
+    """What readers see of a run of ``schema``: ``stored_schema(schema)`` with the columns of schemas
+    1 and 2 named after surfaces under their current names (``SCHEMA_2_NAMES``)."""
+    import pyarrow as pa
+
+    full = stored_schema(schema)
+    if not any(name in SCHEMA_2_NAMES for name in full.names):
+        return full
+    return pa.schema([f.with_name(SCHEMA_2_NAMES.get(f.name, f.name)) for f in full],
+                     metadata=full.metadata)
 
 
 @lru_cache(maxsize=1)
@@ -250,13 +318,17 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
     stored = set(schema.names)
     cols: dict[str, list[Any]] = {f.name: [] for f in schema}
     def getter(name: str) -> Callable[[Individual], Any]:
+        name = SCHEMA_2_NAMES.get(name, name)   # a schema 1 or 2 run's columns, by their current names
         crit = criterion_of(name)
+        size = size_of(name)
         if name == "run_id":
             return lambda ind: run_id
         if name == "id":
             return lambda ind: ind.id
         if crit is not None:
             return lambda ind: ind.criteria.get(crit)
+        if size is not None:
+            return lambda ind: ind.sizes.get(size, 0)
         if name in _FIELDS:
             return lambda ind: getattr(ind, name)
         default = declared[name].default if name in declared else None
@@ -287,20 +359,24 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
 
 
 def individuals_from_table(table: pa.Table) -> list[Individual]:
-    """``Individual`` records from rows of the individuals table (the inverse of ``individuals_table``);
-    columns that are not ``Individual`` fields or criteria go to ``extra`` (nulls left out)."""
-    names = table.column_names
-    py = {name: table.column(name).to_pylist() for name in names}
+    """``Individual`` records from rows of the individuals table (the inverse of ``individuals_table``;
+    a schema 1 or 2 run's surface-named columns are read under their current names); columns that are
+    not ``Individual`` fields, criteria or sizes go to ``extra`` (nulls left out)."""
+    names = current_names(table.column_names)
+    py = {name: table.column(i).to_pylist() for i, name in enumerate(names)}
     criteria = [(name, c) for name in names if (c := criterion_of(name)) is not None]
+    sized = [(name, s) for name in names if (s := size_of(name)) is not None]
     plain = [n for n in names if n in _FIELDS]
     sequences = [n for n in plain if n in ("genome", "parents")]
-    extras = [n for n in names if n not in _FIELDS and n not in ("run_id", "id") and criterion_of(n) is None]
+    extras = [n for n in names if n not in _FIELDS and n not in ("run_id", "id")
+              and criterion_of(n) is None and size_of(n) is None]
     out = []
     for i in range(table.num_rows):
         kwargs = {name: py[name][i] for name in plain}
         for name in sequences:
             kwargs[name] = tuple(kwargs[name])
         kwargs["criteria"] = {c: v for name, c in criteria if (v := py[name][i]) is not None}
+        kwargs["sizes"] = {s: v for name, s in sized if (v := py[name][i]) is not None}
         kwargs["extra"] = {n: v for n in extras if (v := py[n][i]) is not None}
         out.append(Individual(**kwargs))
     return out

@@ -2,7 +2,7 @@
 
 The rows look like a real run's (fitness improving over generations, about 10% invalid individuals
 with their failing stage, elites, crossover and mutation children with their parents, migrants at
-every epoch) but nothing is grown: the surfaces cannot be regrown from them. Same arguments, same rows.
+every epoch) but nothing is grown: its individuals cannot be regrown from them. Same arguments, same rows.
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def write_synthetic_run(
             f"write_synthetic_run: genome_length must be (lo, hi) with 1 <= lo <= hi, got {genome_length}"
         )
     config = (   # a run configuration (readers such as the studio parse it) of the history's shape
-        "# synthetic history written by genr8_dist.store.synthetic; its surfaces cannot be regrown\n"
+        "# synthetic history written by genr8_dist.store.synthetic; its individuals cannot be regrown\n"
         f'universe = "default"\nseed = {seed}\n\n[ea]\npopulation = {pop}\n'
         f"generations = {n_generations - 1}\n\n[islands]\ncount = {n_islands}\n"
         f"migration_interval = {generations_per_commit}\nmigrants = {min(2, pop - 1)}\n"
@@ -144,7 +144,7 @@ def synthetic_epoch(
     fitness = np.where(valid, crit_sum, np.inf)
 
     origin, parents = _provenance(rng, island, generation, index, n_islands, pop)
-    n_vertices = np.where(valid, rng.integers(8, 4000, size=n), 0).astype(np.int32)
+    n_vertices = np.where(valid, rng.integers(8, 4000, size=n), 0).astype(np.int64)
     digest_bytes = rng.integers(0, 256, size=(n, 16), dtype=np.uint8)
     hex_chars = np.frombuffer(b"0123456789abcdef", dtype=np.uint8)
     digest_hex = np.empty((n, 32), dtype=np.uint8)
@@ -175,12 +175,12 @@ def synthetic_epoch(
         "config_version": np.ones(n, dtype=np.int32),
         "codons_used": np.minimum(lengths, rng.integers(4, genome_length[1] + 1, size=n)).astype(np.int32),
         "wraps": rng.integers(0, 3, size=n).astype(np.int32),
-        "n_vertices": n_vertices,
-        "n_edges": (n_vertices * 2 - np.minimum(n_vertices, 2)).astype(np.int32),
-        "n_regions": np.where(valid, n_vertices // 3, 0).astype(np.int32),
+        "size_vertices": n_vertices,
+        "size_edges": (n_vertices * 2 - np.minimum(n_vertices, 2)).astype(np.int64),
+        "size_regions": np.where(valid, n_vertices // 3, 0).astype(np.int64),
         "steps_done": np.where(valid, rng.integers(1, 9, size=n), 0).astype(np.int32),
         "capped": pa.array(np.where(valid & (n_vertices > 3800), "vertices", none), pa.string()),
-        "surface_digest": digest,
+        "phenotype_digest": digest,
         "eval_seconds": timing.sum(axis=0),
         "map_seconds": timing[0],
         "grow_seconds": timing[1] + timing[2],

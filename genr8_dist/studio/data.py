@@ -18,7 +18,7 @@ from collections import OrderedDict
 from typing import Any
 
 from genr8_dist.errors import ConfigError, StoreError
-from genr8_dist.store.schema import criterion_column
+from genr8_dist.store.schema import criterion_column, size_column, size_of
 
 __all__ = ["MAX_FACES", "RunView"]
 
@@ -264,8 +264,8 @@ class RunView:
                 self._generations.move_to_end(g)
                 return {"generation": g, "newest": newest, "individuals": rows}
         crits = [criterion_column(c) for c in store.criteria]
-        columns = ["id", "island", "index", "fitness", "valid", "origin", "n_vertices", "n_regions",
-                   "config_version", *crits]
+        columns = ["id", "island", "index", "fitness", "valid", "origin",
+                   *[size_column(s) for s in store.sizes], "config_version", *crits]
         import pyarrow.compute as pc
 
         # one read of the files holding generation g (only they are checked against their sha256)
@@ -336,9 +336,10 @@ class RunView:
             return found
         try:
             table = clusters(store, k, generation=g, island=island)
+            sizes = [c for c in table.column_names if size_of(c) is not None]
             rows = [{"id": r["id"], "cluster": r["cluster"], "members": r["members"], "island": r["island"],
-                     "fitness": _finite(r["fitness"]), "n_regions": r["n_regions"]}
-                    for r in table.select(["id", "cluster", "members", "island", "fitness", "n_regions"])
+                     "fitness": _finite(r["fitness"]), **{c: r[c] for c in sizes}}
+                    for r in table.select(["id", "cluster", "members", "island", "fitness", *sizes])
                     .to_pylist()]
             answer: dict[str, Any] = {"generation": g, "k": k, "representatives": rows,
                                       "surfaces": sum(r["members"] for r in rows)}
@@ -395,7 +396,7 @@ class RunView:
             "fitness": _finite(row["fitness"]), "valid": row["valid"], "stage": row["stage"],
             "error": row["error"], "origin": row["origin"], "parents": row["parents"],
             "config_version": row["config_version"], "text": row["text"], "genome_length": len(row["genome"]),
-            "counts": {"vertices": row["n_vertices"], "edges": row["n_edges"], "regions": row["n_regions"],
+            "counts": {**{s: row[c] for c in row if (s := size_of(c)) is not None},
                        "steps": row["steps_done"]},
             "criteria": crits, "lineage": main, "hand_fitness": hand,
         }
@@ -406,8 +407,8 @@ class RunView:
         from genr8_dist.hemls import grow, parse
         from genr8_dist.history import individual
 
-        row = individual(self.store(), id, ["text", "config_version", "surface_digest"]).to_pylist()[0]
-        if not row["text"] or row["surface_digest"] is None:
+        row = individual(self.store(), id, ["text", "config_version", "phenotype_digest"]).to_pylist()[0]
+        if not row["text"] or row["phenotype_digest"] is None:
             raise StoreError(f"{id} has no surface: it failed before growing one")
         config = self.config(int(row["config_version"]))
         return grow(parse(row["text"]), config.environment).surface, config
@@ -572,11 +573,11 @@ def _rhino(surface: Any, name: str) -> bytes:
     import tempfile
     from pathlib import Path
 
-    from genr8_dist.history._regrow import _export_3dm
+    from genr8_dist.export import export_3dm
 
     with tempfile.TemporaryDirectory(prefix="genr8-studio-") as tmp:
         path = Path(tmp) / f"{name}.3dm"
-        _export_3dm(surface, path, name=name)
+        export_3dm(surface, path, name=name)
         data = path.read_bytes()
         os.unlink(path)
         return data

@@ -50,10 +50,12 @@ class TablesPhenotype(Phenotype):
     capped_is_invalid = False
     export_formats = ("obj", "ply", "stl", "glb")
     stage = "develop"
+    sizes = ("commands", "modules")  # turtle commands run; modules in the final word
 
     def develop(self, text: str, config: Any) -> Developed:
         table = voxels.develop(text)
-        return Developed(table, table.digest(), table.steps, table.capped)
+        return Developed(table, table.digest(), table.steps, table.capped,
+                         {"commands": table.commands, "modules": table.modules})
 
     def trivial(self, evaluation: Any) -> bool:
         """A structure the paper's fitness scores 0 (flat, or nothing below its top layer)."""
@@ -72,7 +74,7 @@ class TablesPhenotype(Phenotype):
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return -voxels.fitness(dict(raw))
 
-    def export(self, developed: Developed, path: str | Path, config: Any) -> Path:
+    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
         import trimesh
 
         from genr8_dist.export import write_mesh

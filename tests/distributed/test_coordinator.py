@@ -255,7 +255,7 @@ def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(re
 
 
 @pytest.mark.parametrize("search", [
-    '[search]\nmode = "map-elites"\ndescriptors = ["undulation", "n_regions"]\n'
+    '[search]\nmode = "map-elites"\ndescriptors = ["undulation", "size_regions"]\n'
     'ranges = [[0.0, 1.0], [1.0, 9.0]]\nbins = [2, 4]\n',
     '[search]\nmode = "pareto"\n',
 ])

@@ -99,7 +99,7 @@ def test_epochs_end_where_migrants_leave():
 def _shaped(island: int, rows: list[tuple[float, str, float]]) -> list[Individual]:
     """Individuals with (fitness, surface digest, undulation)."""
     return [Individual(island=island, generation=5, index=i, genome=(island, i), origin="random",
-                       fitness=f, valid=True, surface_digest=d, criteria={"undulation": u})
+                       fitness=f, valid=True, phenotype_digest=d, criteria={"undulation": u})
             for i, (f, d, u) in enumerate(rows)]
 
 
@@ -112,8 +112,8 @@ def test_novel_emigrants_are_fit_surfaces_the_destination_lacks():
     chosen = select_novel(source, destination, 2)
     # "a" is already there; e, f, g are in the worse half; of b, c, d the two farthest from the
     # destination
-    assert sorted(ind.surface_digest for ind in chosen) == ["c", "d"]
+    assert sorted(ind.phenotype_digest for ind in chosen) == ["c", "d"]
     plan = plan_migration({0: source, 1: destination}, "ring", 2, seed=0, generation=5, emigrants="novel")
-    assert sorted(ind.surface_digest for ind in plan[1]) == ["c", "d"]
+    assert sorted(ind.phenotype_digest for ind in plan[1]) == ["c", "d"]
     with pytest.raises(ConfigError, match="emigrants"):
         plan_migration({0: source, 1: destination}, "ring", 2, seed=0, generation=5, emigrants="far")

@@ -1,6 +1,7 @@
-"""A run written by store schema version 1 (tests/data/run-schema-v1, interrupted) resumes: it keeps
-its committed rows and its schema, completes every generation, and two resumptions write the same
-rows. (Its rows are not compared with a fresh run's: growth may change between versions.)"""
+"""Runs written by store schema versions 1 and 2 (tests/data/run-schema-v1, -v2, interrupted) resume:
+each keeps its committed rows and its schema (its surface-named columns too), completes every
+generation, and two resumptions write the same rows. (Its rows are not compared with a fresh run's:
+growth may change between versions.)"""
 
 from __future__ import annotations
 
@@ -12,22 +13,29 @@ from distributed_runs import drive_to_end, event_kinds, rows
 
 pytestmark = pytest.mark.usefixtures("ray_local")
 
-FIXTURE = Path(__file__).resolve().parents[1] / "data" / "run-schema-v1"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
-def test_an_old_schema_run_resumes_in_its_own_schema(tmp_path):
+@pytest.mark.parametrize("version", [1, 2])
+def test_an_old_schema_run_resumes_in_its_own_schema(tmp_path, version):
+    import pyarrow.parquet as pq
+
     from genr8_dist.store import RunStore
 
-    before = rows(FIXTURE)
+    fixture = DATA / f"run-schema-v{version}"
+    before = rows(fixture)
     resumed = []
     for name in ("a", "b"):
-        copy = Path(shutil.copytree(FIXTURE, tmp_path / name))
+        copy = Path(shutil.copytree(fixture, tmp_path / name))
         summary, _ = drive_to_end(copy)
         assert summary.status == "complete"
         assert event_kinds(copy)[-1] == "complete"
         store = RunStore.open(copy)
-        assert store.schema_version == 1 and store.committed_generations() == {0: 4, 1: 4}
+        assert store.schema_version == version and store.committed_generations() == {0: 4, 1: 4}
         assert "crit_size" in store.schema.names and store.verify() == []
+        for path in store.individual_files():   # written in the run's own column names
+            names = pq.read_schema(path).names
+            assert "surface_digest" in names and "n_regions" in names and "phenotype_digest" not in names
         resumed.append(rows(copy))
     assert len(resumed[0]) == 2 * 6 * 5
     assert resumed[0] == resumed[1]

@@ -38,12 +38,13 @@ migrants = 1
 
 
 def new_tables_run(run_dir, toml: str):
-    """A new run directory of ``toml`` storing its phenotype's criteria (as ``genr8 run`` creates it)."""
+    """A new run directory of ``toml`` (as ``genr8 run`` creates it: the store takes its phenotype's
+    criteria and sizes from the configuration)."""
     from genr8_dist.config import RunConfig
     from genr8_dist.store import RunStore
 
     config = RunConfig.from_toml(toml)
-    store = RunStore.create(run_dir, config.to_toml(), criteria=config.fitness.names)
+    store = RunStore.create(run_dir, config.to_toml())
     store.record_event("start", generation=0)
     return store
 
@@ -62,7 +63,17 @@ def test_a_tables_run_stores_the_voxel_criteria_and_the_negated_paper_fitness(re
     assert len(got) == 2 * 6 * 5
     assert {k for k in got[0] if k.startswith("crit_")} == {
         "crit_height", "crit_surface", "crit_stability", "crit_excess", "crit_voxels"}
+    assert {k for k in got[0] if k.startswith("size_")} == {"size_commands", "size_modules"}
+    assert not {k for k in got[0] if k.startswith(("n_", "surface"))}
     valid = [r for r in got if r["valid"]]
+    from genr8_dist.grammar import load_universe
+
+    voxels = load_universe("tables").hooks.voxels
+    for r in valid[:6]:   # the stored digest and sizes are the development's
+        table = voxels.develop(r["text"])
+        assert (r["phenotype_digest"], r["size_commands"], r["size_modules"]) == (
+            table.digest(), table.commands, table.modules)
+    assert any(r["size_commands"] > 0 for r in valid)
     assert valid and all(r["fitness"] <= 0 for r in valid)
     for r in valid:
         paper = (r["crit_height"] * r["crit_surface"] * r["crit_stability"] / r["crit_excess"]

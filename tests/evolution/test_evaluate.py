@@ -38,8 +38,8 @@ def test_a_valid_genome_has_every_criterion_and_its_fitness(config):
     for r in valid:
         assert list(r.criteria) == list(CRITERIA)
         assert r.fitness == pytest.approx(config.fitness.evaluate(r.criteria))
-        assert r.text and r.codons_used > 0 and r.n_vertices >= 3 and r.n_edges >= 3
-        assert r.steps_done == 2 and r.capped is None and r.surface_digest
+        assert r.text and r.codons_used > 0 and r.sizes["vertices"] >= 3 and r.sizes["edges"] >= 3
+        assert r.steps_done == 2 and r.capped is None and r.phenotype_digest
         assert r.eval_seconds >= r.map_seconds >= 0 and r.grow_seconds > 0
 
 
@@ -56,8 +56,8 @@ def test_hand_written_square_matches_closed_form(config):
     r = evaluate_text(SQUARE, config)
     assert r.valid, r.error
     n = 2
-    assert r.n_vertices == (2**n + 1) ** 2 and r.n_edges == 2 * 2**n * (2**n + 1)
-    assert r.criteria["subdivisions"] == pytest.approx(r.n_vertices / r.n_edges)
+    assert r.sizes["vertices"] == (2**n + 1) ** 2 and r.sizes["edges"] == 2 * 2**n * (2**n + 1)
+    assert r.criteria["subdivisions"] == pytest.approx(r.sizes["vertices"] / r.sizes["edges"])
     assert r.criteria["undulation"] == 0.0 and r.criteria["symmetry"] == 1.0
 
 

@@ -211,7 +211,7 @@ def test_founders_are_redrawn_until_they_are_not_trivial_nor_repeated():
     bare = Island(config.replace(ea={"founder_retries": 0}), 0).initial()
     assert sum(is_trivial(i) for i in founders) < sum(is_trivial(i) for i in bare)
     assert sum(is_trivial(i) for i in founders) <= alive.stats.unresolved
-    digests = [i.surface_digest for i in founders if i.valid]
+    digests = [i.phenotype_digest for i in founders if i.valid]
     assert len(set(digests)) == len(digests)
     assert alive.stats.founders_redrawn > 0
     assert [untimed(i) for i in founders] == [untimed(i) for i in Island(config, 0).initial()]
@@ -234,11 +234,11 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
         seen, count = set(), 0
         for ind in gen:
             if ind.origin in ("crossover", "mutation", "crossover+mutation") and ind.valid and (
-                    ind.surface_digest in seen
-                    or any(parents[p].surface_digest == ind.surface_digest for p in ind.parents)):
+                    ind.phenotype_digest in seen
+                    or any(parents[p].phenotype_digest == ind.phenotype_digest for p in ind.parents)):
                 count += 1
             if ind.valid:
-                seen.add(ind.surface_digest)
+                seen.add(ind.phenotype_digest)
         return count
 
     unique = Island(config, 0)
@@ -247,16 +247,41 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
     gen_copies = wasteful.step(hist[2], 3)
     assert repeats(gen, hist[2]) <= unique.stats.unresolved
     assert repeats(gen_copies, hist[2]) > repeats(gen, hist[2])
-    assert unique.stats.revaried_surface + unique.stats.revaried_text > 0
-    assert wasteful.stats.revaried_surface == wasteful.stats.revaried_text == 0
+    assert unique.stats.revaried_phenotype + unique.stats.revaried_text > 0
+    assert wasteful.stats.revaried_phenotype == wasteful.stats.revaried_text == 0
     # bounded: never more re-variations than retries per offspring
     offspring = sum(i.origin != "elite" for i in gen)
-    assert unique.stats.revaried_surface <= offspring * config.ea.unique_retries
+    assert unique.stats.revaried_phenotype <= offspring * config.ea.unique_retries
     assert unique.stats.revaried_text <= offspring * config.ea.unique_retries
     one = config.replace(ea={"unique_retries": 1})
     bounded = Island(one, 0)
     bounded.step(hist[2], 3)
-    assert bounded.stats.revaried_surface <= offspring and bounded.stats.revaried_text <= offspring
+    assert bounded.stats.revaried_phenotype <= offspring and bounded.stats.revaried_text <= offspring
+
+
+def test_invalid_offspring_are_varied_again_within_the_bound():
+    # a small edge cap and no wraps: many offspring are capped or map to nothing
+    config = small_config(ea={"population": 16}, genome={"length": 40, "max_wraps": 0},
+                          environment={"steps": 3, "max_edges": 60})
+    hist = Island(config, 0).run(1)
+    offspring = ("crossover", "mutation", "crossover+mutation")
+
+    def invalid(gen):
+        return sum(1 for i in gen if i.origin in offspring and not i.valid)
+
+    failing = Island(config.replace(ea={"unique_retries": 0}), 0)
+    plain = failing.step(hist[1], 2)
+    revarying = Island(config, 0)
+    gen = revarying.step(hist[1], 2)
+    assert invalid(plain) >= 3
+    assert invalid(gen) < invalid(plain)
+    assert invalid(gen) <= revarying.stats.unresolved
+    assert revarying.stats.revaried_invalid > 0 and failing.stats.revaried_invalid == 0
+    born = sum(i.origin in offspring for i in gen)
+    assert revarying.stats.revaried_invalid <= born * config.ea.unique_retries
+    # deterministic: the same generation again, row for row
+    again = Island(config, 0).step(hist[1], 2)
+    assert [untimed(i) for i in again] == [untimed(i) for i in gen]
 
 
 def test_no_individual_is_mated_with_itself_when_others_differ():
@@ -274,8 +299,9 @@ def test_no_individual_is_mated_with_itself_when_others_differ():
 def test_map_elites_carries_the_best_of_every_cell_into_the_next_generation():
     from genr8_dist.evolution.archive import Grid
 
-    config = small_config(ea={"population": 16}, search={"mode": "map-elites", "descriptors": ["n_regions"],
-                                                         "ranges": [[1, 17]], "bins": [8], "offspring": 0.5})
+    config = small_config(ea={"population": 16},
+                          search={"mode": "map-elites", "descriptors": ["size_regions"], "ranges": [[1, 17]],
+                                  "bins": [8], "offspring": 0.5})
     hist = Island(config, 0).run(3)
     grid = Grid.from_settings(config.search)
     for previous, gen in itertools.pairwise(hist):
@@ -305,6 +331,32 @@ def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
     front = {p.id for p, r in zip(previous, ranks, strict=True) if r == 0 and p.valid}
     kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
     assert kept <= front and len(kept) == min(len(front), 8)
+    # the objectives are the weighted criteria: the fitness is their sum, its best is on the front
+    # and kept first
+    best = min(previous, key=lambda p: (p.fitness, p.index))
+    assert best.id in front and gen[0].origin == "elite" and gen[0].parents == (best.id,)
+
+
+def test_map_elites_draws_first_parents_by_tournament_and_mates_uniformly_from_the_archive():
+    from genr8_dist.evolution.archive import Grid
+
+    search = {"mode": "map-elites", "descriptors": ["n_regions"], "ranges": [[1, 17]], "bins": [8],
+              "offspring": 0.5}
+    hist = Island(small_config(ea={"population": 16}, search=search), 0).run(1)
+    grid = Grid.from_settings(small_config(search=search).search)
+    elites = grid.elites(hist[1], 8)
+    archive = {ind.id for ind in elites}
+    share = {}
+    for size in (1, 16):
+        config = small_config(ea={"population": 16, "tournament": size, "crossover_rate": 1.0},
+                              search=search)
+        gen = Island(config, 0).step(hist[1], 2)
+        born = [ind for ind in gen if ind.origin != "elite"]
+        assert all(set(ind.parents) <= archive for ind in born)
+        share[size] = sum(elites[0].id in ind.parents for ind in born) / len(born)
+        assert len({p for ind in born for p in ind.parents}) > 2   # mates from other cells too
+    # 16 contestants of 8 cells: the best cell wins nearly every first draw; uniformly, about 1 in 4
+    assert share[16] >= 0.75 > share[1]
 
 
 def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(history):

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from genr8_dist.evolution.pareto import crowding_distance, non_dominated, non_dominated_ranks, pareto_order
+from genr8_dist.evolution.pareto import (
+    crowding_distance,
+    hypervolume,
+    non_dominated,
+    non_dominated_ranks,
+    pareto_order,
+)
 from genr8_dist.rng import stream
 
 
@@ -70,3 +76,44 @@ def test_the_non_dominated_mask_equals_rank_zero_with_ties_and_infinities(trial)
     f[rng.random(n) < 0.2] = np.inf
     f[rng.random((n, k)) < 0.05] = np.nan
     assert non_dominated(f).tolist() == [r == 0 for r in brute_ranks(np.nan_to_num(f, nan=np.inf))]
+
+
+def inclusion_exclusion_volume(f: np.ndarray, ref: np.ndarray) -> float:
+    """The union of the boxes [point, ref] by inclusion-exclusion (a few points only)."""
+    import itertools
+
+    f = f[(f < ref).all(axis=1)]
+    total = 0.0
+    for size in range(1, len(f) + 1):
+        for subset in itertools.combinations(range(len(f)), size):
+            corner = f[list(subset)].max(axis=0)
+            total += (-1) ** (size + 1) * float(np.prod(ref - corner))
+    return total
+
+
+@pytest.mark.parametrize("k", [2, 3, 4])
+def test_hypervolume_equals_inclusion_exclusion_on_random_fronts(k):
+    for trial in range(15):
+        rng = stream(7, "hypervolume", k, trial)
+        n = int(rng.integers(1, 9))
+        f = rng.random((n, k))
+        if trial % 3 == 0:
+            f = np.round(f * 4) / 4          # ties and duplicates
+        ref = np.full(k, 1.1)
+        assert hypervolume(f, ref) == pytest.approx(inclusion_exclusion_volume(f, ref), abs=1e-12)
+
+
+def test_hypervolume_counts_unit_cells_on_an_integer_grid():
+    import itertools
+
+    rng = stream(7, "hypervolume-grid")
+    f = rng.integers(0, 6, size=(40, 3)).astype(float)
+    cells = sum(1 for c in itertools.product(range(6), repeat=3)
+                if any((np.array(c) >= p).all() for p in f))
+    assert hypervolume(f, np.full(3, 6.0)) == pytest.approx(cells)
+
+
+def test_hypervolume_ignores_points_beyond_the_reference_and_non_finite_ones():
+    ref = np.array([1.0, 1.0])
+    assert hypervolume(np.array([[0.5, 0.5], [2.0, 0.0], [np.inf, 0.1]]), ref) == pytest.approx(0.25)
+    assert hypervolume(np.empty((0, 2)), ref) == 0.0

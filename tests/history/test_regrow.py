@@ -16,6 +16,7 @@ import pytest
 from history_runs import REAL_INTERVENTION_AT, build_real_run
 
 from genr8_dist import cli, history
+from genr8_dist.errors import Genr8Error
 from genr8_dist.history import HistoryError
 
 
@@ -61,13 +62,13 @@ def _check_regrowth(real_run, real_rows, ids):
     for ident in ids:
         result = history.regrow(store, ident)
         row = by_id[ident]
-        assert result.digest == row["surface_digest"]
-        assert len(result.surface.vertices) == row["n_vertices"]
-        assert len(result.surface.edges) == row["n_edges"]
+        assert result.digest == row["phenotype_digest"]
+        assert len(result.value.vertices) == row["size_vertices"]
+        assert len(result.value.edges) == row["size_edges"]
         assert result.steps == row["steps_done"]
         assert result.text_matches or row["origin"] == "injected"
         again = _independent_surface(row, tomls[row["config_version"]])
-        assert np.array_equal(again.vertices, result.surface.vertices)
+        assert np.array_equal(again.vertices, result.value.vertices)
 
 
 def test_individuals_of_every_kind_regrow_bit_identically(real_run, real_rows):
@@ -100,7 +101,7 @@ def test_the_configuration_version_in_force_is_used(real_run, real_rows):
     assert row["config_version"] == 2
     result = history.regrow(store, row["id"])
     v1 = _independent_surface(row, store.configs()[0].toml)
-    assert not np.array_equal(v1.vertices, result.surface.vertices)
+    assert not np.array_equal(v1.vertices, result.value.vertices)
     assert result.config.environment.attractors[0].constant == 6.0
 
 
@@ -112,8 +113,8 @@ def test_a_surface_that_differs_from_the_record_is_refused(real_run, real_rows, 
 
     def altered(run, id, columns=None):
         table = original(run, id, columns)
-        index = table.schema.get_field_index("surface_digest")
-        return table.set_column(index, "surface_digest", pc.cast(pc.utf8_upper(table["surface_digest"]),
+        index = table.schema.get_field_index("phenotype_digest")
+        return table.set_column(index, "phenotype_digest", pc.cast(pc.utf8_upper(table["phenotype_digest"]),
                                                                  table.schema.field(index).type))
 
     monkeypatch.setattr(_tables, "individual", altered)
@@ -129,13 +130,13 @@ def test_exports_load_back_in_trimesh(real_run, real_rows, tmp_path, suffix):
     result = history.regrow(real_run, ident)
     path = history.export(result, tmp_path / f"s.{suffix}")
     mesh = trimesh.load(path, force="mesh", process=False)
-    triangles = len(result.surface.triangles())
+    triangles = len(result.value.triangles())
     assert len(mesh.faces) == triangles > 0
     if suffix == "stl":  # STL keeps no shared vertices: three per triangle
         assert len(mesh.vertices) == 3 * triangles
     else:
-        assert len(mesh.vertices) == len(result.surface.vertices)
-        assert np.allclose(mesh.vertices, result.surface.vertices, atol=1e-6)
+        assert len(mesh.vertices) == len(result.value.vertices)
+        assert np.allclose(mesh.vertices, result.value.vertices, atol=1e-6)
 
 
 def test_3dm_export_loads_back_in_rhino3dm(real_run, real_rows, tmp_path):
@@ -148,9 +149,9 @@ def test_3dm_export_loads_back_in_rhino3dm(real_run, real_rows, tmp_path):
     meshes = [o.Geometry for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)]
     lines = [o for o in model.Objects if isinstance(o.Geometry, rhino3dm.LineCurve)]
     assert len(meshes) == 1
-    assert len(meshes[0].Vertices) == len(result.surface.vertices)
-    assert len(meshes[0].Faces) == len(result.surface.triangles())
-    assert len(lines) == len(result.surface.edges)
+    assert len(meshes[0].Vertices) == len(result.value.vertices)
+    assert len(meshes[0].Faces) == len(result.value.triangles())
+    assert len(lines) == len(result.value.edges)
     assert [layer.Name for layer in model.Layers] == ["genr8 surface", "genr8 scaffold"]
     assert {o.Attributes.Name for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)} == {ident}
 
@@ -158,7 +159,7 @@ def test_3dm_export_loads_back_in_rhino3dm(real_run, real_rows, tmp_path):
 def test_missing_extras_name_the_extra(real_run, real_rows, tmp_path, monkeypatch):
     result = history.regrow(real_run, _valid_ids(real_rows)[0])
     monkeypatch.setitem(sys.modules, "rhino3dm", None)
-    with pytest.raises(HistoryError, match=r"genr8-dist\[rhino\]"):
+    with pytest.raises(Genr8Error, match=r"genr8-dist\[rhino\]"):   # the surface phenotype's export
         history.export(result, tmp_path / "s.3dm")
     monkeypatch.setitem(sys.modules, "duckdb", None)
     with pytest.raises(HistoryError, match=r"genr8-dist\[sql\]"):
@@ -187,8 +188,8 @@ def test_show_cli_writes_everything(real_run, real_rows, tmp_path, capsys):
                      str(tmp_path / "g.txt"), "--genome", str(tmp_path / "genome.txt")])
     out = capsys.readouterr().out
     assert code == 0
-    assert f"regrown: {row['n_vertices']} vertices, {row['n_edges']} edges" in out
-    assert f"digest {row['surface_digest']} matches the recorded one" in out
+    assert f"regrown: {row['size_vertices']} vertices, {row['size_edges']} edges" in out
+    assert f"digest {row['phenotype_digest']} matches the recorded one" in out
     assert (tmp_path / "g.txt").read_text().rstrip("\n") == row["text"].rstrip("\n")
     assert [int(c) for c in (tmp_path / "genome.txt").read_text().split()] == row["genome"]
     _png_ok(tmp_path / "s.png")

@@ -43,7 +43,7 @@ def _distinct_devs(store, names, config):
     rows = [r for r in store.individuals().to_pylist() if r["valid"]]
     best = {}
     for r in sorted(rows, key=lambda r: (r["fitness"], r["generation"], r["island"], r["index"])):
-        best.setdefault(r["surface_digest"], r)
+        best.setdefault(r["phenotype_digest"], r)
     return {r["id"]: [config.fitness[n].deviation(r[f"crit_{n}"]) for n in names] for r in best.values()}
 
 
@@ -104,7 +104,7 @@ def test_the_commands_list_the_front_and_draw_clusters_and_the_archive(pareto_ru
 
     assert main(["top", str(pareto_run[0].path), "--pareto"]) == 0
     out = capsys.readouterr().out
-    assert "non-dominated surfaces" in out and "dev_undulation" in out
+    assert "non-dominated designs" in out and "dev_undulation" in out
     png = tmp_path / "kinds.png"
     assert main(["gallery", str(pareto_run[0].path), "--clusters", "3", "-o", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -184,3 +184,63 @@ def test_tables_direct_shares_the_tables_phenotype():
     assert DIRECT.hooks.PHENOTYPE is TABLES.hooks.PHENOTYPE
     raw = TABLES.hooks.PHENOTYPE.measure(TABLES.hooks.PHENOTYPE.develop(PAPER_22, None), None)
     assert TABLES.hooks.PHENOTYPE.fitness(raw, None) == pytest.approx(-27.0)
+
+
+TABLES_RUN = """\
+universe = "tables"
+seed = 3
+
+[genome]
+length = 120
+
+[ea]
+population = 4
+generations = 2
+"""
+
+
+def test_a_tables_run_stores_its_phenotypes_criteria_and_sizes_under_generic_names(tmp_path):
+    """A run of the tables universe is created with its phenotype's criteria and sizes (nobody passes
+    them), stores them as crit_/size_ columns beside phenotype_digest, and the history commands read,
+    regrow, export and draw it through the phenotype interface."""
+    import trimesh
+
+    from genr8_dist import history
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.evaluate import evaluate_text
+    from genr8_dist.evolution.individual import Individual
+    from genr8_dist.store import SCHEMA_VERSION, RunStore
+
+    config = RunConfig.from_toml(TABLES_RUN)
+    store = RunStore.create(tmp_path / "run", config.to_toml())
+    assert store.schema_version == SCHEMA_VERSION == 3
+    assert store.criteria == ("height", "surface", "stability", "excess", "voxels")
+    assert store.sizes == ("commands", "modules")
+    names = store.schema.names
+    assert {"phenotype_digest", "size_commands", "size_modules", "crit_height"} <= set(names)
+    assert not {n for n in names if n.startswith("n_") or n.startswith("surface")}
+    evaluation = evaluate_text(PAPER_22, config)
+    table = V.develop(PAPER_22)
+    assert evaluation.valid and evaluation.fitness == pytest.approx(-27.0)
+    assert evaluation.sizes == {"commands": table.commands, "modules": table.modules}
+    assert evaluation.phenotype_digest == table.digest()
+    store.commit([Individual(0, 0, 0, (1, 2, 3), "injected", **evaluation.as_fields())])
+    assert store.load_generation(0, 0)[0].evaluation() == evaluation
+    best = history.top(store, 1)
+    assert best["size_commands"].to_pylist() == [table.commands]
+    assert best["phenotype_digest"].to_pylist() == [table.digest()]
+    assert history.query(store, "select size_modules from individuals")["size_modules"].to_pylist() == [
+        table.modules]
+    regrown = history.regrow(store, "0-0-0")
+    assert regrown.digest == table.digest() and regrown.phenotype is TABLES.hooks.PHENOTYPE
+    assert history.export_formats(regrown.phenotype) == ("obj", "ply", "stl", "glb")
+    mesh = trimesh.load(history.export(regrown, tmp_path / "t.stl"))
+    assert mesh.is_watertight and mesh.volume == pytest.approx(62)
+    assert history.picture(regrown, tmp_path / "t.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import matplotlib.pyplot as plt
+
+    fig, info = history.pictures.gallery_figure_of(store, k=1)
+    assert info == "1 tables of generation 0" and len(fig.axes[0].collections) > 0   # drawn voxels
+    plt.close(fig)
+    with pytest.raises(history.HistoryError, match=r"use one of \.obj, \.ply, \.stl, \.glb"):
+        history.export(regrown, tmp_path / "t.3dm")

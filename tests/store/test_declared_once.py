@@ -42,22 +42,23 @@ def test_a_registered_criterion_is_scored_stored_shown_and_documented(tmp_path, 
         evaluation = evaluate_text(text, config)
         assert evaluation.valid
         # scored: the raw value is the measure's, and it counts in the total with its weight
-        assert evaluation.criteria["vertex_count"] == evaluation.n_vertices
+        assert evaluation.criteria["vertex_count"] == evaluation.sizes["vertices"]
         without = {k: v for k, v in evaluation.criteria.items()}
         assert evaluation.fitness == pytest.approx(config.fitness.evaluate(without))
         assert config.fitness.deviations(without)["vertex_count"] == pytest.approx(
-            0.5 * abs(evaluation.n_vertices - 300.0) / 300.0)
+            0.5 * abs(evaluation.sizes["vertices"] - 300.0) / 300.0)
         # stored: the run keeps a crit_vertex_count column and the value round-trips
         run_dir = tmp_path / "run"
         store = RunStore.create(run_dir, config.to_toml())
         assert store.criteria[-1] == "vertex_count"
         store.commit([Individual(0, 0, 0, (1, 2, 3), "injected", **evaluation.as_fields())])
-        assert store.individuals(["crit_vertex_count"]).column(0).to_pylist() == [evaluation.n_vertices]
+        stored = store.individuals(["crit_vertex_count"]).column(0).to_pylist()
+        assert stored == [evaluation.sizes["vertices"]]
         assert store.load_generation(0, 0)[0].criteria == evaluation.criteria
         # shown by top, under its heading, and rankable by it
         lines = _top_lines(run_dir, capsys)
         assert lines[0].split()[-3:] == ["verts", "origin", "front"]
-        assert lines[1].split()[-3:] == [str(evaluation.n_vertices), "injected", "-"]
+        assert lines[1].split()[-3:] == [str(evaluation.sizes["vertices"]), "injected", "-"]
         assert "verts" in _top_lines(run_dir, capsys, "--criterion", "vertex_count")[0].split()
         # documented: the generated docs table has its row
         assert ("| `vertex_count` | the number of vertices `V` | `300.0` | `0.5` |"

@@ -40,9 +40,10 @@ def generation(island: int, gen: int, pop: int = 5) -> list[Individual]:
             valid=valid, stage=None if valid else "grow", error=None if valid else "no regions",
             fitness=float(gen * 10 + k) if valid else math.inf,
             criteria={"size": 1.5 * k, "symmetry": 0.25} if valid else {},
-            config_version=1, codons_used=7 + k, wraps=k % 2, n_vertices=10 * k, n_edges=20 * k, n_regions=k,
+            config_version=1, codons_used=7 + k, wraps=k % 2,
+            sizes={"vertices": 10 * k, "edges": 20 * k, "regions": k},
             steps_done=3, capped="vertices" if k == 4 else None,
-            surface_digest=f"{gen:08x}{k:024x}" if valid else None,
+            phenotype_digest=f"{gen:08x}{k:024x}" if valid else None,
             eval_seconds=0.5, map_seconds=0.1, grow_seconds=0.3, score_seconds=0.1,
         ))
     return out

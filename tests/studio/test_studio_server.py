@@ -104,8 +104,8 @@ def test_state_curves_generation_and_a_design(studio):
 
 def test_the_kinds_of_form_are_one_existing_design_per_cluster(studio, run_dir, monkeypatch):
     store = RunStore.open(str(run_dir))
-    rows = store.dataset().to_table(columns=["id", "generation", "valid", "surface_digest"]).to_pylist()
-    valid = {r["id"]: r["surface_digest"] for r in rows if r["generation"] == 1 and r["valid"]}
+    rows = store.dataset().to_table(columns=["id", "generation", "valid", "phenotype_digest"]).to_pylist()
+    valid = {r["id"]: r["phenotype_digest"] for r in rows if r["generation"] == 1 and r["valid"]}
     distinct = len(set(valid.values()))
     assert distinct >= 4
     for k, expected in ((4, 4), (12, min(12, distinct))):
@@ -298,7 +298,7 @@ def test_the_map_elites_archive_of_a_generation(tmp_path):
     for ind in population:
         if not ind.valid:
             continue
-        i = min(2, max(0, int((ind.n_regions - 1.0) / 29.0 * 3)))
+        i = min(2, max(0, int((ind.sizes["regions"] - 1.0) / 29.0 * 3)))
         j = min(3, max(0, int(ind.criteria["size"] / 12.0 * 4)))
         held = expected.get((i, j))
         if held is None or ind.fitness < held[0]:
