@@ -122,7 +122,7 @@ def run_best(run: str) -> None:
     from genr8_dist.history import regrow, top
 
     best = top(run, 1).to_pylist()[0]
-    surface = regrow(run, best["id"]).surface
+    surface = regrow(run, best["id"]).value
     show(f"run best: {run} {best['id']} (fitness {best['fitness']:.4f})", figures([surface]))
 
 

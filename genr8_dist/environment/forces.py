@@ -118,19 +118,25 @@ def _push(delta: np.ndarray, length: float, radius: float) -> np.ndarray:
 
 
 def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: float, radius: float,
-                           length: float, block: int = 2_000_000) -> np.ndarray:
+                           length: float, block: int = 2_000_000, theta: float = 0.0) -> np.ndarray:
     """Repelling points (thesis 2.7.2): every vertex pushes every other vertex away.
 
     The displacement of vertex i is ``strength · L · Σ_j ((L / d_ij)^2 - (L / R)^2) · û_ij / m_i``
     (û_ij the unit vector from j to i, L the mean edge length): an inverse-square push, over every
-    other vertex when ``radius`` R is infinite (the thesis; all pairs, ``block`` at a time, O(V^2)),
-    else over the vertices closer than R (a k-d tree, about O(V log V)), shifted so that it
-    falls to 0 at R instead of stopping short.
+    other vertex when ``radius`` R is infinite (the thesis), else over the vertices closer than R (a
+    k-d tree, about O(V log V)), shifted so that it falls to 0 at R instead of stopping short. Every
+    other vertex is summed by Barnes–Hut with opening angle ``theta`` (O(V log V),
+    genr8_dist.environment.barnes_hut), or exactly with ``theta`` 0 (all pairs, ``block`` at a
+    time, O(V^2)).
     """
     out = np.zeros_like(points)
     n = len(points)
     if n < 2:
         return out
+    if math.isinf(radius) and theta > 0.0:
+        from genr8_dist.environment.barnes_hut import inverse_square_field
+
+        return strength * length ** 3 * inverse_square_field(points, theta) / masses[:, None]
     if math.isinf(radius):
         rows = max(1, block // n)
         for r0 in range(0, n, rows):

@@ -38,10 +38,11 @@ __all__ = ["BRANCH_JOINS", "BRANCH_TIES", "Environment", "SizeIncrease", "load_e
 #: the other's vertex within BranchAngle).
 BRANCH_JOINS = ("orientation", "cone")
 
-#: What a region does when its best join ties with another (docs/environment.md): "first" joins the
-#: branch drawn first, "none" joins neither (mirror-image joins that cross keep a symmetric surface
-#: symmetric).
-BRANCH_TIES = ("first", "none")
+#: What a region does when its best join ties with others (docs/environment.md), whatever order the
+#: branches were drawn in: "crossing" makes every tied join that conflicts with no other (crosses it,
+#: or shares a branch) and none of those that do, so mirror-image joins keep a symmetric surface
+#: symmetric; "none" makes none of them; "first" (before issue 14) joins the branch drawn first.
+BRANCH_TIES = ("crossing", "none", "first")
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -102,7 +103,7 @@ class Environment:
     seed_masses: tuple[float, ...] | None = None
     branch_length: float = -1.0
     branch_join: str = "orientation"
-    branch_ties: str = "first"
+    branch_ties: str = "crossing"
     label_noise: float = 0.0
     position_noise: float = 0.0
     vertex_mass: float = 1.0
@@ -114,7 +115,8 @@ class Environment:
     uniform_cells: bool = False
     uniform_iterations: int = 20
     repelling_points: float = 0.0
-    repelling_radius: float = 1.0
+    repelling_radius: float = -1.0
+    repelling_theta: float = 0.5
     gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)
     attractors: tuple[PointForce, ...] = ()
     repellers: tuple[PointForce, ...] = ()
@@ -171,6 +173,8 @@ class Environment:
             raise fail(src, "repelling_radius",
                        f"must be -1 (every vertex, the thesis) or > 0, got {self.repelling_radius!r}")
         put(self, "repelling_radius", radius)
+        put(self, "repelling_theta", read_float(self.repelling_theta, src, "repelling_theta", minimum=0.0,
+                                                maximum=1.0))
         put(self, "gravity", _read_gravity(self.gravity, src))
         for name in ("attractors", "repellers"):
             items = getattr(self, name)
@@ -332,7 +336,8 @@ class Environment:
         if self.repelling_points <= 0.0:
             return np.zeros_like(positions)
         radius = math.inf if self.repelling_radius == -1.0 else self.repelling_radius * length
-        return repelling_displacement(positions, masses, self.repelling_points, radius, length)
+        return repelling_displacement(positions, masses, self.repelling_points, radius, length,
+                                      theta=self.repelling_theta)
 
 
 def load_environment(path: str | Path) -> Environment:

@@ -6,8 +6,9 @@ the per-axis scale ``s``, in this order:
 1. growth: ``r_i = (p_i - c) * (s - 1)`` (per axis; s < 1 shrinks);
 2. external forces: ``f_i`` = Σ attractors/repellers (``c·d^-e/m`` or the bounded law, measured at
    ``p_i``) + gravity (the same vector for every vertex);
-3. repelling points (if on): an inverse-square push between vertices closer than
-   ``repelling_radius`` mean edge lengths (every pair with -1, as the thesis);
+3. repelling points (if on): an inverse-square push between every pair of vertices (the thesis;
+   ``repelling_radius`` -1, by Barnes–Hut with opening angle ``repelling_theta``), or between the
+   vertices closer than ``repelling_radius`` mean edge lengths;
 4. position noise (if on): a normal draw per axis, standard deviation ``position_noise`` x the mean
    edge length, from the growth's random generator;
 5. constraints: cut-off (stopped) vertices do not move at all; with ``fixed_perimeter`` neither do

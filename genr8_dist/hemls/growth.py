@@ -70,6 +70,9 @@ WORK_PAIRS = 40
 #: Edge-steps one successor's placement on a batch of edges counts for besides its edges (the fixed
 #: cost of a pass over the arrays, which dominates on small maps).
 WORK_BATCH = 64
+#: Join pairs whose alignment and distance (each rounded to 1e-9) differ by no more than this are
+#: tied (``branch_ties``): mirror images, computed in floating point, may round one step apart.
+TIE = 1.5e-9
 
 
 class _Capped(Exception):
@@ -501,7 +504,7 @@ class _Grower:
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
         self.pairs = 0      # branch pairs tested and re-tested for joining
         self.cone = getattr(env, "branch_join", "orientation") == "cone"
-        self.ties_join_none = getattr(env, "branch_ties", "first") == "none"
+        self.ties = getattr(env, "branch_ties", "crossing")
         self._stop_later: list[np.ndarray] = []  # vertices drawn between two stopped ones
         self._keys: np.ndarray | None = None
 
@@ -841,6 +844,8 @@ class _Grower:
         rank = np.stack([score[order], np.round(dist, 9)[order]], axis=1)  # equal rows: a tie
         used = np.zeros(n, dtype=bool)
         live = np.ones(len(pi), dtype=bool)
+        settled = np.zeros(len(pi), dtype=bool)   # tied pairs found to conflict with none of their ties
+        centre = m.pos[:m.nv].mean(axis=0)
         while True:
             self._check_time()
             self._spend(pairs=len(pi))
@@ -851,13 +856,14 @@ class _Grower:
             if not len(at):
                 break
             if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
-                pi, pj, live, fi, rank = pi[at], pj[at], live[at], fi[at], rank[at]
+                pi, pj, live, fi, rank, settled = pi[at], pj[at], live[at], fi[at], rank[at], settled[at]
                 at = np.arange(len(pi))
             # one join per face per round (a join splits its face), best pair first
             _, firsts = np.unique(fi[at], return_index=True)
             chosen = at[np.sort(firsts)]
-            if self.ties_join_none:
-                chosen = self._drop_ties(chosen, at, fi, rank, live)
+            if self.ties != "first":
+                chosen = self._settle_ties(chosen, at, fi, rank, live, settled, pi, pj, vert, corner,
+                                           heading, normal)
                 if not len(chosen):
                     continue
             a, b = pi[chosen], pj[chosen]
@@ -866,6 +872,8 @@ class _Grower:
             chosen, a, b = chosen[~adjacent], a[~adjacent], b[~adjacent]
             if not len(chosen):
                 continue
+            if self.ties != "first":
+                a, b = self._centre_on_left(a, b, vert, normal, centre)
             # one new edge per vertex pair per round
             u, w = vert[a], vert[b]
             pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
@@ -888,18 +896,110 @@ class _Grower:
                 raise _Capped("edges")
         pending.keep(~used)
 
-    @staticmethod
-    def _drop_ties(chosen, at, fi, rank, live):
-        """``branch_ties = "none"``: a face whose best pair ties (same alignment and distance) with
-        another of its live pairs joins neither of them; they are all marked dead. Returns the
-        chosen pairs without a tie."""
-        keep = np.ones(len(chosen), dtype=bool)
-        for k, c in enumerate(chosen):
-            tied = at[(fi[at] == fi[c]) & np.all(rank[at] == rank[c], axis=1)]
-            if len(tied) > 1:
+    def _settle_ties(self, chosen, at, fi, rank, live, settled, pi, pj, vert, corner, heading, normal):
+        """Settle ties without looking at the order branches were drawn in (``branch_ties``).
+
+        A face's tied pairs are its live pairs as good as its best (alignment and distance within
+        ``TIE``): on a symmetric map, a join and its mirror image. ``"crossing"`` (the default) makes
+        every tied pair that conflicts with no other, and none of those that do (``_conflicts``);
+        ``"none"`` makes none of them. Pairs left out are marked dead, pairs left in ``settled``;
+        returns the chosen pairs, a face whose best pair was left out choosing its first tied pair
+        left in (the others follow in later rounds, in any order: none crosses another)."""
+        _, firsts, inv = np.unique(fi[at], return_index=True, return_inverse=True)
+        close = np.all(np.abs(rank[at] - rank[at[firsts]][inv]) <= TIE, axis=1)
+        tied_faces = np.flatnonzero(np.bincount(inv, weights=close) > 1)
+        if not len(tied_faces):
+            return chosen
+        pick = {int(fi[c]): int(c) for c in chosen}
+        for k in tied_faces:
+            tied = at[close & (inv == k)]
+            face = int(fi[tied[0]])
+            if self.ties == "crossing" and not np.all(settled[tied]):
+                near = self._adjacent(corner[pi[tied]], vert[pj[tied]])  # would be dropped anyway
+                live[tied[near]] = False
+                tied = tied[~near]
+                out = self._conflicts(tied, pi, pj, vert, corner, heading, normal)
+                live[tied[out]] = False
+                tied = tied[~out]
+                settled[tied] = True
+            elif self.ties == "none":
                 live[tied] = False
-                keep[k] = False
-        return chosen[keep]
+                tied = tied[:0]
+            if len(tied):
+                pick[face] = int(tied[0])
+            else:
+                del pick[face]
+        return np.sort(np.array(list(pick.values()), dtype=np.int64))
+
+    def _centre_on_left(self, a, b, vert, normal, centre):
+        """Join pairs (a, b) reordered so that the new edge, from a's vertex to b's, has the map's
+        centre on its left (about the branches' surface normal); left as drawn where the centre is
+        on the line (within 1e-9 of a radian).
+
+        The edge's direction decides which side the drawing of its successor takes in the next
+        step; a rule that only looks at the geometry gives a symmetric map's mirror-image joins
+        mirror-image directions (the mirror edge of an edge runs the other way), where the order
+        the branches were drawn in need not."""
+        m = self.m
+        u, w = m.pos[vert[a]], m.pos[vert[b]]
+        along, to_centre = w - u, centre - u
+        n = normal[a] + normal[b]
+        side = np.einsum("ij,ij->i", _cross(along, to_centre), n)
+        scale = np.sqrt(np.einsum("ij,ij->i", along, along) * np.einsum("ij,ij->i", to_centre, to_centre)
+                        * np.einsum("ij,ij->i", n, n))
+        swap = side < -1e-9 * scale
+        return np.where(swap, b, a), np.where(swap, a, b)
+
+    def _conflicts(self, tied, pi, pj, vert, corner, heading, normal) -> np.ndarray:
+        """Which of the join pairs ``tied`` (all in one face) conflict with another of them: they
+        share a branch or a vertex pair, or one, made first, would leave the other's two branches in
+        different regions (they cross), as ``_split`` decides it: a join from corner ha to corner hb
+        splits the face's cycle into the part from ha round to hb and the rest, and a branch at ha's
+        or hb's own corner goes by where its heading points (``_in_sweep``)."""
+        m = self.m
+        t = len(tied)
+        if t < 2:   # the others were already joined by an edge
+            return np.zeros(t, dtype=bool)
+        self._spend(pairs=t * t)
+        a, b = pi[tied], pj[tied]
+        ha, hb = corner[a], corner[b]
+        cycle = [int(ha[0])]
+        h = int(m.nxt[cycle[0]])
+        while h != cycle[0]:
+            cycle.append(h)
+            h = int(m.nxt[h])
+        halves = np.array(cycle, dtype=np.int64)
+        order = np.argsort(halves)
+
+        def where(hs):
+            return order[np.searchsorted(halves[order], hs)]
+
+        size = len(halves)
+        start, span = where(ha), (where(hb) - where(ha)) % size
+        cross = np.zeros((t, t), dtype=bool)
+        first_side = None
+        for branch in (a, b):   # the side of the other pair's (column's) branch after the row's join
+            hc = corner[branch]
+            side = (where(hc)[None, :] - start[:, None]) % size >= span[:, None]
+            at_a = hc[None, :] == ha[:, None]
+            shared = at_a | (hc[None, :] == hb[:, None])
+            r, c = np.nonzero(shared)
+            if len(r):
+                here = m.pos[vert[branch[c]]]
+                along = m.pos[m.dest(hc[c])] - here
+                other = m.pos[np.where(at_a[r, c], vert[b[r]], vert[a[r]])] - here
+                inside = _in_sweep(along, other, heading[branch[c]], normal[branch[c]])
+                side[r, c] = inside ^ at_a[r, c]
+            if first_side is None:
+                first_side = side
+            else:
+                cross = first_side != side
+        va, vb = np.minimum(vert[a], vert[b]), np.maximum(vert[a], vert[b])
+        clash = ((a[:, None] == a[None, :]) | (a[:, None] == b[None, :]) | (b[:, None] == a[None, :])
+                 | (b[:, None] == b[None, :]) | ((va[:, None] == va[None, :]) & (vb[:, None] == vb[None, :]))
+                 | cross | cross.T)
+        np.fill_diagonal(clash, False)
+        return clash.any(axis=1)
 
     def _prefilter(self, rows, cols, points, heading, max_dist):
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.

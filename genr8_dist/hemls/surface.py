@@ -314,7 +314,7 @@ def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.n
             cyc = cycles[offsets[chunk][:, None] + pos]
             local = _best_triangulations(vertices[cyc], m)           # (R, size - 2, 3) positions
             used = np.arange(size - 2)[None, :] < (m - 2)[:, None]
-            parts.append(np.take_along_axis(cyc[:, None, :], local, axis=2)[used])
+            parts.append(cyc[np.arange(len(chunk))[:, None, None], local][used])
             owners.append(np.repeat(chunk, m - 2))
     if not parts:
         return np.zeros((0, 3), dtype=np.int64)
@@ -406,10 +406,10 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     choice = np.zeros((R, M * M), dtype=np.int64)
     for span, (lo, hi) in enumerate(spans, start=2):
         total = (best[:, ik[lo:hi]] + best[:, kj[lo:hi]] + cost[:, lo:hi]).reshape(R, M - span, span - 1)
-        pick = np.argmin(total, axis=2)
         at = ij[lo:hi:span - 1]
-        best[:, at] = np.take_along_axis(total, pick[..., None], axis=2)[..., 0]
-        choice[:, at] = np.arange(1, M - span + 1)[None, :] + pick
+        best[:, at] = total.min(axis=2)
+        choice[:, at] = total.argmin(axis=2)
+        choice[:, at] += np.arange(1, M - span + 1)
     choice = choice.reshape(R, M, M)
     # read the triangles back, sub-polygon by sub-polygon, all polygons at once; the middle corners k
     # of a triangulation's triangles (i, k, j) are 1..m-2, each once, so k - 1 is a triangle's place
@@ -419,7 +419,7 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     out = np.zeros((R, max(M - 2, 0), 3), dtype=np.int64)
     while len(rows):
         k = choice[rows, lo_, hi_]
-        out[rows, k - 1] = np.stack([lo_, k, hi_], axis=1)
+        out[rows, k - 1, 0], out[rows, k - 1, 1], out[rows, k - 1, 2] = lo_, k, hi_
         left, right = k - lo_ >= 2, hi_ - k >= 2
         rows = np.concatenate([rows[left], rows[right]])
         lo_, hi_ = np.concatenate([lo_[left], k[right]]), np.concatenate([k[left], hi_[right]])

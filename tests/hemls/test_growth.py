@@ -136,8 +136,11 @@ def test_sync_added_and_removed_still_gives_valid_maps():
         assert result.capped is None
         for surface in result.history:
             assert surface.validate() == []
-    # joining once after all rules: the second pair of branches meets a face already split
-    assert _counts(grow(four_sync, steps=1))[0] == (8, 9, 2)
+    # joining once after all rules: the two pairs of branches tie and cross at the centre, so by
+    # default (branch_ties = "crossing") neither is made; "first" makes one and the other pair then
+    # meets a face already split
+    assert _counts(grow(four_sync, steps=1))[0] == (8, 8, 1)
+    assert _counts(grow(four_sync, Environment(branch_ties="first"), steps=1))[0] == (8, 9, 2)
 
 
 def test_same_seed_same_bytes_and_seed_matters_for_weighted_rules():
@@ -393,12 +396,56 @@ def test_branches_join_when_opposite_within_branch_angle_and_facing_each_other()
         assert grower._pair_ok(pi, pj, points, heading, plane, math.inf).tolist() == expected
 
 
-def test_tied_joins_that_cross_join_neither_with_branch_ties_none():
+def test_tied_joins_that_cross_join_neither_by_default_whatever_the_drawing_order():
     """A regular hexagon whose six edges each send a branch to the opposite edge: the three
-    diameters tie. By default the branch drawn first wins (one diameter, which breaks all but one of
-    the hexagon's mirror lines); with branch_ties = "none" no diameter is drawn."""
+    diameters tie and cross at the centre. By default (branch_ties = "crossing") none is drawn and
+    the hexagon keeps all its mirror lines; "none" does the same; "first" (before issue 14) draws the
+    diameter whose branch was drawn first, which breaks all but one."""
     hexagon = parse("A + A + A + A + A + A\nA -> A [ + + + B ] A\nB -> B\nAngle 30\nBranchAngle 15\n")
-    first = grow(hexagon, Environment(steps=1, scale=1.0)).surface
+    default = grow(hexagon, Environment(steps=1, scale=1.0)).surface
     none = grow(hexagon, Environment(steps=1, scale=1.0, branch_ties="none")).surface
+    first = grow(hexagon, Environment(steps=1, scale=1.0, branch_ties="first")).surface
     assert first.n_regions == 2
-    assert none.n_regions == 1 and none.mirror_line() is not None
+    assert default.n_regions == 1 and default.mirror_line() is not None
+    assert none.n_regions == 1
+
+
+def test_tied_joins_that_do_not_cross_are_all_made_by_default():
+    """A square whose bottom and top edges each send two branches, at a third and two thirds: the
+    two vertical joins tie (mirror images) and do not cross, so the default makes both (3 regions)
+    where "none" makes neither (nor the two tied diagonals left after them: 1 region)."""
+    square = parse("A + B + A + B\nA -> D [ + C ] D [ + C ] D\nB -> B\nD -> D\nC -> C\nAngle 90\n"
+                   "BranchAngle 15\n")
+    default = grow(square, Environment(steps=1, scale=1.0)).surface
+    none = grow(square, Environment(steps=1, scale=1.0, branch_ties="none")).surface
+    assert (default.n_vertices, default.n_edges, default.n_regions) == (8, 10, 3)
+    assert (none.n_vertices, none.n_edges, none.n_regions) == (8, 8, 1)
+    v = default.vertices
+    vertical = [e for e in default.edges if abs(v[e[0], 1] - v[e[1], 1]) > 0.5 and abs(v[e[0], 0]) < 0.4]
+    assert np.allclose(sorted(v[e, 0].mean() for e in vertical), [-1 / 6, 1 / 6])
+
+
+def test_mirror_image_joins_run_mirror_image_ways():
+    """Two vertical joins, mirror images about the square's vertical midline, then drawn with a kink
+    ('C + C'): the kinks go to mirror-image sides only if the two join edges run opposite ways. By
+    default a join edge runs with the map's centre on its left, so the surface keeps the midline as a
+    mirror line (the bumps on the top edge remove the other); with "first" both edges run from the
+    branch drawn first and the kinks point the same way."""
+    system = parse("A + B + G + B\nA -> D [ + C ] D [ + C ] D\nG -> H [ + C ] H [ + C ] H\nB -> B\nD -> D\n"
+                   "H -> H - H + H + H - H\nC -> C + C\nAngle 90\nBranchAngle 15\n")
+    default = grow(system, Environment(steps=2, scale=1.0)).surface
+    first = grow(system, Environment(steps=2, scale=1.0, branch_ties="first")).surface
+    assert default.n_regions == first.n_regions == 3
+    line = default.mirror_line()
+    assert line is not None and abs(line[0]) < 1e-9   # the vertical midline
+    assert first.mirror_line() is None
+
+
+def test_tied_joins_between_vertices_already_joined_are_dropped_before_they_are_weighed():
+    """Found by the property test: every tied pair of a region but one joins two vertices that an
+    edge already joins; the one left has no tie to settle."""
+    system = parse("~ Edge0 + ~ Edge1 + Edge0 + Edge0\nEdge0_i -> Edge1 + Edge0\n"
+                   "Edge1_i -> [ [ + Edge0 ] - Edge0 ] [ [ + Edge0 ] - Edge0 ] Edge0\n"
+                   "Angle 30\nBranchAngle 90\n")
+    result = grow(system, Environment(steps=1))
+    assert result.capped is None and result.surface.validate() == []

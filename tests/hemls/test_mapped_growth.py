@@ -34,7 +34,7 @@ def test_mapped_rewrite_systems_grow_valid_maps(universe, genome, steps, seed):
     system = parse(mapped.text, source=f"<{universe}>")
     assert parse(system.to_text()) == system
     result = grow(system, CAPS, steps=steps, seed=seed, keep_steps=True)
-    assert result.capped in (None, "edges", "time")
+    assert result.capped in (None, "edges", "work", "time")
     if result.capped is None:
         assert len(result.steps) == steps
     assert result.surface.n_edges <= CAPS.max_edges
