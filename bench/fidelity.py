@@ -1,6 +1,6 @@
 """Fidelity figures (issue 14): what the thesis's figures show, measured on the code as it is.
 
-    python bench/fidelity.py              # all three figures
+    python bench/fidelity.py              # all four figures
     python bench/fidelity.py --only drape # penetrations and regions kept
     python bench/fidelity.py --genomes 100
     python bench/fidelity.py --pictures docs   # docs/boundary_behaviours.png
@@ -16,6 +16,10 @@
    ties between joins settled whatever the drawing order (``branch_ties = "crossing"``, the default)
    and, for ``symmetric``, with the rule before (``"first"``: the tie to the branch drawn first) and
    with ``"none"``; ``regions`` is the mean number of regions of the grown surfaces.
+
+4. ties across universes (``--only ties``): 100 random genomes of every built-in surface universe
+   grown 4 steps in the empty environment with the default ``branch_ties = "crossing"`` and with
+   ``"first"`` (the rule before): how many grown surfaces differ, and their mean regions.
 
 ``--pictures DIR`` draws four_sided_tiles in examples/environments/box_corner*.toml (slide, cut-off,
 reflect: thesis Figs 2-13 and 2-14) side by side into DIR/boundary_behaviours.png.
@@ -92,6 +96,35 @@ def symmetric_share(n_genomes: int) -> None:
               f"{regions / max(grown, 1):>7.1f} {time.perf_counter() - t0:>6.1f}")
 
 
+def ties_effect(n_genomes: int = 100) -> None:
+    from genr8_dist.phenotype import SURFACES, phenotype_of
+
+    print(f"\nties across universes: {n_genomes} random genomes each, grown 4 steps, empty environment")
+    print(f"{'universe':>18} {'grown':>6} {'differ':>6} {'regions first':>14} {'regions crossing':>17}")
+    for info in list_universes():
+        universe = load_universe(info.name)
+        if phenotype_of(universe) is not SURFACES:
+            continue
+        rng = stream(0, "bench", "ties", info.name)
+        grown = differ = first_regions = crossing_regions = 0
+        for _ in range(n_genomes):
+            result = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
+            if not result.valid:
+                continue
+            system = parse(result.text)
+            first, crossing = (grow(system, Environment(max_edges=20_000, max_seconds=10.0, branch_ties=ties))
+                               for ties in ("first", "crossing"))
+            if first.capped or crossing.capped:
+                continue
+            grown += 1
+            differ += (first.surface.vertices.tobytes() != crossing.surface.vertices.tobytes()
+                       or first.surface.edges.tobytes() != crossing.surface.edges.tobytes())
+            first_regions += first.surface.n_regions
+            crossing_regions += crossing.surface.n_regions
+        print(f"{info.name:>18} {grown:>6} {differ:>6} {first_regions / max(grown, 1):>14.1f} "
+              f"{crossing_regions / max(grown, 1):>17.1f}")
+
+
 BOXES = (("slide", "box_corner.toml"), ("cut-off", "box_corner_cutoff.toml"),
          ("reflect", "box_corner_reflect.toml"))
 
@@ -122,7 +155,7 @@ def pictures(folder: Path) -> Path:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", choices=("drape", "symmetric"), help="one part only")
+    parser.add_argument("--only", choices=("drape", "symmetric", "ties"), help="one part only")
     parser.add_argument("--genomes", type=int, default=500, help="random genomes per symmetric universe")
     parser.add_argument("--pictures", type=Path, metavar="DIR", help="only draw the boundary behaviours")
     args = parser.parse_args()
@@ -134,6 +167,8 @@ def main() -> None:
         regions_kept()
     if args.only in (None, "symmetric"):
         symmetric_share(args.genomes)
+    if args.only in (None, "ties"):
+        ties_effect()
 
 
 if __name__ == "__main__":

@@ -15,7 +15,9 @@ Three parts, each a table:
 - genomes: ``--genomes`` random genomes of every universe (100 codons, default mapping, the default
   environment at ``--steps`` derivation steps), each mapped, parsed, grown and scored on its own (no
   cache): the median, 99th percentile and maximum CPU seconds per individual, how many growth caps
-  cut short, and individuals per core-second.
+  cut short, individuals per core-second, and the 99th percentile and maximum of the two parts of
+  that cost: map + parse + grow, and scoring (the criteria, with the triangulation ``slivers``
+  measures), so a tail says where it comes from.
 - startup: ``genr8 run examples/quick.toml`` in a subprocess: seconds to its first line, to the first
   generation's progress line (``gen 0/...``) and to its end; and ``ray.init`` of a local Ray alone
   (what Ray itself needs: subtract it to get the time that is this program's own).
@@ -89,24 +91,27 @@ def islands(steps: list[int]) -> None:
 
 # -- random genomes ----------------------------------------------------------------------------------
 
-def _one(universe, genome, config) -> tuple[float, str | None, bool]:
-    """CPU seconds to map, parse, grow and score ``genome``; the cap that cut growth short; valid."""
+def _one(universe, genome, config) -> tuple[float, float, str | None, bool]:
+    """CPU seconds to map, parse, grow and score ``genome`` and of those to score it (the criteria,
+    the triangulation ``slivers`` asks for included); the cap that cut growth short; valid."""
     from genr8_dist.fitness import score_surface
     from genr8_dist.hemls import grow, parse
 
     t0 = time.thread_time()
     mapped = universe.map(list(genome), max_depth=config.genome.max_depth,
                           max_wraps=config.genome.max_wraps)
-    capped, valid = None, False
+    capped, valid, scoring = None, False, 0.0
     if mapped.valid:
         try:
             result = grow(parse(mapped.text), config.environment)
             capped = result.capped
+            t1 = time.thread_time()
             score_surface(result.surface, config.environment)
+            scoring = time.thread_time() - t1
             valid = not capped
         except Exception:  # failure is data, as in evaluation
             pass
-    return time.thread_time() - t0, capped, valid
+    return time.thread_time() - t0, scoring, capped, valid
 
 
 def _grows_surfaces(name: str) -> bool:
@@ -130,21 +135,26 @@ def genomes(n: int, steps: int, universes: list[str] | None) -> None:
     print(f"\ngenomes: {n} random genomes per universe (100 codons), {steps} derivation steps, each "
           "evaluated on its own; CPU seconds per individual")
     print(f"{'universe':<14} {'n':>5} {'valid':>6} {'capped':>6} {'median s':>9} {'p99 s':>8} "
-          f"{'max s':>8} {'p99/med':>8} {'ind/core-s':>11}")
+          f"{'max s':>8} {'p99/med':>8} {'ind/core-s':>11} {'grow p99':>9} {'grow max':>9} "
+          f"{'score p99':>9} {'score max':>9}")
     for name in names:
         config = RunConfig(universe=name, environment={"steps": steps})
         universe = load_universe(name)
         rng = stream(0, "bench", "throughput", name)
-        costs, caps, valid = [], 0, 0
+        costs, growing, scoring, caps, valid = [], [], [], 0, 0
         _one(universe, random_genome(rng, 100, 255), config)   # warm imports and compiled tables
         for _ in range(n):
-            seconds, capped, ok = _one(universe, random_genome(rng, 100, 255), config)
+            seconds, scored, capped, ok = _one(universe, random_genome(rng, 100, 255), config)
             costs.append(seconds)
+            growing.append(seconds - scored)
+            scoring.append(scored)
             caps += bool(capped)
             valid += ok
         med, p99 = statistics.median(costs), _percentile(costs, 0.99)
         print(f"{name:<14} {n:>5} {valid / n:>6.0%} {caps:>6} {med:>9.4f} {p99:>8.3f} {max(costs):>8.3f} "
-              f"{p99 / med if med > 0 else float('inf'):>8.1f} {n / sum(costs):>11.1f}")
+              f"{p99 / med if med > 0 else float('inf'):>8.1f} {n / sum(costs):>11.1f} "
+              f"{_percentile(growing, 0.99):>9.3f} {max(growing):>9.3f} "
+              f"{_percentile(scoring, 0.99):>9.3f} {max(scoring):>9.3f}")
         sys.stdout.flush()
 
 

@@ -68,6 +68,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
+    p.add_argument("--distinct", action="store_true",
+                   help="one row per form (copies, elites and mirror images of one design are one form), "
+                        "with how many individuals share it")
     p.add_argument("--pareto", action="store_true",
                    help="list the non-dominated designs over the Pareto objectives instead")
     p.set_defaults(handler=_top)
@@ -191,8 +194,10 @@ def _top(args: argparse.Namespace) -> int:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
-                        criterion=args.criterion, systems=args.systems)
+                        criterion=args.criterion, systems=args.systems, distinct=args.distinct)
     columns = ["rank", *_text.shown_columns(table.column_names)]
+    if args.distinct:
+        columns.append("copies")
     if args.criterion:
         columns.insert(columns.index("fitness") + 1, "deviation")
     headings = {name: _text.heading(name) for name in columns}

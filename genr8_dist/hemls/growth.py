@@ -98,6 +98,12 @@ class _CompiledRule:
     templates: tuple[Template, ...]
     cumulative: np.ndarray  # cumulative normalized weights
 
+    @property
+    def unconditional(self) -> bool:
+        """Whether the rule applies to every edge with its predecessor's label (no context, chain
+        or condition)."""
+        return self.left is None and self.right is None and not self.chain and self.condition is None
+
 
 @dataclass(frozen=True)
 class _Compiled:
@@ -171,6 +177,9 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
+_XYZ = np.arange(3)
+
+
 class _Map:
     """Growable half-edge arrays; see the module docstring."""
 
@@ -242,7 +251,7 @@ class _Map:
         return self.ev[h >> 1, 1 - (h & 1)]
 
     def alive_halves(self) -> np.ndarray:
-        e = np.flatnonzero(self.alive[:self.ne])
+        e = self.alive[:self.ne].nonzero()[0]
         return np.concatenate([2 * e, 2 * e + 1])
 
     def _relink_prev(self) -> None:
@@ -254,12 +263,13 @@ class _Map:
 
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
-        h = self.alive_halves()
-        f = self.face[h]
-        cr = _cross(self.pos[self.origin(h)], self.pos[self.dest(h)])
-        out = np.zeros((self.nf, 3))
-        for axis in range(3):
-            out[:, axis] = 0.5 * np.bincount(f, weights=cr[:, axis], minlength=self.nf)
+        e = self.alive[:self.ne].nonzero()[0]
+        ends = self.ev[e]
+        c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
+        cr = np.concatenate([c, -c])  # half-edges 2e (start to end), then 2e + 1 (end to start)
+        f = np.concatenate([self.face[2 * e], self.face[2 * e + 1]])
+        key = (3 * f)[:, None] + _XYZ  # one bincount for the three axes: the same sums, in order
+        out = 0.5 * np.bincount(key.ravel(), weights=cr.ravel(), minlength=3 * self.nf).reshape(-1, 3)
         out[0] = 0.0
         return out
 
@@ -276,7 +286,7 @@ class _Map:
     def compact(self) -> None:
         """Drop dead edges and renumber, keeping the order of the living ones."""
         alive = self.alive[:self.ne]
-        keep = np.flatnonzero(alive)
+        keep = alive.nonzero()[0]
         if len(keep) == self.ne:
             return
         new_of = np.full(self.ne, -1, dtype=np.int64)
@@ -323,7 +333,7 @@ class _Map:
             active = i < lengths
             order[base[active] + i] = cur[active]
             cur[active] = nxt[cur[active]]
-        long_faces = np.flatnonzero(~short)
+        long_faces = (~short).nonzero()[0]
         if len(long_faces):  # a few long cycles: a plain walk beats thousands of array passes
             links = nxt.tolist()
             for f in long_faces:
@@ -397,11 +407,13 @@ class _Branches:
         # branches [0, checked) have met each other in a join already: positions and headings do
         # not change within a step and faces only split, so such pairs never need testing again
         self.checked = 0
+        self.size = 0
 
     def add(self, vertex, corner, label, age, heading, reversed_, normal) -> None:
         if len(vertex):
             self._flush_cat()
             self.parts.append((vertex, corner, label, age, heading, reversed_, normal))
+            self.size += len(vertex)
 
     def _flush_cat(self) -> None:
         if self._cat is not None:
@@ -422,9 +434,11 @@ class _Branches:
     def keep(self, mask: np.ndarray) -> None:
         """Keep the branches where ``mask`` holds; all of them count as checked from now on."""
         self._cat = tuple(a[mask] for a in self.arrays())
-        self.checked = len(self._cat[0])
+        self.checked = self.size = len(self._cat[0])
 
     def remap_corners(self, repl: np.ndarray) -> None:
+        if not self.size:
+            return
         arrs = list(self.arrays())
         c = arrs[1]
         ok = c >= 0
@@ -434,7 +448,7 @@ class _Branches:
         self._cat = tuple(arrs)
 
     def __len__(self) -> int:
-        return len(self.arrays()[0])
+        return self.size
 
 
 def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
@@ -443,23 +457,28 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
     Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge
     (so it agrees with the map's orientation, and tiny regions count little); where that sum is
     negligible or along the edge, the normal the edge was drawn with."""
-    s, t = m.ev[idx, 0], m.ev[idx, 1]
+    ends = m.ev[idx]
+    s, t = ends[:, 0], ends[:, 1]
     p, q = m.pos[s], m.pos[t]
     d = q - p
     length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    safe = np.where(length > 1e-300, length, 1.0)
+    long = length > 1e-300
+    safe = np.where(long, length, 1.0)
     h = d / safe[:, None]
-    h[length <= 1e-300] = (1.0, 0.0, 0.0)
-    n = areas[m.face[2 * idx]] + areas[m.face[2 * idx + 1]]
+    if not long.all():
+        h[length <= 1e-300] = (1.0, 0.0, 0.0)
+    half = 2 * idx
+    n = areas[m.face[half]] + areas[m.face[half + 1]]
     size = np.sqrt(np.einsum("ij,ij->i", n, n))
     weak = size <= 1e-9 * safe * safe
     n = n / np.where(weak, 1.0, size)[:, None]
-    n[weak] = m.up[idx[weak]]
+    if weak.any():
+        n[weak] = m.up[idx[weak]]
     for fallback in (None, (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)):
         u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
         un = np.sqrt(np.einsum("ij,ij->i", u, u))
         bad = un < 1e-6
-        if not np.any(bad):
+        if not bad.any():
             break
         n = n.copy()
         n[bad] = m.up[idx[bad]] if fallback is None else fallback
@@ -554,7 +573,7 @@ class _Grower:
         m = self.m
         width = self.c.max_label + 1
         if self._keys is None:  # (vertex, label) of every edge end, sorted; valid for one group
-            live = np.flatnonzero(m.alive[:m.ne])
+            live = m.alive[:m.ne].nonzero()[0]
             keys = np.concatenate([m.ev[live, 0], m.ev[live, 1]]) * width + np.tile(m.label[live], 2)
             keys.sort()
             self._keys = keys
@@ -568,7 +587,7 @@ class _Grower:
     def _chain_ok(self, idx: np.ndarray, chain: tuple[int, ...]) -> np.ndarray:
         """Whether a path of edges labelled ``chain`` continues from the end vertex of each edge."""
         m = self.m
-        live = np.flatnonzero(m.alive[:m.ne])
+        live = m.alive[:m.ne].nonzero()[0]
         ends = m.ev[live]
         labels = m.label[live]
         rest = np.ones(m.nv, dtype=bool)  # where the remainder of the chain can start
@@ -586,38 +605,42 @@ class _Grower:
 
     def _rewrite_group(self, group: _Group, pending: _Branches) -> None:
         m = self.m
-        idx = np.flatnonzero(m.alive[:m.ne] & (m.label[:m.ne] == group.label))
+        idx = (m.alive[:m.ne] & (m.label[:m.ne] == group.label)).nonzero()[0]
         if not len(idx):
             return
-        choice = np.full(len(idx), -1, dtype=np.int64)
         self._keys = None
-        for r, rule in enumerate(group.rules):
-            free = choice < 0
-            if not np.any(free):
-                break
-            ok = free.copy()
-            if rule.condition is not None:
-                ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
-            if rule.left is not None:
-                ok[ok] = self._context_ok(idx[ok], 0, rule.left)
-            if rule.right is not None:
-                ok[ok] = self._context_ok(idx[ok], 1, rule.right)
-            if rule.chain:
-                ok[ok] = self._chain_ok(idx[ok], rule.chain)
-            choice[ok] = r
+        rules = group.rules
+        if len(rules) == 1 and rules[0].unconditional:
+            chosen = [(rules[0], idx)]   # every edge with the label takes the one rule
+        else:
+            choice = np.full(len(idx), -1, dtype=np.int64)
+            for r, rule in enumerate(rules):
+                free = choice < 0
+                if not free.any():
+                    break
+                ok = free.copy()
+                if rule.condition is not None:
+                    ok &= rule.condition.holds(m.age[idx])  # type: ignore[attr-defined]
+                if rule.left is not None:
+                    ok[ok] = self._context_ok(idx[ok], 0, rule.left)
+                if rule.right is not None:
+                    ok[ok] = self._context_ok(idx[ok], 1, rule.right)
+                if rule.chain:
+                    ok[ok] = self._chain_ok(idx[ok], rule.chain)
+                choice[ok] = r
+            chosen = [(rule, idx[choice == r]) for r, rule in enumerate(rules)]
         batches: list[tuple[np.ndarray, Template]] = []
         grow_edges = 0
-        for r, rule in enumerate(group.rules):
-            sel = idx[choice == r]
+        for rule, sel in chosen:
             if not len(sel):
                 continue
             if len(rule.templates) == 1:
-                which = np.zeros(len(sel), dtype=np.int64)
+                parts = [(sel, rule.templates[0])]
             else:
                 which = np.searchsorted(rule.cumulative, self.rng.random(len(sel)), side="right")
                 which = np.minimum(which, len(rule.templates) - 1)
-            for j, tpl in enumerate(rule.templates):
-                part = sel[which == j]
+                parts = [(sel[which == j], tpl) for j, tpl in enumerate(rule.templates)]
+            for part, tpl in parts:
                 if len(part):
                     batches.append((part, tpl))
                     grow_edges += len(part) * (tpl.n_segments - 1)
@@ -630,12 +653,14 @@ class _Grower:
         for part, tpl in batches:
             self._rewrite(part, tpl, areas, pending)
 
-    def _noisy(self, labels: np.ndarray) -> np.ndarray:
+    def _noisy(self, row: np.ndarray, n: int) -> np.ndarray:
+        """``row`` repeated ``n`` times, flat; with label noise, each label replaced by one the system
+        uses with probability ``label_noise``."""
+        out = _repeat_row(row, n)
         p = self.env.label_noise
-        if p <= 0 or not len(labels):
-            return labels
-        hit = self.rng.random(len(labels)) < p
-        out = labels.copy()
+        if p <= 0 or not len(out):
+            return out
+        hit = self.rng.random(len(out)) < p
         out[hit] = self.rng.choice(self.c.labels, size=int(hit.sum()))
         return out
 
@@ -643,37 +668,39 @@ class _Grower:
         m = self.m
         n, k = len(idx), tpl.n_segments
         s, t, p, length, h, left, up = _frames(m, idx, areas)
-        pts = tpl.points
+        pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
         world = (p[:, None, :] + length[:, None, None]
                  * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
                     + pts[None, :, 2, None] * up[:, None, :]))
         nv0, ne0 = m.nv, m.ne
-        m.reserve(nv0 + n * (k - 1), ne0 + n * k)
-        new_v = nv0 + np.arange(n * (k - 1), dtype=np.int64).reshape(n, k - 1)
-        m.pos[nv0:nv0 + n * (k - 1)] = world[:, 1:k, :].reshape(-1, 3)
-        m.mass[nv0:nv0 + n * (k - 1)] = self.env.vertex_mass
-        m.stopped[nv0:nv0 + n * (k - 1)] = False
+        nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
+        m.reserve(nv1, ne1)
+        new_v = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
+        m.pos[nv0:nv1] = world.reshape(-1, 3)
+        m.mass[nv0:nv1] = self.env.vertex_mass
+        m.stopped[nv0:nv1] = False
         # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
         # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
-        frozen = np.flatnonzero(np.repeat(m.stopped[s] & m.stopped[t], k - 1))
-        if len(frozen):
-            self._stop_later.append(nv0 + frozen)
-        m.nv = nv0 + n * (k - 1)
+        both = m.stopped[s] & m.stopped[t]
+        if both.any():
+            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+        m.nv = nv1
         chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
-        new_e = ne0 + np.arange(n * k, dtype=np.int64).reshape(n, k)
+        new_e = np.arange(ne0, ne1, dtype=np.int64).reshape(n, k)
         rev = tpl.main_reversed
         a, b = chain[:, :k], chain[:, 1:]
-        m.ev[new_e, 0] = np.where(rev, b, a)
-        m.ev[new_e, 1] = np.where(rev, a, b)
-        m.label[new_e] = self._noisy(np.broadcast_to(tpl.main_labels, (n, k)).ravel()).reshape(n, k)
+        ev = m.ev[ne0:ne1]
+        ev[:, 0] = np.where(rev, b, a).ravel()
+        ev[:, 1] = np.where(rev, a, b).ravel()
+        m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
         old_age = m.age[idx]
         ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
-        m.age[new_e] = np.maximum(ages, 0)
-        m.alive[new_e] = True
-        m.up[new_e] = up[:, None, :]
-        m.ne = ne0 + n * k
+        m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        m.alive[ne0:ne1] = True
+        m.up[ne0:ne1] = np.repeat(up, k, axis=0)
+        m.ne = ne1
         # half-edges along the main line (start to end) and back
-        fwd = 2 * new_e + rev.astype(np.int64)
+        fwd = 2 * new_e + rev
         bwd = fwd ^ 1
         ho, ht = 2 * idx, 2 * idx + 1
         next_ho, next_ht = m.nxt[ho].copy(), m.nxt[ht].copy()
@@ -714,11 +741,11 @@ class _Grower:
                 start_half = fwd[:, 0] if j[br] == 0 else bwd[:, k - 1]
                 for r in range(n):
                     corner[r, br] = self._corner_at(int(start_half[r]), heading[r, br], up[r])
-        blabels = self._noisy(np.broadcast_to(tpl.branch_labels, (n, nb)).ravel())
+        blabels = self._noisy(tpl.branch_labels, n).ravel()
         bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
                                     tpl.branch_ages), 0).ravel()
         pending.add(bvert.ravel(), corner.ravel(), blabels, bages, heading.reshape(-1, 3),
-                    np.broadcast_to(tpl.branch_reversed, (n, nb)).ravel().copy(),
+                    _repeat_row(tpl.branch_reversed, n),
                     np.repeat(up, nb, axis=0))
 
     def _corner_at(self, h0: int, heading: np.ndarray, normal: np.ndarray) -> int:
@@ -756,9 +783,9 @@ class _Grower:
         ok = corner >= 0
         face = np.where(ok, m.face[np.maximum(corner, 0)], 0)
         ok &= face != 0
-        cand = np.flatnonzero(ok)
+        cand = ok.nonzero()[0]
         old = pending.checked
-        if len(cand) < 2 or not np.any(cand >= old):
+        if len(cand) < 2 or not (cand >= old).any():
             pending.checked = n
             return
         key = face[cand] * (self.c.max_label + 1) + label[cand]
@@ -767,24 +794,25 @@ class _Grower:
         key = key[order]
         first = np.ones(len(cand), dtype=bool)
         first[1:] = key[1:] != key[:-1]
-        starts = np.flatnonzero(first)
+        starts = first.nonzero()[0]
         sizes = np.diff(np.append(starts, len(cand)))
         points = m.pos[vert]
         pi_all, pj_all = [], []
         small = (sizes >= 2) & (sizes <= 48)
-        for size in np.unique(sizes[small]):
-            size = int(size)
+        aims: list[tuple[np.ndarray, ...]] = []
+        for size in np.unique(sizes[small]).tolist():
             gs = starts[small & (sizes == size)]
-            ti, tj = np.triu_indices(size, 1)
+            ti, tj = _triu(size)
             pi = cand[(gs[:, None] + ti).ravel()]
             pj = cand[(gs[:, None] + tj).ravel()]
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
             self._spend(pairs=len(pi))
-            keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
+            keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
             pi_all.append(pi[keep])
             pj_all.append(pj[keep])
-        for g in np.flatnonzero(sizes > 48):
+            aims.append(tuple(a[keep] for a in aim))
+        for g in (sizes > 48).nonzero()[0]:
             members = cand[starts[g]:starts[g] + sizes[g]]
             new = members[members >= old]
             if not len(new):
@@ -796,15 +824,20 @@ class _Grower:
                 self._spend(pairs=len(block) * len(new))
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
                 pi, pj = block[ri], new[cj]
-                keep = self._pair_ok(pi, pj, points, heading, normal, max_dist)
+                keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
                 pi_all.append(pi[keep])
                 pj_all.append(pj[keep])
-        pi = np.concatenate(pi_all) if pi_all else np.zeros(0, dtype=np.int64)
-        pj = np.concatenate(pj_all) if pj_all else np.zeros(0, dtype=np.int64)
+                aims.append(tuple(a[keep] for a in aim))
+        if len(pi_all) == 1:
+            (pi,), (pj,), ((ci, cj, dist),) = pi_all, pj_all, aims
+        elif pi_all:
+            pi, pj = np.concatenate(pi_all), np.concatenate(pj_all)
+            ci, cj, dist = (np.concatenate(col) for col in zip(*aims, strict=True))
+        else:
+            pi = np.zeros(0, dtype=np.int64)
         if not len(pi):
             pending.checked = n
             return
-        ci, cj, dist, _ = self._aim(pi, pj, points, heading, normal)
         score = -np.round(ci + cj, 9)
         order = np.lexsort((pj, pi, np.round(dist, 9), score))
         pi, pj = pi[order], pj[order]
@@ -819,7 +852,7 @@ class _Grower:
             fi = m.face[corner[pi]]
             fj = m.face[corner[pj]]
             live &= ~used[pi] & ~used[pj] & (fi == fj) & (fi != 0)
-            at = np.flatnonzero(live)
+            at = live.nonzero()[0]
             if not len(at):
                 break
             if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
@@ -998,15 +1031,17 @@ class _Grower:
         d = points[pj] - points[pi]
         dist = np.sqrt(np.einsum("ij,ij->i", d, d))
         n = normal[pi] + normal[pj]
-        n /= np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), 1e-300)[:, None]
-
-        def flat(v):
-            v = v - np.einsum("ij,ij->i", v, n)[:, None] * n
-            return v / np.maximum(np.sqrt(np.einsum("ij,ij->i", v, v)), 1e-300)[:, None]
-
-        u, hi, hj = flat(d), flat(heading[pi]), flat(heading[pj])
-        return (np.einsum("ij,ij->i", hi, u), -np.einsum("ij,ij->i", hj, u), dist,
-                -np.einsum("ij,ij->i", hi, hj))
+        size = np.sqrt(np.einsum("ij,ij->i", n, n))
+        # opposite normals (a fold) leave no plane: compare in space, not in the plane of the
+        # rounding error's direction
+        n = np.where((size > 1e-6)[:, None], n / np.maximum(size, 1e-300)[:, None], 0.0)
+        # d and both headings projected on the plane and normalised, the three in one pass each
+        v = np.stack([d, heading[pi], heading[pj]])
+        v = v - np.einsum("kij,ij->ki", v, n)[:, :, None] * n
+        v = v / np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
+        u, hi, hj = v
+        toward = np.einsum("kij,ij->ki", v[1:], u)
+        return toward[0], -toward[1], dist, -np.einsum("ij,ij->i", hi, hj)
 
     def _pair_ok(self, pi, pj, points, heading, normal, max_dist) -> np.ndarray:
         """Branch pairs whose orientations fit (``Environment.branch_join``) within the distance limit.
@@ -1016,26 +1051,104 @@ class _Grower:
         (each heading has a positive component towards the other vertex). ``cone``: each heading
         points at the other vertex within BranchAngle. Both are judged in the surface's tangent
         plane (``_aim``)."""
+        return self._pair_aim(pi, pj, points, heading, normal, max_dist)[0]
+
+    def _pair_aim(self, pi, pj, points, heading, normal, max_dist):
+        """``_pair_ok`` and the (ci, cj, dist) of ``_aim`` it judged by (joining ranks the pairs
+        that pass by them)."""
         cos_cone = self.c.cos_cone - 1e-9
         ci, cj, dist, opposite = self._aim(pi, pj, points, heading, normal)
         ok = (dist > 1e-12) & (dist <= max_dist)
         if self.cone:
-            return ok & (ci >= cos_cone) & (cj >= cos_cone)
-        return ok & (opposite >= cos_cone) & (ci > 1e-9) & (cj > 1e-9)
+            ok &= (ci >= cos_cone) & (cj >= cos_cone)
+        else:
+            ok &= (opposite >= cos_cone) & (ci > 1e-9) & (cj > 1e-9)
+        return ok, (ci, cj, dist)
 
     def _adjacent(self, start_halves: np.ndarray, targets: np.ndarray) -> np.ndarray:
         """For each half-edge leaving u, whether u already has an edge to the matching target."""
         m = self.m
+        if len(start_halves) <= _FEW_JOINS:   # a few: walk round each vertex in Python
+            step, end = m.prv.item, m.ev.item
+            out = []
+            for h0, target in zip(start_halves.tolist(), targets.tolist(), strict=True):
+                h, hit = h0, False
+                while not hit:
+                    hit = end(h >> 1, 1 - (h & 1)) == target
+                    h = step(h) ^ 1
+                    if h == h0:
+                        break
+                out.append(hit)
+            return np.array(out, dtype=bool)
         found = np.zeros(len(start_halves), dtype=bool)
         cur = start_halves.copy()
         active = np.ones(len(cur), dtype=bool)
-        while np.any(active):
+        while active.any():
             c = cur[active]
             found[active] |= m.dest(c) == targets[active]
             nxt = m.prv[c] ^ 1
             cur[active] = nxt
             active[active] = nxt != start_halves[active]
         return found
+
+    def _new_faces_one_by_one(self, x: np.ndarray, y: np.ndarray, new_face: np.ndarray) -> None:
+        """Of the two cycles through each new edge's halves x and y, the shorter (x's on a tie)
+        becomes ``new_face``: walked pair by pair (a few joins: cheaper than array passes)."""
+        m = self.m
+        step = m.nxt.item
+        for xr, yr, face in zip(x.tolist(), y.tolist(), new_face.tolist(), strict=True):
+            px, py = step(xr), step(yr)
+            while px != xr and py != yr:
+                px, py = step(px), step(py)
+            h0 = xr if px == xr else yr
+            walk = [h0]
+            h = step(h0)
+            while h != h0:
+                walk.append(h)
+                h = step(h)
+            m.face[walk] = face
+
+    def _new_faces_lockstep(self, x: np.ndarray, y: np.ndarray, new_face: np.ndarray) -> None:
+        """``_new_faces_one_by_one`` for many joins: every pair's cycles walked in lockstep."""
+        m = self.m
+        j = len(x)
+        # walk both new cycles in lockstep; the shorter one becomes the new face
+        cx, cy = m.nxt[x], m.nxt[y]
+        open_ = np.ones(j, dtype=bool)
+        shorter_is_x = np.zeros(j, dtype=bool)
+        for _ in range(32):
+            done_x = open_ & (cx == x)
+            done_y = open_ & (cy == y) & ~done_x
+            shorter_is_x |= done_x
+            open_ &= ~(done_x | done_y)
+            if not open_.any():
+                break
+            cx = np.where(open_, m.nxt[cx], cx)
+            cy = np.where(open_, m.nxt[cy], cy)
+        step = m.nxt.item  # scalar reads: cheaper than converting the whole array for a few walks
+        for r in open_.nonzero()[0]:  # long cycles on both sides: walk them one by one
+            xr, yr, px, py = int(x[r]), int(y[r]), int(cx[r]), int(cy[r])
+            while px != xr and py != yr:
+                px, py = step(px), step(py)
+            shorter_is_x[r] = px == xr
+        start = np.where(shorter_is_x, x, y)
+        short = ~open_
+        cur = start.copy()
+        active = short.copy()
+        while active.any():
+            m.face[cur[active]] = new_face[active]
+            cur[active] = m.nxt[cur[active]]
+            active &= cur != start
+        for r in open_.nonzero()[0]:
+            h0 = int(start[r])
+            h = h0
+            walk = []
+            while True:
+                walk.append(h)
+                h = step(h)
+                if h == h0:
+                    break
+            m.face[walk] = new_face[r]
 
     def _split(self, a, b, vert, corner, label, age, rev, used, heading, normal) -> None:
         """Join branch pairs (a, b): a new edge between their vertices splits each one's face; the
@@ -1067,53 +1180,20 @@ class _Grower:
         m.prv[y] = pb
         m.nxt[y] = ha
         m.prv[ha] = y
-        # walk both new cycles in lockstep; the shorter one becomes the new face
-        cx, cy = m.nxt[x], m.nxt[y]
-        open_ = np.ones(j, dtype=bool)
-        shorter_is_x = np.zeros(j, dtype=bool)
-        for _ in range(32):
-            done_x = open_ & (cx == x)
-            done_y = open_ & (cy == y) & ~done_x
-            shorter_is_x |= done_x
-            open_ &= ~(done_x | done_y)
-            if not np.any(open_):
-                break
-            cx = np.where(open_, m.nxt[cx], cx)
-            cy = np.where(open_, m.nxt[cy], cy)
         new_face = m.nf + np.arange(j, dtype=np.int64)
         m.nf += j
         m.face[x] = f
         m.face[y] = f
-        step = m.nxt.item  # scalar reads: cheaper than converting the whole array for a few walks
-        for r in np.flatnonzero(open_):  # long cycles on both sides: walk them one by one
-            xr, yr, px, py = int(x[r]), int(y[r]), int(cx[r]), int(cy[r])
-            while px != xr and py != yr:
-                px, py = step(px), step(py)
-            shorter_is_x[r] = px == xr
-        start = np.where(shorter_is_x, x, y)
-        short = ~open_
-        cur = start.copy()
-        active = short.copy()
-        while np.any(active):
-            m.face[cur[active]] = new_face[active]
-            cur[active] = m.nxt[cur[active]]
-            active &= cur != start
-        for r in np.flatnonzero(open_):
-            h0 = int(start[r])
-            h = h0
-            walk = []
-            while True:
-                walk.append(h)
-                h = step(h)
-                if h == h0:
-                    break
-            m.face[walk] = new_face[r]
+        if j <= _FEW_JOINS:
+            self._new_faces_one_by_one(x, y, new_face)
+        else:
+            self._new_faces_lockstep(x, y, new_face)
         # pending branches whose corner was split: keep ha (sector from ha's direction round to the
         # new edge) or move to the new edge's half leaving the same vertex
         split_corners = np.concatenate([ha, hb])
         order = np.argsort(split_corners)
         sorted_corners = split_corners[order]
-        waiting = np.flatnonzero(~used & (corner >= 0))
+        waiting = (~used & (corner >= 0)).nonzero()[0]
         at = np.minimum(np.searchsorted(sorted_corners, corner[waiting]), len(sorted_corners) - 1)
         found = sorted_corners[at] == corner[waiting]
         hit = waiting[found]
@@ -1128,6 +1208,26 @@ class _Grower:
         along = m.pos[m.dest(old)] - here
         inside = _in_sweep(along, other - here, heading[hit], normal[hit])
         corner[hit] = np.where(inside, old, np.where(at_a, x[pair], y[pair]))
+
+
+#: Joins in one round up to which the new faces' cycles are walked one by one in Python.
+_FEW_JOINS = 16
+
+
+def _repeat_row(row: np.ndarray, n: int) -> np.ndarray:
+    """``row`` repeated ``n`` times, flat (``np.tile`` without its Python overhead)."""
+    out = np.empty((n, len(row)), dtype=row.dtype)
+    out[:] = row
+    return out.ravel()
+
+
+@functools.lru_cache(maxsize=64)
+def _triu(size: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.triu_indices(size, 1)``, computed once per size (joining asks for the same few)."""
+    ti, tj = np.triu_indices(size, 1)
+    ti.setflags(write=False)
+    tj.setflags(write=False)
+    return ti, tj
 
 
 def _in_sweep(a: np.ndarray, b: np.ndarray, v: np.ndarray, n: np.ndarray) -> np.ndarray:

@@ -73,7 +73,8 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     or about +y when ``a`` lies on the z axis, for opposite vectors)."""
     a = np.asarray(a, dtype=np.float64)
     b = np.asarray(b, dtype=np.float64)
-    v = np.cross(a, b)
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    v = np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])  # np.cross(a, b)
     c = float(np.dot(a, b))
     s = float(np.linalg.norm(v))
     if s < 1e-12:

@@ -31,7 +31,7 @@ from genr8_dist.history._run import (
     parse_id,
     run_label,
 )
-from genr8_dist.history._tables import _resolve_generation, _rows_by_ids
+from genr8_dist.history._tables import _resolve_generation, _rows_by_ids, form_ids
 from genr8_dist.store.schema import (
     criterion_column,
     criterion_of,
@@ -49,7 +49,7 @@ def _newest_config(store: Any) -> Any:
 
 
 def _distinct(store: Any, generation: int | None, island: int | None, extra: list[str]) -> pa.Table:
-    """The valid rows (of ``generation``, ``island``), one per phenotype digest (the lowest fitness,
+    """The valid rows (of ``generation``, ``island``), one per form (``form_ids``; the lowest fitness,
     ties to the earliest), sorted by fitness."""
     if generation is None or generation < 0:
         data = dataset(store)
@@ -72,12 +72,8 @@ def _distinct(store: Any, generation: int | None, island: int | None, extra: lis
     order = np.lexsort((as_numpy(table["index"], 0), as_numpy(table["island"], 0),
                         as_numpy(table["generation"], 0), as_numpy(table["fitness"], math.inf)))
     table = table.take(pa.array(order, pa.int64()))
-    seen, keep = set(), []
-    for n, digest in enumerate(table["phenotype_digest"].to_pylist()):
-        if digest not in seen:
-            seen.add(digest)
-            keep.append(n)
-    return table.take(pa.array(keep, pa.int64()))
+    _, first = np.unique(form_ids(table), return_index=True)
+    return table.take(pa.array(np.sort(first), pa.int64()))
 
 
 def _with_top_columns(store: Any, ids: list[str]) -> pa.Table:

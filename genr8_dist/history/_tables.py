@@ -28,7 +28,7 @@ from genr8_dist.history._run import (
     run_label,
     targets_by_version,
 )
-from genr8_dist.store.schema import criterion_column, listed_columns, sizes_of
+from genr8_dist.store.schema import criterion_column, listed_columns, size_column, sizes_of
 
 __all__ = [
     "configs",
@@ -149,8 +149,27 @@ def _rows_by_ids(data: Any, ids: list[str], columns: list[str]) -> pa.Table:
     return found.take(pa.array(take, pa.int64()))
 
 
+def form_ids(table: pa.Table) -> np.ndarray:
+    """One integer per row of ``table`` naming its *form*: rows with equal sizes and raw criteria (to
+    9 significant digits) are one form, whatever their digest. An elite and its copies are one form,
+    and so are mirror images (a rule text differing only by ``&``/``^``), which every criterion and
+    size measures alike and a designer sees as the same design. Without size or criterion columns
+    the digest decides."""
+    columns = [c for c in table.column_names if c.startswith(("crit_", "size_"))]
+    if not columns:
+        digests = table["phenotype_digest"].to_pylist()
+        return np.unique(np.array([str(d) for d in digests]), return_inverse=True)[1]
+    values = np.column_stack([as_numpy(table[c], math.nan).astype(np.float64) for c in columns])
+    finite = np.isfinite(values)
+    magnitude = np.floor(np.log10(np.where(finite & (values != 0), np.abs(values), 1.0)))
+    scale = 10.0 ** (8 - magnitude)
+    rounded = np.where(finite, np.round(values * scale) / scale, np.nan_to_num(values, nan=-1e300))
+    return np.unique(rounded, axis=0, return_inverse=True)[1].reshape(-1)
+
+
 def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int | None = None,
-        criterion: str | None = None, systems: bool = False, under: int | None = None) -> pa.Table:
+        criterion: str | None = None, systems: bool = False, under: int | None = None,
+        distinct: bool = False) -> pa.Table:
     """The ``k`` best valid individuals (lowest total fitness, or with ``criterion`` the raw value
     closest to that criterion's target), optionally only of one ``generation`` (negative counts back
     from the last) and ``island``. Ties are broken by generation, island and index.
@@ -164,6 +183,9 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     ``fitness``, every ``crit_<name>``, how it was made and its growth statistics); ``deviation``
     when ranking by a criterion; ``fitness_v<V>`` with ``under``; ``text`` (its rewrite system) when
     ``systems``.
+
+    With ``distinct``, only the best individual of each form (``form_ids``) is listed, and the column
+    ``copies`` says how many valid individuals in scope share its form.
     """
     if k < 1:
         raise HistoryError(f"k: must be at least 1, got {k}")
@@ -184,6 +206,10 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         rank_cols.append(criterion_column(criterion))
     elif under is not None:
         rank_cols += [criterion_column(c) for c in crits]
+    if distinct:
+        rank_cols += [c for c in [*(criterion_column(c) for c in crits),
+                                  *(size_column(s) for s in sizes_of(data.schema.names))]
+                      if c not in rank_cols] + ["phenotype_digest"]
     table = data.to_table(columns=rank_cols, filter=filt)
     if table.num_rows == 0:
         where = []
@@ -203,6 +229,16 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         score = deviation(as_numpy(table[criterion_column(criterion)], math.nan).astype(np.float64),
                           as_numpy(table["config_version"], -1).astype(np.int64), criterion, targets)
     score = np.where(np.isnan(score), np.inf, score)
+    copies = None
+    if distinct:
+        forms = form_ids(table)
+        order = np.lexsort((as_numpy(table["index"], -1), as_numpy(table["island"], -1),
+                            as_numpy(table["generation"], -1), score))
+        _, first = np.unique(forms[order], return_index=True)
+        keep = order[np.sort(first)]   # each form's best row, in rank order
+        counts = np.bincount(forms)
+        copies = counts[forms[keep]]
+        table, score = table.take(pa.array(keep, pa.int64())), score[keep]
     if len(score) > k:
         threshold = np.partition(score, k - 1)[k - 1]
         candidates = np.flatnonzero(score <= threshold)
@@ -219,6 +255,8 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
         columns.append("text")
     rows = _rows_by_ids(data, ids, columns)
     rows = rows.add_column(0, "rank", pa.array(np.arange(1, rows.num_rows + 1), pa.int32()))
+    if copies is not None:
+        rows = rows.append_column("copies", pa.array(copies[candidates][chosen], pa.int64()))
     if criterion is not None:
         rows = rows.append_column("deviation", pa.array(score[candidates][chosen], pa.float64()))
     elif under is not None:

@@ -348,23 +348,10 @@ def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int
 def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
               distinct: bool) -> list[str]:
     """The ids of the ``k`` best valid individuals; with ``distinct``, only the best individual of
-    each distinct phenotype (same digest: the same design, e.g. an elite and its copies)."""
+    each form (``_tables.form_ids``: an elite and its copies, or mirror images, are one design)."""
     from genr8_dist.history._tables import top
 
-    if not distinct:
-        return list(top(store, k, generation=generation, island=island)["id"].to_pylist())
-    fetch = 4 * k
-    while True:
-        table = top(store, fetch, generation=generation, island=island)
-        ids, seen = [], set()
-        for ident, digest in zip(table["id"].to_pylist(), table["phenotype_digest"].to_pylist(),
-                                 strict=True):
-            if digest not in seen:
-                seen.add(digest)
-                ids.append(ident)
-        if len(ids) >= k or table.num_rows < fetch:
-            return ids[:k]
-        fetch *= 4
+    return list(top(store, k, generation=generation, island=island, distinct=distinct)["id"].to_pylist())
 
 
 GALLERY_MAX = 144  # designs on one contact sheet (a row per island with per_island)

@@ -128,7 +128,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     n_total = int(pc.sum(per_gen["n"]).as_py())
     n_valid = int(pc.sum(per_gen["n_valid"]).as_py())
     newest = int(store.configs()[-1].version)
-    best = _tables.top(store, k, systems=True, under=newest)
+    best = _tables.top(store, k, systems=True, under=newest, distinct=True)
     events = _tables.events(store)
     configs = list(store.configs())
     kinds = events["kind"].to_pylist()
@@ -162,7 +162,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
                                               "as scored",
                                               *[c.replace("_", " ") for c in crits],
-                                              "made by", "rewrite system"])
+                                              "copies", "made by", "rewrite system"])
     formats = export_formats(phenotype)
     rows = []
     for r in best.to_pylist():
@@ -171,6 +171,7 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
                  f'<td class="num"><b>{_fmt(r[f"fitness_v{newest}"])}</b></td>',
                  f'<td class="num">{_fmt(r["fitness"])} (v{r["config_version"]})</td>']
         cells += [f'<td class="num">{_fmt(r[criterion_column(c)])}</td>' for c in crits]
+        cells.append(f'<td class="num">{r["copies"]}</td>')
         made = r["origin"] + (" of " + ", ".join(r["parents"]) if r["parents"] else "")
         cells.append(f"<td>{html.escape(made)}</td>")
         cells.append(f"<td><pre>{html.escape(r.get('text') or '')}</pre></td>")
@@ -182,8 +183,11 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
               "run's end: each individual rescored from its stored raw criteria with that version's "
               "targets and weights. <i>As scored</i> is the fitness the run gave it under the version "
               "in brackets.</p>" if len(configs) > 1 else "")
-    parts.append(_section(f"The {best.num_rows} best individuals of the run",
-                          f"{ranked}<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
+    forms = ('<p class="note">One row per form: an individual\'s elites and copies, and its mirror '
+             "images (equal sizes and criteria), are one form, shown by its best; <i>copies</i> counts "
+             "the run's valid individuals of that form.</p>")
+    parts.append(_section(f"The {best.num_rows} best forms of the run",
+                          f"{forms}{ranked}<table><tr>{head}</tr>{''.join(rows)}</table>{top_note}"))
 
     if best.num_rows:
         champion = best["id"][0].as_py()

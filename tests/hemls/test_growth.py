@@ -449,3 +449,18 @@ def test_tied_joins_between_vertices_already_joined_are_dropped_before_they_are_
                    "Angle 30\nBranchAngle 90\n")
     result = grow(system, Environment(steps=1))
     assert result.capped is None and result.surface.validate() == []
+
+
+def test_branches_on_a_fold_are_compared_in_space_so_mirror_images_score_alike():
+    """Two branches whose surface normals are opposite (a fold) have no common tangent plane; their
+    sum is rounding error, whose direction must not pick the plane. A branch on the mirror line and
+    two mirror-image partners score alike, as in space."""
+    from genr8_dist.hemls.growth import _Grower
+
+    points = np.array([[0.0, 0, 0], [2, 1, 0], [2, -1, 0]])
+    heading = np.array([[1.0, 0, 0], [-1, 0, 0], [-1, 0, 0]])
+    normal = np.array([[1e-17, 2e-17, 1.0], [0, 0, -1], [0, 0, -1]])
+    ci, cj, dist, _ = _Grower._aim(np.array([0, 0]), np.array([1, 2]), points, heading, normal)
+    np.testing.assert_allclose(ci, [2 / math.sqrt(5)] * 2)
+    np.testing.assert_allclose(cj, [2 / math.sqrt(5)] * 2)
+    np.testing.assert_allclose(dist, [math.sqrt(5)] * 2)

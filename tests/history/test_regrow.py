@@ -241,9 +241,10 @@ def test_report_is_self_contained(real_run, tmp_path):
     # the curves, the gallery, the kinds of form (clusters), the ancestry
     assert page.count('src="data:image/png;base64,') == 4
     assert "Kinds of form the run found" in page and "No clusters" not in page
-    best = history.top(real_run, 5, systems=True)
+    best = history.top(real_run, 5, systems=True, distinct=True)   # one row per form
     for ident in best["id"].to_pylist():
         assert f"<code>{ident}</code>" in page
+    assert f"The {best.num_rows} best forms of the run" in page
     assert "environment.attractors" in page  # what the intervention changed
     assert "No gallery" not in page
 

@@ -43,7 +43,8 @@ def _distinct_devs(store, names, config):
     rows = [r for r in store.individuals().to_pylist() if r["valid"]]
     best = {}
     for r in sorted(rows, key=lambda r: (r["fitness"], r["generation"], r["island"], r["index"])):
-        best.setdefault(r["phenotype_digest"], r)
+        # one per form: equal sizes and raw criteria (to 9 digits) are one design, mirror images too
+        best.setdefault(tuple(f"{r[c]:.9g}" for c in sorted(r) if c.startswith(("crit_", "size_"))), r)
     return {r["id"]: [config.fitness[n].deviation(r[f"crit_{n}"]) for n in names] for r in best.values()}
 
 

@@ -118,6 +118,38 @@ def test_top_by_criterion_ranks_by_distance_to_its_target(history_run, all_rows)
     assert table["deviation"].to_pylist() == pytest.approx([e[0] for e in expected], rel=1e-12)
 
 
+def _form(row):
+    """A design's look as a designer sees it: its sizes and raw criteria, to 9 significant digits."""
+    return tuple(f"{row[c]:.9g}" for c in sorted(row) if c.startswith(("crit_", "size_")))
+
+
+def test_top_distinct_lists_each_form_once_by_its_best_with_its_copies(history_run, all_rows):
+    valid = _valid_sorted(all_rows)
+    rows = {r["id"]: r for r in _rows(all_rows)}
+    forms: dict[tuple, list[str]] = {}
+    for r in valid:
+        forms.setdefault(_form(rows[r["id"]]), []).append(r["id"])
+    table = history.top(history_run, 10**6, distinct=True)
+    assert table.num_rows == len(forms)
+    assert sum(table["copies"].to_pylist()) == len(valid)
+    best = sorted(forms.values(), key=lambda ids: [r["id"] for r in valid].index(ids[0]))
+    assert table["id"].to_pylist() == [ids[0] for ids in best]
+    assert table["copies"].to_pylist() == [len(ids) for ids in best]
+    assert history.top(history_run, 5, distinct=True)["id"].to_pylist() == [ids[0] for ids in best[:5]]
+
+
+def test_mirror_images_with_equal_measures_are_one_form_whatever_their_digest():
+    import pyarrow as pa
+
+    from genr8_dist.history._tables import form_ids
+
+    table = pa.table({"phenotype_digest": ["a", "b", "c", "d"],
+                      "crit_size": [6.75, 6.75 * (1 + 1e-13), 6.75 * (1 + 1e-6), 6.75],
+                      "size_regions": [41, 41, 41, 40]})
+    ids = form_ids(table).tolist()
+    assert ids[0] == ids[1] and len({ids[0], ids[2], ids[3]}) == 3
+
+
 def test_top_bad_requests(history_run):
     with pytest.raises(HistoryError, match="criterion 'beauty'"):
         history.top(history_run, criterion="beauty")
