@@ -460,8 +460,8 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         for i, j in ((a, b), (b, c), (c, a)):
             on_side = j == (i + 1) % r
             lo, hi = int(corners[i]), int(corners[j])
-            sides.append(([*range(lo + 1, hi if hi > lo else m), *range(0 if hi <= lo else hi, hi)]
-                          if on_side else []))
+            run = [*range(lo + 1, hi if hi > lo else m), *range(0 if hi <= lo else hi, hi)]
+            sides.append(run if on_side else [])
         ring = [int(corners[a]), *sides[0], int(corners[b]), *sides[1], int(corners[c]), *sides[2]]
         at = {v: n for n, v in enumerate(ring)}
         local: list[tuple[int, int, int]] = []
