@@ -458,10 +458,11 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         # polygon's own sides (consecutive true corners), in the polygon's (counter-clockwise) order
         sides = []
         for i, j in ((a, b), (b, c), (c, a)):
-            on_side = j == (i + 1) % r
+            if j != (i + 1) % r:          # a diagonal, not one of the polygon's sides
+                sides.append([])
+                continue
             lo, hi = int(corners[i]), int(corners[j])
-            run = [*range(lo + 1, hi if hi > lo else m), *range(0 if hi <= lo else hi, hi)]
-            sides.append(run if on_side else [])
+            sides.append([*range(lo + 1, hi if hi > lo else m), *range(0 if hi <= lo else hi, hi)])
         ring = [int(corners[a]), *sides[0], int(corners[b]), *sides[1], int(corners[c]), *sides[2]]
         at = {v: n for n, v in enumerate(ring)}
         local: list[tuple[int, int, int]] = []
@@ -569,8 +570,8 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
         rest.append(j)
         j = nxt[j]
     tris.extend((rest[0], rest[k], rest[k + 1]) for k in range(1, len(rest) - 1))
-    _flip(tris, xs, ys, _delaunay_test(xs, ys))
-    _flip(tris, xs, ys, _cost_test(points))
+    _flip(tris, xs, ys, _delaunay_test(xs, ys), _FLIPS_PER_TRIANGLE * len(tris))
+    _flip(tris, xs, ys, _cost_test(points), _FLIPS_PER_TRIANGLE * len(tris))
     return np.array(tris, dtype=np.int64).reshape(-1, 3)
 
 
