@@ -265,10 +265,15 @@ class Surface:
 #   among those whose triangles all turn counter-clockwise in the region's best-fit plane (so lie
 #   inside it): the classical O(m^3) dynamic programme over sub-polygons, run with numpy on all
 #   regions of about one size at once;
-# - larger regions: ear clipping in the best-fit plane (an ear is never a straight corner), edge flips
-#   to the constrained Delaunay triangulation (which maximises the smallest angle), then flips that
-#   lower the same total cost, while any does (on grown regions within 0.01-0.02 of the exact
-#   programme's sliver share, at a fraction of its O(m^3) work).
+# - larger regions (nearly all of them straight sides carrying long collinear runs): the straight
+#   corners are set aside and the true corners triangulated as above (or, past ``_EXACT_MAX`` true
+#   corners, by ear clipping and flips: see ``_clip_and_flip``); then each triangle whose sides carry
+#   set-aside vertices is cut again without degenerate triangles: a fan from the corner opposite the
+#   one side that carries them, a strip between the two sides that do, or, when all three do, a cut
+#   from the middle vertex of the longest side to the opposite corner first; then flips to the
+#   constrained Delaunay triangulation and flips that lower the programme's cost, at most
+#   ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each. Linear in m beyond the true corners'
+#   programme, so a region of thousands of vertices costs milliseconds, not seconds.
 
 _EXACT_MAX = 64          # regions up to this many vertices get the exact best triangulation
 _QUALITY_FLOOR = 1e-9    # a triangle of lower quality costs as much as a degenerate one
@@ -276,6 +281,7 @@ _OUTSIDE = 1e12          # extra cost of a triangle not counter-clockwise in the
 _EPS = 1e-10             # tolerance of orientation tests in coordinates scaled to the region's extent
 _WASTE = 1.5             # polygons solved together: padded work at most this x their own ...
 _CALL = 5_000            # ... plus about what one more call costs, in triangles
+_FLIPS_PER_TRIANGLE = 16  # edges tested for a flip per triangle of a large region, at most (linear)
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
@@ -291,7 +297,7 @@ def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.n
     owners: list[np.ndarray] = []
     for f in np.flatnonzero(sizes > _EXACT_MAX):
         cyc = cycles[offsets[f]:offsets[f + 1]]
-        parts.append(cyc[_clip_and_flip(vertices[cyc])])
+        parts.append(cyc[_large_polygon(vertices[cyc])])
         owners.append(np.full(len(cyc) - 2, f, dtype=np.int64))
     # the rest together, smallest first, in groups each padded to its largest by repeating a polygon's
     # last vertex (the programme's sub-polygons i..j of an m-gon never reach past m - 1); a group grows
@@ -426,6 +432,91 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     return out
 
 
+def _large_polygon(points: np.ndarray) -> np.ndarray:
+    """(m - 2, 3) corner positions triangulating one polygon ``points`` (m, 3) of more than
+    ``_EXACT_MAX`` vertices: its true corners triangulated, then the vertices of its straight runs
+    brought back in by ``_cut`` (see the comment above ``_EXACT_MAX``)."""
+    m = len(points)
+    into = points - np.roll(points, 1, axis=0)
+    out = np.roll(points, -1, axis=0) - points
+    bend = np.linalg.norm(np.cross(into, out), axis=1)
+    lengths = np.linalg.norm(into, axis=1) * np.linalg.norm(out, axis=1)
+    straight = (bend <= 1e-9 * lengths) & (np.einsum("ij,ij->i", into, out) > 0)
+    corners = np.flatnonzero(~straight)
+    r = len(corners)
+    if r < 3 or r == m:
+        return _clip_and_flip(points)
+    if r <= _EXACT_MAX:
+        reduced = _best_triangulations(points[corners][None], np.array([r]))[0]
+    else:
+        reduced = _clip_and_flip(points[corners])
+    pts = points.tolist()
+    cut: list[tuple[int, int, int]] = []
+    for tri in reduced.tolist():
+        a, b, c = sorted(tri)
+        # the boundary of this triangle with the set-aside vertices of its sides that are the
+        # polygon's own sides (consecutive true corners), in the polygon's (counter-clockwise) order
+        sides = []
+        for i, j in ((a, b), (b, c), (c, a)):
+            if j != (i + 1) % r:          # a diagonal, not one of the polygon's sides
+                sides.append([])
+                continue
+            lo, hi = int(corners[i]), int(corners[j])
+            sides.append([*range(lo + 1, hi if hi > lo else m), *range(0 if hi <= lo else hi, hi)])
+        ring = [int(corners[a]), *sides[0], int(corners[b]), *sides[1], int(corners[c]), *sides[2]]
+        at = {v: n for n, v in enumerate(ring)}
+        local: list[tuple[int, int, int]] = []
+        _cut(at[ring[0]], at[int(corners[b])], at[int(corners[c])],
+             [at[v] for v in sides[0]], [at[v] for v in sides[1]], [at[v] for v in sides[2]],
+             [pts[v] for v in ring], local)
+        cut.extend(tuple(ring[n] for n in sorted(t)) for t in local)   # ring order: counter-clockwise
+    xy = _plane_coordinates(points)
+    xs, ys = xy[:, 0].tolist(), xy[:, 1].tolist()
+    budget = _FLIPS_PER_TRIANGLE * len(cut)
+    _flip(cut, xs, ys, _delaunay_test(xs, ys), budget)
+    _flip(cut, xs, ys, _cost_test(points), budget)
+    return np.array(cut, dtype=np.int64).reshape(-1, 3)
+
+
+def _cut(x: int, y: int, z: int, xy: list[int], yz: list[int], zx: list[int], pts: list[list[float]],
+         out: list[tuple[int, int, int]]) -> None:
+    """Triangles (unordered corner triples) covering triangle (x, y, z) whose sides carry the vertices
+    ``xy``, ``yz``, ``zx`` (in order from the side's first corner), none of them degenerate."""
+    sides = [(x, y, z, xy), (y, z, x, yz), (z, x, y, zx)]
+    full = [n for n, s in enumerate(sides) if s[3]]
+    if not full:
+        out.append((x, y, z))
+    elif len(full) == 1:                       # a fan from the corner opposite the one side
+        s, t, o, run = sides[full[0]]
+        seq = [s, *run, t]
+        out.extend((o, seq[k], seq[k + 1]) for k in range(len(seq) - 1))
+    elif len(full) == 3:                       # cut from the longest side's middle vertex first
+        n = max(range(3), key=lambda k: len(sides[k][3]))
+        s, t, o, run = sides[n]
+        k = len(run) // 2
+        _cut(s, run[k], o, run[:k], [], sides[(n + 2) % 3][3], pts, out)
+        _cut(run[k], t, o, run[k + 1:], sides[(n + 1) % 3][3], [], pts, out)
+    else:                                      # a strip between the two sides from their corner
+        empty = ({0, 1, 2} - set(full)).pop()
+        shared = sides[(empty + 2) % 3][0]     # the corner of the two sides that carry vertices
+        before, after = sides[(empty + 1) % 3], sides[(empty + 2) % 3]
+        q = [shared, *reversed(before[3]), before[0]]     # back along the side that ends at it
+        p = [shared, *after[3], after[1]]                 # out along the side that starts at it
+
+        def d2(u: int, v: int) -> float:
+            return sum((pu - pv) ** 2 for pu, pv in zip(pts[u], pts[v], strict=True))
+
+        out.append((shared, q[1], p[1]))
+        i = j = 1
+        while i < len(q) - 1 or j < len(p) - 1:
+            if j == len(p) - 1 or (i < len(q) - 1 and d2(q[i + 1], p[j]) <= d2(q[i], p[j + 1])):
+                out.append((q[i], q[i + 1], p[j]))
+                i += 1
+            else:
+                out.append((q[i], p[j], p[j + 1]))
+                j += 1
+
+
 def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     """(m - 2, 3) corner positions triangulating one large polygon ``points`` (m, 3): ear clipping in
     its best-fit plane (never at a straight or reflex corner, never over another vertex), then edge
@@ -479,8 +570,8 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
         rest.append(j)
         j = nxt[j]
     tris.extend((rest[0], rest[k], rest[k + 1]) for k in range(1, len(rest) - 1))
-    _flip(tris, xs, ys, _delaunay_test(xs, ys))
-    _flip(tris, xs, ys, _cost_test(points))
+    _flip(tris, xs, ys, _delaunay_test(xs, ys), _FLIPS_PER_TRIANGLE * len(tris))
+    _flip(tris, xs, ys, _cost_test(points), _FLIPS_PER_TRIANGLE * len(tris))
     return np.array(tris, dtype=np.int64).reshape(-1, 3)
 
 
@@ -522,7 +613,7 @@ def _cost_test(points: np.ndarray) -> Callable[[int, int, int, int], bool]:
 
 
 def _flip(tris: list[tuple[int, int, int]], xs: list[float], ys: list[float],
-          better: Callable[[int, int, int, int], bool]) -> None:
+          better: Callable[[int, int, int, int], bool], budget: int | None = None) -> None:
     """Flip, in place, inner edges (a, b) of counter-clockwise triangles ``tris`` (a, b, c), (b, a, d)
     to (c, d) while ``better(a, b, c, d)`` and the two make a strictly convex quadrilateral in the
     plane (so the new pair is counter-clockwise and covers the same ground); a bounded number of
@@ -539,7 +630,7 @@ def _flip(tris: list[tuple[int, int, int]], xs: list[float], ys: list[float],
     def area(a: int, b: int, c: int) -> float:
         return (xs[b] - xs[a]) * (ys[c] - ys[a]) - (ys[b] - ys[a]) * (xs[c] - xs[a])
 
-    budget = 8 * len(tris) * len(tris) + 16
+    budget = 8 * len(tris) * len(tris) + 16 if budget is None else budget
     while stack and budget:
         budget -= 1
         a, b = stack.pop()

@@ -112,25 +112,45 @@ def _total_cost(points: np.ndarray, tri: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize(("corners", "per_side", "lift"),
-                         [(COMB, 6, 0.3), (U_SHAPE, 10, 0.0), (LONG, 20, 0.3)])
-def test_a_large_region_is_clipped_and_flipped_inside_its_outline_to_the_exact_cost(
-        monkeypatch, corners, per_side, lift):
-    """More than _EXACT_MAX vertices: ear clipping, then flips (Delaunay in the plane, then lowering
-    the cost in 3D) reach the total cost of the exact programme, run on the same region by raising
-    the limit. The lifted comb (z = 0.3 x y) is one where the Delaunay flips alone stay 1.7% above."""
+                         [(COMB, 6, 0.3), (U_SHAPE, 10, 0.0), (LONG, 20, 0.3), (SQUARE, 1200, 0.0)])
+def test_a_large_region_is_cut_on_its_true_corners_then_its_runs(monkeypatch, corners, per_side, lift):
+    """More than _EXACT_MAX vertices, few true corners: the true corners get the exact programme and
+    the straight runs fans and strips, then flips, never ear clipping's quadratic path; the triangles
+    lie inside the outline, none degenerate, within 0.5% of the exact programme's total cost (run on
+    the same region by raising the limit; the lifted shapes have z = 0.3 x y)."""
     from genr8_dist.hemls import surface as module
 
     points = _with_runs(corners, per_side)
     points[:, 2] = lift * points[:, 0] * points[:, 1]
     assert len(points) > module._EXACT_MAX
+
+    def refuse(points):
+        raise AssertionError("ear clipping used on a region of few true corners")
+
+    monkeypatch.setattr(module, "_clip_and_flip", refuse)
     tri = _one_region(points).triangles()
     twice = _twice_areas(points, tri)
     assert len(tri) == len(points) - 2 and np.all(twice > 1e-9)
     assert np.isclose(twice.sum() / 2, _polygon_area(points))
     assert np.all(_inside(points, points[tri].mean(axis=1)[:, :2]))
-    monkeypatch.setattr(module, "_EXACT_MAX", 128)
-    exact = _one_region(points).triangles()
-    assert _total_cost(points, tri) <= 1.005 * _total_cost(points, exact)
+    if len(points) <= 128:
+        monkeypatch.setattr(module, "_EXACT_MAX", 128)
+        exact = _one_region(points).triangles()
+        assert _total_cost(points, tri) <= 1.005 * _total_cost(points, exact)
+
+
+def test_a_large_region_of_many_true_corners_is_clipped_and_flipped_inside_its_outline():
+    """A large region whose every vertex is a corner (a zigzag): ear clipping and flips, inside the
+    outline, none degenerate."""
+    xs = np.linspace(0.0, 10.0, 60)
+    top = np.column_stack([xs[::-1], 2.0 + 0.3 * (np.arange(60) % 2), np.zeros(60)])
+    bottom = np.column_stack([xs, -0.3 * (np.arange(60) % 2), np.zeros(60)])
+    points = np.concatenate([bottom, top])
+    tri = _one_region(points).triangles()
+    twice = _twice_areas(points, tri)
+    assert len(tri) == len(points) - 2 and np.all(twice > 1e-9)
+    assert np.isclose(twice.sum() / 2, _polygon_area(points))
+    assert np.all(_inside(points, points[tri].mean(axis=1)[:, :2]))
 
 
 def test_grown_surfaces_mesh_consistently_and_repeatably():
