@@ -456,7 +456,7 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         a, b, c = sorted(tri)
         # the boundary of this triangle with the set-aside vertices of its sides that are the
         # polygon's own sides (consecutive true corners), in the polygon's (counter-clockwise) order
-        sides = []
+        sides: list[list[int]] = []
         for i, j in ((a, b), (b, c), (c, a)):
             if j != (i + 1) % r:          # a diagonal, not one of the polygon's sides
                 sides.append([])
