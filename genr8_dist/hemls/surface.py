@@ -469,7 +469,8 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         _cut(at[ring[0]], at[int(corners[b])], at[int(corners[c])],
              [at[v] for v in sides[0]], [at[v] for v in sides[1]], [at[v] for v in sides[2]],
              [pts[v] for v in ring], local)
-        cut.extend(tuple(ring[n] for n in sorted(t)) for t in local)   # ring order: counter-clockwise
+        for u, v, w in map(sorted, local):          # in ring order: counter-clockwise
+            cut.append((ring[u], ring[v], ring[w]))
     xy = _plane_coordinates(points)
     xs, ys = xy[:, 0].tolist(), xy[:, 1].tolist()
     budget = _FLIPS_PER_TRIANGLE * len(cut)
