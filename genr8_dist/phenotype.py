@@ -36,6 +36,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from genr8_dist.errors import UniverseError
+
 __all__ = ["SURFACES", "Developed", "Phenotype", "SurfacePhenotype", "phenotype_of"]
 
 
@@ -118,15 +120,15 @@ class Phenotype(ABC):
     def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
         """Write ``developed`` to ``path``, in the format its suffix names (one of ``export_formats``);
         ``name`` is what to call it inside the file, where the format keeps names."""
-        raise NotImplementedError(f"phenotype {self.name} exports nothing")
+        raise UniverseError(f"phenotype {self.name} exports nothing")
 
     def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
         """A PNG picture of ``developed`` at ``path``, titled ``title``."""
-        raise NotImplementedError(f"phenotype {self.name} draws no preview")
+        raise UniverseError(f"phenotype {self.name} draws no preview")
 
     def draw(self, ax: Any, developed: Developed) -> None:
         """Draw ``developed`` on the matplotlib 3D axes ``ax`` (a gallery tile)."""
-        raise NotImplementedError(f"phenotype {self.name} draws no preview")
+        raise UniverseError(f"phenotype {self.name} draws no preview")
 
 
 class SurfacePhenotype(Phenotype):

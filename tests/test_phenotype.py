@@ -99,3 +99,30 @@ def test_the_history_package_calls_the_phenotype_interface_not_the_surface_one()
         compared = [ast.unparse(n) for n in ast.walk(tree) if isinstance(n, ast.Compare)
                     and "SURFACES" in ast.unparse(n)]
         assert compared == [], (path.name, compared)
+
+
+def test_a_phenotype_without_pictures_or_exports_says_so_in_a_one_line_error(tmp_path):
+    """A plugin phenotype that implements only develop, measure and fitness: asking for its picture
+    or a file is an error the command line reports in one line (a Genr8Error), naming the phenotype."""
+    from genr8_dist.errors import Genr8Error
+    from genr8_dist.phenotype import Phenotype
+
+    class Bare(Phenotype):
+        name = "bare"
+
+        def develop(self, text, config):
+            return Developed(value=text, digest="0")
+
+        def measure(self, developed, config):
+            return {}
+
+        def fitness(self, raw, config):
+            return 0.0
+
+    bare, developed = Bare(), Developed(value="x", digest="0")
+    with pytest.raises(Genr8Error, match="phenotype bare exports nothing"):
+        bare.export(developed, tmp_path / "x.obj", None)
+    with pytest.raises(Genr8Error, match="phenotype bare draws no preview"):
+        bare.preview(developed, tmp_path / "x.png", title="x", config=None)
+    with pytest.raises(Genr8Error, match="phenotype bare draws no preview"):
+        bare.draw(None, developed)
