@@ -11,7 +11,8 @@ Every Evaluator of a process (an island host) also shares a bounded cache keyed 
 so a text grown for one configuration is not grown again for another that differs in its fitness
 (an edit, another island's version, a helper's share): ``rescore`` judges it again from its raw
 criteria. Evaluation is a pure function of (genome, configuration), so the caches change timings,
-never results.
+never results. ``Evaluator.preview`` develops a genome without measuring it (a ``Preview``) and
+``Evaluator.measure`` finishes it: an island measures only what it keeps.
 """
 
 from __future__ import annotations

@@ -33,6 +33,9 @@ founder that is trivial (invalid, or trivial as its phenotype says: a surface of
 the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
 times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
 trees (``grammar.derivations``).
+Whether a founder is drawn again or an offspring varied again is decided by what its growth found
+(text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
+only the individuals kept are scored (measuring may still fail one, which is then varied again).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the

@@ -170,8 +170,10 @@ def test_a_preview_measured_later_is_what_evaluating_gives(tight, kept):
 
 
 def test_evaluating_a_previewed_genome_measures_it(tight):
+    from genr8_dist.evolution import evaluate as ev
     from genr8_dist.evolution.evaluate import Preview
 
+    ev._DEVELOPED.clear()
     lazy = Evaluator(tight)
     g = next(g for g in genomes(40, seed=6) if isinstance(lazy.preview(g), Preview))
     full = lazy.evaluate(g)

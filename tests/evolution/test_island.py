@@ -419,6 +419,7 @@ def test_only_the_individuals_kept_are_measured_and_the_rows_are_those_measuring
     measured: list[str] = []
     real = ev._measure
     monkeypatch.setattr(ev, "_measure", lambda *a: measured.append(a[0].text) or real(*a))
+    ev._DEVELOPED.clear()   # nothing grown by earlier tests: every kept text is measured here
     lazy = Island(config, 0)
     hist = lazy.run(1)
     kept = {i.text for gen in hist for i in gen if i.stage not in ("map", "parse")}
