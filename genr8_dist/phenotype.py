@@ -70,7 +70,9 @@ class Phenotype(ABC):
     ``export`` writes; ``stage``: the name of the failing stage when ``develop`` raises; ``sizes``:
     the names of the sizes ``develop`` counts (``Developed.counts``), which a run stores as
     ``size_<name>`` integer columns (fixed when the run is created, like its criteria) and a
-    MAP-Elites grid may use as descriptors (``size_<name>``).
+    MAP-Elites grid may use as descriptors (``size_<name>``); ``trivial_from_sizes``: whether
+    ``trivial`` reads only the sizes, not the criteria (then an island redraws a trivial founder
+    without measuring it).
     """
 
     name: str = "phenotype"
@@ -80,6 +82,7 @@ class Phenotype(ABC):
     export_formats: tuple[str, ...] = ()
     stage: str = "grow"
     sizes: tuple[str, ...] = ()
+    trivial_from_sizes: bool = False
 
     @property
     def criteria(self) -> tuple[str, ...]:
@@ -140,6 +143,7 @@ class SurfacePhenotype(Phenotype):
     capped_is_invalid = True
     stage = "grow"
     sizes = ("vertices", "edges", "regions")
+    trivial_from_sizes = True
     # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
     export_formats = ("obj", "ply", "stl", "glb", "3dm")
 

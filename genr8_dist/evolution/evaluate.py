@@ -11,7 +11,8 @@ Every Evaluator of a process (an island host) also shares a bounded cache keyed 
 so a text grown for one configuration is not grown again for another that differs in its fitness
 (an edit, another island's version, a helper's share): ``rescore`` judges it again from its raw
 criteria. Evaluation is a pure function of (genome, configuration), so the caches change timings,
-never results.
+never results. ``Evaluator.preview`` develops a genome without measuring it (a ``Preview``) and
+``Evaluator.measure`` finishes it: an island measures only what it keeps.
 """
 
 from __future__ import annotations
@@ -22,12 +23,12 @@ import math
 import time
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.evolution.individual import Evaluation
+from genr8_dist.evolution.individual import Evaluation, timing_columns
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
@@ -35,6 +36,7 @@ if TYPE_CHECKING:
 __all__ = [
     "Evaluation",
     "Evaluator",
+    "Preview",
     "development_key",
     "evaluate_genome",
     "evaluate_text",
@@ -42,6 +44,19 @@ __all__ = [
     "steps_of",
     "universe_for",
 ]
+
+
+@dataclass(frozen=True, slots=True, kw_only=True)
+class Preview(Evaluation):
+    """What evaluating a genome finds before its criteria are measured (``Evaluator.preview``): its
+    mapping, text, sizes, steps, capped and phenotype digest, no criteria and the worst fitness;
+    ``valid`` says only that nothing has failed it yet (a capped development fails it; measuring may
+    still). Never stored: ``Evaluator.measure`` turns it into the evaluation."""
+
+    def untimed(self) -> Preview:
+        values = self.as_fields()
+        values.update(dict.fromkeys(timing_columns(), 0.0))
+        return Preview(**values)
 
 
 def universe_for(config: Any) -> Any:
@@ -93,6 +108,14 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     brings its own) develops the text, measures its criteria and combines them into the fitness.
     ``grow_seconds`` is the time to develop the text (parsing included); ``score_seconds`` the
     criteria's and the fitness's."""
+    grown, developed = _develop(text, config)
+    return grown if developed is None else _measure(grown, developed, config)
+
+
+def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Any]:
+    """``text`` developed, not yet measured: the evaluation so far (its text, sizes, steps, capped,
+    digest and ``grow_seconds``; criteria empty, not judged) and the ``Developed`` phenotype; or the
+    finished evaluation of a failed development and ``None``."""
     from genr8_dist.phenotype import phenotype_of
 
     phenotype = phenotype_of(universe_for(config))
@@ -101,10 +124,19 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
         developed = phenotype.develop(text, config)
     except Exception as exc:  # failure is data, whatever development raised
         return Evaluation(text=text, stage=getattr(exc, "genr8_stage", phenotype.stage), error=_describe(exc),
-                          grow_seconds=time.perf_counter() - t0)
+                          grow_seconds=time.perf_counter() - t0), None
     sizes = {name: int(developed.counts.get(name, 0)) for name in phenotype.sizes}
     grown = Evaluation(text=text, sizes=sizes, steps_done=int(developed.steps), capped=developed.capped,
                        grow_seconds=time.perf_counter() - t0, phenotype_digest=developed.digest)
+    return grown, developed
+
+
+def _measure(grown: Evaluation, developed: Any, config: RunConfig) -> Evaluation:
+    """``grown`` (what ``_develop`` found) measured and judged: its criteria, ``score_seconds``, the
+    verdict and the fitness."""
+    from genr8_dist.phenotype import phenotype_of
+
+    phenotype = phenotype_of(universe_for(config))
     t1 = time.perf_counter()
     try:
         criteria = phenotype.measure(developed, config)
@@ -179,7 +211,14 @@ def rescore(evaluation: Evaluation, config: RunConfig) -> Evaluation | None:
 class Evaluator:
     """Evaluates genomes for one configuration, each distinct genome and each distinct text once
     (bounded caches of ``cache_size`` entries, least recently used dropped first), and no text
-    grown in this process for a configuration of the same ``development_key`` grown again."""
+    grown in this process for a configuration of the same ``development_key`` grown again.
+
+    ``preview`` maps and develops a genome but leaves measuring it for later: an island that decides
+    from what growth found (a repeated phenotype, a capped growth, a trivial founder) to vary it
+    again never measures it; ``measure`` finishes a preview it keeps, from the developed phenotype
+    (the last ``DEVELOPED_KEPT`` are held; an older one is developed again)."""
+
+    DEVELOPED_KEPT = 16
 
     def __init__(self, config: RunConfig, *, cache_size: int = 4096) -> None:
         self.config = config
@@ -187,6 +226,9 @@ class Evaluator:
         self.cache_size = cache_size
         self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
+        self._previews: OrderedDict[tuple[int, ...], Preview] = OrderedDict()   # genome -> not measured
+        self._unmeasured: OrderedDict[str, Evaluation] = OrderedDict()   # text -> developed, not measured
+        self._developed: OrderedDict[str, Any] = OrderedDict()   # text -> its Developed (the last few)
         self.evaluations = 0     # genomes actually mapped
         self.growths = 0         # texts actually grown
         self.cache_hits = 0
@@ -207,9 +249,11 @@ class Evaluator:
         if len(_DEVELOPED) > DEVELOPED_CACHE_SIZE:
             _DEVELOPED.popitem(last=False)
 
-    def _grown(self, text: str) -> Evaluation:
+    def _grown(self, text: str, defer: bool = False) -> Evaluation:
         """``text`` grown and scored under this configuration: from this Evaluator's cache, judged
-        again from the process's growth of it for another configuration, or grown now."""
+        again from the process's growth of it for another configuration, or grown now. ``defer``:
+        a text grown now (or grown before and not measured) comes back as a ``Preview``, its
+        measuring left to ``measure``."""
         cached = self._texts.get(text)
         if cached is not None:
             self._texts.move_to_end(text)
@@ -220,13 +264,41 @@ class Evaluator:
             self.rescored += 1
             judged = judged.untimed()
         else:
-            self.growths += 1
-            judged = _grow_and_score(text, self.config)
+            grown = self._unmeasured.get(text)
+            if grown is not None:   # developed before, not measured: a hit, as one in _texts is
+                grown = grown.untimed()
+                developed = self._developed.pop(text, None)
+                if defer:
+                    return self._defer(grown, developed)
+                if developed is None:   # no longer held: develop it again
+                    self.growths += 1
+                    grown, developed = _develop(text, self.config)
+            else:
+                self.growths += 1
+                grown, developed = _develop(text, self.config)
+                if developed is not None and defer:
+                    return self._defer(grown, developed)
+            self._unmeasured.pop(text, None)
+            judged = grown if developed is None else _measure(grown, developed, self.config)
             self._share(text, judged)
         self._remember(self._texts, text, judged)
         return judged
 
-    def _remember(self, cache: OrderedDict[Any, Evaluation], key: Any, value: Evaluation) -> None:
+    def _defer(self, grown: Evaluation, developed: Any) -> Preview:
+        """``grown`` (not measured) as a preview, its ``developed`` phenotype (``None``: not held)
+        held for ``measure``."""
+        from genr8_dist.phenotype import phenotype_of
+
+        text = str(grown.text)
+        self._remember(self._unmeasured, text, grown.untimed())
+        if developed is not None:
+            self._developed[text] = developed
+            if len(self._developed) > self.DEVELOPED_KEPT:
+                self._developed.popitem(last=False)
+        failed = grown.capped is not None and phenotype_of(self.universe).capped_is_invalid
+        return Preview(**{**grown.as_fields(), "valid": not failed})
+
+    def _remember(self, cache: OrderedDict[Any, Any], key: Any, value: Any) -> None:
         cache[key] = value
         if len(cache) > self.cache_size:
             cache.popitem(last=False)
@@ -243,16 +315,47 @@ class Evaluator:
             self.growths += 1
             self._remember(self._texts, evaluation.text, evaluation)
             self._share(evaluation.text, evaluation)
+        self._previews.pop(key, None)
         self._remember(self._genomes, key, evaluation)
 
     def evaluate(self, genome: Sequence[int]) -> Evaluation:
         """The evaluation of ``genome``; a repeat of a cached genome comes back with zero timings."""
+        return self._evaluate(genome, defer=False)
+
+    def preview(self, genome: Sequence[int]) -> Evaluation:
+        """What evaluating ``genome`` finds before measuring it: a ``Preview`` when its text developed
+        and is not measured yet (``measure`` finishes it), else the evaluation itself (cached, or a
+        failure of mapping or development, which nothing is measured for)."""
+        return self._evaluate(genome, defer=True)
+
+    def measure(self, genome: Sequence[int], evaluation: Evaluation) -> Evaluation:
+        """``evaluation`` of ``genome`` measured, when it is a ``Preview``: exactly what ``evaluate``
+        gives, its timings those of the preview plus the measuring; else ``evaluation`` as it is."""
+        if not isinstance(evaluation, Preview):
+            return evaluation
+        key = _check_genome(genome)
+        start = time.perf_counter()
+        self._previews.pop(key, None)
+        judged = self._grown(str(evaluation.text))
+        result = replace(judged, codons_used=evaluation.codons_used, wraps=evaluation.wraps,
+                         map_seconds=evaluation.map_seconds,
+                         grow_seconds=evaluation.grow_seconds + judged.grow_seconds,
+                         eval_seconds=evaluation.eval_seconds + time.perf_counter() - start)
+        self._remember(self._genomes, key, result)
+        return result
+
+    def _evaluate(self, genome: Sequence[int], defer: bool) -> Evaluation:
         key = _check_genome(genome)
         hit = self._genomes.get(key)
         if hit is not None:
             self._genomes.move_to_end(key)
             self.cache_hits += 1
             return hit.untimed()
+        previewed = self._previews.get(key)
+        if previewed is not None:
+            self.cache_hits += 1
+            self._previews.move_to_end(key)
+            return previewed.untimed() if defer else self.measure(key, previewed.untimed())
         self.evaluations += 1
         start = time.perf_counter()
         genome_settings = self.config.genome
@@ -269,10 +372,13 @@ class Evaluator:
             result = Evaluation(text=mapped.text or None, stage="map",
                                 error=str(mapped.reason or "mapping failed"))
         else:
-            result = self._grown(mapped.text)
+            result = self._grown(mapped.text, defer)
         result = replace(result, codons_used=int(mapped.codons_used), wraps=int(mapped.wraps),
                          map_seconds=map_seconds, eval_seconds=time.perf_counter() - start)
-        self._remember(self._genomes, key, result)
+        if isinstance(result, Preview):
+            self._remember(self._previews, key, result)
+        else:
+            self._remember(self._genomes, key, result)
         return result
 
     def evaluate_text(self, text: str) -> Evaluation:

@@ -33,6 +33,9 @@ founder that is trivial (invalid, or trivial as its phenotype says: a surface of
 the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
 times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
 trees (``grammar.derivations``).
+Whether a founder is drawn again or an offspring varied again is decided by what its growth found
+(text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
+only the individuals kept are scored (measuring may still fail one, which is then varied again).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -60,7 +63,7 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.evolution.evaluate import Evaluation, Evaluator, development_key, rescore
+from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, development_key, rescore
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
@@ -445,12 +448,17 @@ class Island:
         for index, birth in enumerate(births):
             kept = birth.evaluation
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
-            evaluation = kept if kept is not None else (
-                fresh.pop(birth.genome) if birth.genome in fresh else self.evaluate(birth.genome))
             genome, origin = birth.genome, birth.origin
-            if generation == 0 and origin == "random":
+            founder = generation == 0 and origin == "random" and self.config.ea.founder_retries > 0
+            offspring = origin in _OFFSPRING and self.config.ea.unique_retries > 0
+            # A founder or an offspring that may be drawn or varied again is measured only once
+            # what its development found keeps it (Evaluator.preview).
+            evaluation = kept if kept is not None else (
+                fresh.pop(birth.genome) if birth.genome in fresh else
+                self.evaluator.preview(birth.genome) if founder or offspring else self.evaluate(birth.genome))
+            if founder:
                 genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)
-            elif origin in _OFFSPRING and self.config.ea.unique_retries:
+            elif offspring:
                 genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
                                                                     seen)
             if evaluation.valid and evaluation.phenotype_digest is not None:
@@ -489,21 +497,36 @@ class Island:
 
         return phenotype_of(self.evaluator.universe)
 
+    def _settled(self, genome: Genome, evaluation: Evaluation, wasted: Callable[[Evaluation], bool]
+                 ) -> Evaluation:
+        """``evaluation`` of ``genome`` measured, unless it is a preview that what its development
+        found already wastes (``wasted`` of a preview never says no where the measured evaluation
+        would say yes: a preview's ``valid`` only lacks what measuring may still fail)."""
+        if isinstance(evaluation, Preview) and not wasted(evaluation):
+            return self.evaluator.measure(genome, evaluation)
+        return evaluation
+
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
         """A founder that is trivial or repeats an earlier founder's phenotype, drawn again."""
-        retries = self.config.ea.founder_retries
-        if not retries:
-            return genome, evaluation
+        phenotype = self.phenotype
+
+        def wasted(ev: Evaluation) -> bool:
+            if isinstance(ev, Preview) and not phenotype.trivial_from_sizes:
+                return not ev.valid or ev.phenotype_digest in seen
+            return is_trivial(ev, phenotype) or ev.phenotype_digest in seen
+
         rng = None
-        for _ in range(retries):
-            if not is_trivial(evaluation, self.phenotype) and evaluation.phenotype_digest not in seen:
+        for _ in range(self.config.ea.founder_retries):
+            evaluation = self._settled(genome, evaluation, wasted)
+            if not wasted(evaluation):
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
             genome = tuple(self._founders(rng, 1, first=index)[0])
-            evaluation = self.evaluate(genome)
+            evaluation = self.evaluator.preview(genome)
             self.stats.founders_redrawn += 1
-        if is_trivial(evaluation, self.phenotype) or evaluation.phenotype_digest in seen:
+        evaluation = self.evaluator.measure(genome, evaluation)
+        if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation
 
@@ -519,6 +542,7 @@ class Island:
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
+            evaluation = self._settled(genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
             if evaluation.valid:
@@ -527,20 +551,22 @@ class Island:
                 self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
             genome = self._revary(rng, genome, evaluation.codons_used)
-            evaluation = self.evaluate(genome)
+            evaluation = self.evaluator.preview(genome)
             if origin == "crossover":
                 origin = "crossover+mutation"
         # Still wasted (its neighbourhood all fails or repeats, as round the bare axiom): a newcomer,
         # drawn as a founder is, with no parents.
+        evaluation = self._settled(genome, evaluation, wasted)
         fresh = None
         for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
             fresh = fresh or self.rng(generation, "redraw", index)
             genome = tuple(self._founders(fresh, 1, first=index)[0])
-            evaluation = self.evaluate(genome)
+            evaluation = self._settled(genome, self.evaluator.preview(genome), wasted)
             origin = "random"
             self.stats.redrawn += 1
             if not wasted(evaluation):
                 break
+        evaluation = self.evaluator.measure(genome, evaluation)
         if wasted(evaluation):
             self.stats.unresolved += 1
         return genome, evaluation, origin

@@ -138,3 +138,45 @@ def test_rescore_judges_a_stored_evaluation_as_evaluating_it_again_would(tight):
     grown = Evaluator(fewer).evaluate_text(SQUARE)
     assert list(grown.criteria) == ["size", "symmetry"]
     assert ev.rescore(grown, config) is None   # it lacks criteria `config` asks for: grow it again
+
+
+# -- previews: developed now, measured only when kept -------------------------------------------------
+
+@pytest.mark.parametrize("kept", [16, 0])
+def test_a_preview_measured_later_is_what_evaluating_gives(tight, kept):
+    from genr8_dist.evolution import evaluate as ev
+    from genr8_dist.evolution.evaluate import Preview
+
+    batch = genomes(25, seed=5)
+    ev._DEVELOPED.clear()
+    plain = Evaluator(tight)
+    evaluated = [plain.evaluate(g).untimed() for g in batch]
+    ev._DEVELOPED.clear()
+    lazy = Evaluator(tight)
+    lazy.DEVELOPED_KEPT = kept   # 0: nothing held, a kept preview is developed again
+    previews = [lazy.preview(g) for g in batch]
+    deferred = [p for p in previews if isinstance(p, Preview)]
+    assert deferred and all(not p.criteria and p.fitness == math.inf and p.phenotype_digest for p in deferred)
+    assert all(p.valid == (p.capped is None) for p in deferred)
+    assert lazy.evaluations == plain.evaluations and lazy.growths == plain.growths
+    # failures of mapping or development are finished evaluations: nothing would be measured
+    assert {p.stage for p in previews if not isinstance(p, Preview)} <= {"map", "parse", "grow"}
+    assert [lazy.measure(g, p).untimed() for g, p in zip(batch, previews, strict=True)] == evaluated
+    # the oldest beyond DEVELOPED_KEPT were dropped and developed again
+    assert lazy.growths - plain.growths == max(0, len({p.text for p in deferred}) - kept)
+    # measured now: a repeat is a cache hit, in both calls
+    assert [lazy.preview(g).untimed() for g in batch] == evaluated
+    assert [lazy.evaluate(g).untimed() for g in batch] == evaluated
+
+
+def test_evaluating_a_previewed_genome_measures_it(tight):
+    from genr8_dist.evolution import evaluate as ev
+    from genr8_dist.evolution.evaluate import Preview
+
+    ev._DEVELOPED.clear()
+    lazy = Evaluator(tight)
+    g = next(g for g in genomes(40, seed=6) if isinstance(lazy.preview(g), Preview))
+    full = lazy.evaluate(g)
+    assert not isinstance(full, Preview) and full.criteria and lazy.cache_hits == 1
+    assert full.untimed() == Evaluator(tight).evaluate(g).untimed()
+    assert full.map_seconds == full.grow_seconds == 0.0 and full.score_seconds > 0   # paid now: measuring

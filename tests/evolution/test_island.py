@@ -407,3 +407,26 @@ def test_after_a_fitness_only_edit_the_pool_is_judged_from_its_stored_criteria(h
     assert island.evaluator.growths < plain.evaluator.growths
     assert plain.evaluator.growths - island.evaluator.growths >= len(pool_texts) - len(
         pool_texts & {i.text for i in rescored if i.origin != "elite"})
+
+
+def test_only_the_individuals_kept_are_measured_and_the_rows_are_those_measuring_all_gives(monkeypatch):
+    # founders redrawn and offspring varied again are decided by what growth found: the ones
+    # discarded are never measured, and the generations are those of measuring every one
+    from genr8_dist.evolution import evaluate as ev
+    from genr8_dist.evolution.evaluate import Evaluator
+
+    config = small_config(ea={"population": 12}, environment={"steps": 2})
+    measured: list[str] = []
+    real = ev._measure
+    monkeypatch.setattr(ev, "_measure", lambda *a: measured.append(a[0].text) or real(*a))
+    ev._DEVELOPED.clear()   # nothing grown by earlier tests: every kept text is measured here
+    lazy = Island(config, 0)
+    hist = lazy.run(1)
+    kept = {i.text for gen in hist for i in gen if i.stage not in ("map", "parse")}
+    assert len(measured) == len(set(measured)) and set(measured) == kept
+    ev._DEVELOPED.clear()
+    monkeypatch.setattr(Evaluator, "preview", Evaluator.evaluate)
+    eager = Island(config, 0)
+    assert [[untimed(i) for i in gen] for gen in eager.run(1)] == [[untimed(i) for i in gen] for gen in hist]
+    assert eager.stats == lazy.stats
+    assert lazy.evaluator.growths == eager.evaluator.growths > len(kept)
