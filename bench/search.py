@@ -8,7 +8,8 @@ figures are the engine's, not the cluster's. Sections:
 
 1. *founders*: per built-in universe, the share of generation 0 (``--founders`` individuals, the
    environment of the first configuration) that is trivial (invalid, or a surface of one region:
-   the axiom polygon left as it was or grown without subdivision).
+   the axiom polygon left as it was or grown without subdivision), and the founder redraws it cost
+   (each one an evaluation).
 2. *per configuration* (each over ``--seeds`` run seeds): per generation the trivial share, the share
    of distinct surfaces, the share of offspring equal to a parent (same text or same surface); the
    best fitness against evaluations; the best of a random sample of the same number of evaluations
@@ -192,22 +193,36 @@ def founders(universes: Sequence[str], count: int, base: Any) -> None:
     from genr8_dist.evolution import Island
 
     print(f"\n## founders: trivial share of generation 0 ({count} individuals, seed {base.seed})\n")
-    print("| universe | trivial | distinct surfaces | seconds |")
-    print("| --- | --- | --- | --- |")
+    print("| universe | trivial | distinct surfaces | redraws per founder | seconds |")
+    print("| --- | --- | --- | --- | --- |")
     for name in universes:
         config = base.replace(universe=name, ea={"population": count, "elites": 0, "tournament": 1},
                               islands={"count": 1, "migrants": 0})
         t0 = time.perf_counter()
-        pop = Island(config, 0).initial()
+        island = Island(config, 0)
+        pop = island.initial()
         seconds = time.perf_counter() - t0
         distinct = len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop)
-        print(f"| {name} | {sum(map(trivial, pop)) / len(pop):.3f} | {distinct:.3f} | {seconds:.1f} |")
+        redraws = island.stats.founders_redrawn / len(pop)
+        print(f"| {name} | {sum(map(trivial, pop)) / len(pop):.3f} | {distinct:.3f} | {redraws:.2f} | "
+              f"{seconds:.1f} |")
 
 
-def per_config(path: str, seeds: Sequence[int], generations: int | None) -> list[dict[str, Any]]:
+def scaled(config: Any, population: int | None) -> Any:
+    """``config`` with ``population`` individuals per island (``None``: as it is), its elites and
+    migrants kept below that size: a smaller EA budget on the same fitness, environment, universe and
+    genome settings."""
+    if population is None:
+        return config
+    return config.replace(ea={"population": population, "elites": min(config.ea.elites, population - 1)},
+                          islands={"migrants": min(config.islands.migrants, population - 1)})
+
+
+def per_config(path: str, seeds: Sequence[int], generations: int | None,
+               population: int | None = None) -> list[dict[str, Any]]:
     from genr8_dist.config import load_config
 
-    base = load_config(path)
+    base = scaled(load_config(path), population)
     last = base.ea.generations if generations is None else generations
     tiles = tiles_score(base)
     runs = []
@@ -270,10 +285,11 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None) -> list
     return runs
 
 
-def islands_vs_one(path: str, seeds: Sequence[int], count: int, generations: int | None) -> None:
+def islands_vs_one(path: str, seeds: Sequence[int], count: int, generations: int | None,
+                   population: int | None = None) -> None:
     from genr8_dist.config import load_config
 
-    base = load_config(path)
+    base = scaled(load_config(path), population)
     last = base.ea.generations if generations is None else generations
     total = base.ea.population * base.islands.count
     per = total // count
@@ -311,6 +327,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--configs", nargs="*", default=list(DEFAULT_CONFIGS))
     parser.add_argument("--seeds", type=int, default=5, help="run seeds 1..N (default 5)")
     parser.add_argument("--generations", type=int, default=None, help="override ea.generations")
+    parser.add_argument("--population", type=int, default=None,
+                        help="override ea.population (per island; elites and migrants kept below it): "
+                             "a scaled-down EA budget on a configuration's own fitness and environment")
     parser.add_argument("--founders", type=int, default=200, help="generation-0 size per universe")
     parser.add_argument("--universes", nargs="*", default=None, help="default: every built-in")
     parser.add_argument("--islands", type=int, default=4, help="islands in the islands comparison")
@@ -326,9 +345,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         founders(names, args.founders, load_config(args.configs[0]))
     if "configs" not in args.skip:
         for path in args.configs:
-            per_config(path, seeds, args.generations)
+            per_config(path, seeds, args.generations, args.population)
     if "islands" not in args.skip:
-        islands_vs_one(args.configs[0], seeds, args.islands, args.generations)
+        islands_vs_one(args.configs[0], seeds, args.islands, args.generations, args.population)
     print(f"\n(total {time.perf_counter() - t0:.0f} s)")
     return 0
 

@@ -398,7 +398,9 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     c2 *= c2
     a2 += b2
     a2 += c2
-    heron = sides * sides - 2.0 * a2
+    heron = np.multiply(sides, sides)
+    a2 *= 2.0
+    heron -= a2
     np.maximum(heron, 0.0, out=heron)
     np.sqrt(heron, out=heron)
     heron *= np.sqrt(3.0)
@@ -407,15 +409,15 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     turn = cr[:, ik]
     turn += cr[:, kj]
     turn += cr[:, ji]
-    cost[turn <= _EPS] += _OUTSIDE
+    np.add(cost, _OUTSIDE, out=cost, where=turn <= _EPS)
     best = np.zeros((R, M * M))
     choice = np.zeros((R, M * M), dtype=np.int64)
     for span, (lo, hi) in enumerate(spans, start=2):
         total = (best[:, ik[lo:hi]] + best[:, kj[lo:hi]] + cost[:, lo:hi]).reshape(R, M - span, span - 1)
         at = ij[lo:hi:span - 1]
-        best[:, at] = total.min(axis=2)
-        choice[:, at] = total.argmin(axis=2)
-        choice[:, at] += np.arange(1, M - span + 1)
+        arg = total.argmin(axis=2)
+        best[:, at] = np.take_along_axis(total, arg[..., None], axis=2)[..., 0]   # the minimum
+        choice[:, at] = arg + np.arange(1, M - span + 1)
     choice = choice.reshape(R, M, M)
     # read the triangles back, sub-polygon by sub-polygon, all polygons at once; the middle corners k
     # of a triangulation's triangles (i, k, j) are 1..m-2, each once, so k - 1 is a triangle's place
@@ -619,30 +621,32 @@ def _flip(tris: list[tuple[int, int, int]], xs: list[float], ys: list[float],
     to (c, d) while ``better(a, b, c, d)`` and the two make a strictly convex quadrilateral in the
     plane (so the new pair is counter-clockwise and covers the same ground); a bounded number of
     flips, every edge a flip touches tested again."""
-    owner: dict[tuple[int, int], int] = {}
+    # directed edge (a, b) -> a * n + b; its triangle's third corner is found where it is stored
+    n = len(xs)
+    owner: dict[int, int] = {}
     for t, (a, b, c) in enumerate(tris):
-        owner[(a, b)] = owner[(b, c)] = owner[(c, a)] = t
-    stack = [(a, b) for (a, b) in owner if a < b and (b, a) in owner]
-
-    def third(t: int, a: int, b: int) -> int:
-        u, v, w = tris[t]
-        return w if (u, v) == (a, b) else u if (v, w) == (a, b) else v
-
-    def area(a: int, b: int, c: int) -> float:
-        return (xs[b] - xs[a]) * (ys[c] - ys[a]) - (ys[b] - ys[a]) * (xs[c] - xs[a])
-
+        owner[a * n + b] = owner[b * n + c] = owner[c * n + a] = t
+    stack = [divmod(k, n) for k in owner if k // n < k % n and (k % n) * n + k // n in owner]
+    get = owner.get
     budget = 8 * len(tris) * len(tris) + 16 if budget is None else budget
     while stack and budget:
         budget -= 1
         a, b = stack.pop()
-        t1, t2 = owner.get((a, b)), owner.get((b, a))
+        t1, t2 = get(a * n + b), get(b * n + a)
         if t1 is None or t2 is None:
             continue
-        c, d = third(t1, a, b), third(t2, b, a)
-        if area(a, d, c) <= _EPS or area(d, b, c) <= _EPS or not better(a, b, c, d):
+        u, v, w = tris[t1]
+        c = w if u == a and v == b else u if v == a and w == b else v
+        u, v, w = tris[t2]
+        d = w if u == b and v == a else u if v == b and w == a else v
+        # both new triangles counter-clockwise: (a, d, c) and (d, b, c) turn left in the plane
+        xa, ya, xc, yc, xd, yd = xs[a], ys[a], xs[c], ys[c], xs[d], ys[d]
+        if (xd - xa) * (yc - ya) - (yd - ya) * (xc - xa) <= _EPS:
+            continue
+        if (xs[b] - xd) * (yc - yd) - (ys[b] - yd) * (xc - xd) <= _EPS or not better(a, b, c, d):
             continue
         tris[t1], tris[t2] = (a, d, c), (d, b, c)
-        del owner[(a, b)], owner[(b, a)]
-        owner[(a, d)] = owner[(d, c)] = owner[(c, a)] = t1
-        owner[(d, b)] = owner[(b, c)] = owner[(c, d)] = t2
+        del owner[a * n + b], owner[b * n + a]
+        owner[a * n + d] = owner[d * n + c] = owner[c * n + a] = t1
+        owner[d * n + b] = owner[b * n + c] = owner[c * n + d] = t2
         stack.extend([(a, d), (d, b), (b, c), (c, a)])

@@ -185,6 +185,45 @@ def test_genomes_of_every_kind_terminate():
         assert result.valid or result.reason
 
 
+GECCO_AS_RULES = """successor: item* segment
+
+item: segment
+    | "+" | "-" | "&" | "^" | "\\\\" | "/" | "~"
+    | "[" successor "]"
+
+segment: EDGE | EDGE_I | EDGE_INEXT | EDGE_IPREV
+"""
+
+
+def test_gecco_derives_turned_branches_at_the_default_max_depth(tmp_path):
+    """gecco's successor items and segments are inline groups: a branch holding a turn fits
+    max_depth 5. Written as rules (successor -> item -> [ successor ] -> segment) it needed 6, so no
+    branch, and no subdivided surface, could be derived at the default depth. Where the depth limit
+    does not bind, the groups read the genome exactly as the rules did."""
+    import numpy as np
+
+    from genr8_dist.resources import grammars_dir
+
+    text = (grammars_dir() / "gecco.lark").read_text()
+    start = text.index("successor: ((EDGE")
+    end = text.index("\n\n", start)
+    (tmp_path / "gecco_rules.lark").write_text(text[:start] + GECCO_AS_RULES + text[end + 2:])
+    groups, rules = load_universe("gecco"), load_universe(str(tmp_path / "gecco_rules.lark"))
+    rng = np.random.default_rng(5)
+    branched = {"groups": 0, "rules": 0}   # texts with a branch at max_depth 5
+    turned = {"groups": 0, "rules": 0}     # ... with a branch that starts with a turn
+    for _ in range(200):
+        genome = [int(c) for c in rng.integers(0, 256, size=80)]
+        a, b = groups.map(genome, max_depth=14), rules.map(genome, max_depth=14)
+        assert (a.text, a.codons_used) == (b.text, b.codons_used)
+        for name, u in (("groups", groups), ("rules", rules)):
+            mapped = u.map(genome, max_depth=5).text or ""
+            branched[name] += "[" in mapped
+            turned[name] += bool(re.search(r"\[ [+-] Edge", mapped))
+    assert branched["rules"] == turned["rules"] == 0
+    assert branched["groups"] >= 40 and turned["groups"] >= 4
+
+
 def test_max_depth_out_of_range_is_a_value_error():
     u = load_universe("default")
     with pytest.raises(ValueError, match="max_depth"):
