@@ -181,7 +181,7 @@ class SearchSettings:
     descriptors: tuple[str, ...] = ("undulation", "size_regions")   # map-elites: the grid's axes
     ranges: tuple[tuple[float, float], ...] = ((0.0, 2.0), (1.0, 65.0))
     bins: tuple[int, ...] = (4, 8)
-    offspring: float = 0.5                 # map-elites: the least share of a generation bred anew
+    offspring: float = 0.5                 # map-elites: offspring each generation, a share of ea.population
 
     def __post_init__(self) -> None:
         _set(self, "mode", _choice(self.mode, "search.mode", SEARCH_MODES))

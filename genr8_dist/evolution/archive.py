@@ -7,8 +7,10 @@ gives each a range and a number of bins, and an individual falls in the cell of 
 in it, ties to the earlier one.
 
 The archive of an island is carried in its population: each generation starts with the previous
-generation's archive (its cells' elites, origin ``elite``), so the archive after generation g is a
-pure function of generation g's stored rows (``Grid.archive``). It is committed with every epoch as
+generation's whole archive (every held cell's elite, origin ``elite``; its capacity is the grid, not
+the population, so a generation grows beyond ``ea.population`` when more cells are held), then its
+offspring, so the archive after generation g is a pure function of generation g's stored rows
+(``Grid.archive``) and no cell once found is lost. It is committed with every epoch as
 rows, resumes with them and is equal after a kill and a resume, with no state outside the run store.
 """
 

@@ -13,8 +13,10 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
 2. injected individuals (a genome, a hand-written rewrite system inverted through the universe, or a
    copy of an existing ``Individual``): origin ``injected``, evaluated;
 3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``)
-   (by ``search.mode``: see ``_selection``);
-4. offspring until the population is full: two parents by tournament (by ``search.mode``), one-point
+   (by ``search.mode``: see ``_selection``; in ``map-elites`` mode the whole archive);
+4. offspring until the population is full (``generation_size``: in ``map-elites`` mode at least
+   ``search.offspring`` of ``ea.population`` after the archive, so a generation may be larger): two
+   parents by tournament (by ``search.mode``), one-point
    crossover with
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
@@ -329,6 +331,7 @@ class Island:
         scores, elites, mates = self._selection(pool, fitnesses, room)
         for i in elites:
             births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
+        size = self.generation_size(len(births))
 
         mate_scores = [scores[i] for i in mates]
 
@@ -343,7 +346,7 @@ class Island:
         revary_rng = self.rng(generation, "revary")
         unique = ea.unique_retries > 0
         texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
-        while len(births) < ea.population:
+        while len(births) < size:
             a = pick(select_rng)
             b = pick(select_rng, first=False)
             tries = 0
@@ -364,7 +367,7 @@ class Island:
                 lineage = ((a,), (b,))
                 used = (used_a, used_b)
             for child, picked, codons in zip(children, lineage, used, strict=True):
-                if len(births) >= ea.population:
+                if len(births) >= size:
                     break
                 within = codons if ea.within_used and codons > 0 else None
                 genome, flipped = int_flip_mutation(mutate_rng, child, ea.mutation_rate, g.codon_max,
@@ -401,9 +404,10 @@ class Island:
         first front: its best ``ea.elites`` by the fitness first (the weighted sum, whose minimum is on
         the front when the objectives are the weighted criteria), then the least crowded, up to half
         the room. ``map-elites``:
-        the archive of ``pool`` (its cells' best), up to the room left after ``search.offspring`` of
-        the population; each pair's first parent drawn from it by a tournament of ``ea.tournament``, its
-        mate uniformly (``ea.tournament = 1``: both uniformly, as in the original MAP-Elites)."""
+        the whole archive of ``pool`` (every held cell's best, whatever the room: ``generation_size``
+        makes room for the offspring after it); each pair's first parent drawn from it by a
+        tournament of ``ea.tournament``, its mate uniformly (``ea.tournament = 1``: both uniformly,
+        as in the original MAP-Elites)."""
         ea, search = self.config.ea, self.config.search
         if search.mode == "pareto":
             from genr8_dist.evolution.pareto import objectives_of, pareto_order
@@ -421,11 +425,19 @@ class Island:
             from genr8_dist.evolution.archive import Grid
 
             grid = Grid.from_settings(search)
-            cap = max(0, room - math.ceil(search.offspring * ea.population))
             where = {id(p): i for i, p in enumerate(pool)}
-            elites = [where[id(ind)] for ind in grid.elites(pool, cap)]
+            elites = [where[id(ind)] for ind in grid.elites(pool, grid.size)]
             return list(fitnesses), elites, list(elites)
         return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
+
+    def generation_size(self, kept: int) -> int:
+        """How many individuals a generation holds when ``kept`` of them (migrants, injected, elites)
+        are placed before the offspring: ``ea.population``; in ``map-elites`` mode at least
+        ``search.offspring`` of it bred anew besides the archive, whose capacity is the grid."""
+        ea, search = self.config.ea, self.config.search
+        if search.mode != "map-elites":
+            return ea.population
+        return max(ea.population, kept + math.ceil(search.offspring * ea.population))
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
         """The distinct genomes of ``births`` that need an evaluation this island has not cached."""

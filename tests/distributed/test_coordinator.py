@@ -3,6 +3,7 @@ damaged files. Every comparison is row for row over every column except timings.
 
 from __future__ import annotations
 
+import collections
 import json
 import math
 
@@ -256,12 +257,13 @@ def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(re
 
 @pytest.mark.parametrize("search", [
     '[search]\nmode = "map-elites"\ndescriptors = ["undulation", "size_regions"]\n'
-    'ranges = [[0.0, 1.0], [1.0, 9.0]]\nbins = [2, 4]\n',
+    'ranges = [[0.0, 1.5], [1.0, 9.0]]\nbins = [3, 4]\n',
     '[search]\nmode = "pareto"\n',
 ])
 def test_a_search_mode_run_resumed_equals_the_uninterrupted_one_archive_included(pool, tmp_path, search):
-    """The MAP-Elites archive travels in the rows (each generation starts with its cells' elites), so a
-    killed and resumed run has the same archive, row for row; likewise Pareto ranks."""
+    """The MAP-Elites archive travels in the rows (each generation starts with every held cell's
+    elite, more of them than the population holds), so a killed and resumed run has the same archive,
+    row for row; likewise Pareto ranks."""
     toml = tiny_toml(islands=2, generations=5) + search
     whole = tmp_path / "whole"
     new_run(whole, toml)
@@ -274,4 +276,6 @@ def test_a_search_mode_run_resumed_equals_the_uninterrupted_one_archive_included
     if "map-elites" in search:
         assert any(r["cell"] is not None for r in rows(whole))
         assert any(r["origin"] == "elite" for r in rows(whole) if r["generation"] > 0)
+        sizes = collections.Counter((r["island"], r["generation"]) for r in rows(whole))
+        assert max(sizes.values()) > 6   # the archive outgrew the population of 6
     assert all(r["pareto_rank"] is not None for r in rows(whole))

@@ -337,13 +337,34 @@ def test_map_elites_carries_the_best_of_every_cell_into_the_next_generation():
     for previous, gen in itertools.pairwise(hist):
         archive = grid.archive(previous)
         kept = {ind.parents[0] for ind in gen if ind.origin == "elite"}
-        best = sorted(archive.values(), key=lambda ind: (ind.fitness, ind.index))[:8]
+        best = sorted(archive.values(), key=lambda ind: (ind.fitness, ind.index))
         assert kept == {ind.id for ind in best}
         # a cell's elite is never worse than before: the archive only improves
         after = grid.archive(gen)
         kept_cells = {grid.cell(i) for i in best}
         assert all(after[c].fitness <= archive[c].fitness for c in kept_cells)
         assert sum(ind.origin != "elite" for ind in gen) >= 8
+
+
+def test_map_elites_archive_holds_every_cell_found_beyond_the_population():
+    """The archive's capacity is the grid, not the population: a population of 6 over a grid of 24
+    cells keeps every cell ever held, and still breeds ``search.offspring`` of the population anew."""
+    from genr8_dist.evolution.archive import Grid
+
+    config = small_config(ea={"population": 6},
+                          search={"mode": "map-elites", "descriptors": ["size_regions", "size_vertices"],
+                                  "ranges": [[1, 13], [3, 27]], "bins": [4, 6], "offspring": 0.5})
+    hist = Island(config, 0).run(4)
+    grid = Grid.from_settings(config.search)
+    found: set[int] = set()
+    for previous, gen in itertools.pairwise(hist):
+        found |= set(grid.archive(previous))
+        held = grid.archive(previous)
+        kept = [ind for ind in gen if ind.origin == "elite"]
+        assert {ind.parents[0] for ind in kept} == {ind.id for ind in held.values()}
+        assert len(gen) == max(6, len(held) + 3) and len(gen) - len(kept) >= 3
+        assert set(grid.archive(gen)) >= found   # no cell found is ever lost
+    assert len(grid.archive(hist[-1])) > 6 and len(hist[-1]) > 6
 
 
 def test_pareto_mode_keeps_the_first_front_and_ranks_it_as_the_reference_does():
