@@ -2,6 +2,8 @@
 
     python bench/search.py                                   # the shipped examples, 5 seeds
     python bench/search.py --configs examples/quick.toml --seeds 3 --founders 200
+    python bench/search.py --skip founders islands --configs examples/long.toml \\
+        --population 12 --generations 16                     # a long example, scaled-down EA budget
 
 Everything runs in plain Python (islands in lockstep with the run's own migration plan, no Ray), so the
 figures are the engine's, not the cluster's. Sections:
