@@ -44,9 +44,19 @@ COPIES = ("elite", "migrant")
 DEFAULT_CONFIGS = ("examples/quick.toml", "examples/subdivide.toml")
 
 
-def trivial(ind: Any) -> bool:
-    """Invalid, or a surface of at most one region."""
-    return not ind.valid or ind.sizes.get("regions", 0) <= 1
+def trivial(ind: Any, phenotype: Any = None) -> bool:
+    """Invalid, or trivial as the universe's phenotype says (surfaces: at most one region)."""
+    from genr8_dist.evolution.island import is_trivial
+
+    return is_trivial(ind, phenotype)
+
+
+def phenotype_of_config(config: Any) -> Any:
+    """The phenotype that ``config``'s universe develops (surfaces, or a plugin's own)."""
+    from genr8_dist.grammar import load_universe
+    from genr8_dist.phenotype import phenotype_of
+
+    return phenotype_of(load_universe(config.universe))
 
 
 def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], list[int]]:
@@ -73,8 +83,9 @@ def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], l
     return history, spent
 
 
-def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict[str, Any]:
-    """The per-run figures of one run's history."""
+def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float, phenotype: Any = None
+             ) -> dict[str, Any]:
+    """The per-run figures of one run's history (``phenotype``: what trivial means, default surfaces)."""
     history, spent = run
     by_id = {}
     trivial_share, distinct_share, copy_share = [], [], []
@@ -83,7 +94,7 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float) -> dict
     reach = None
     for g, gen in enumerate(history):
         pops = [ind for pop in gen for ind in pop]
-        trivial_share.append(sum(map(trivial, pops)) / len(pops))
+        trivial_share.append(sum(trivial(ind, phenotype) for ind in pops) / len(pops))
         distinct = [len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop) for pop in gen]
         distinct_share.append(statistics.fmean(distinct))
         offspring = [ind for ind in pops if ind.origin not in COPIES and ind.generation > 0]
@@ -206,7 +217,8 @@ def founders(universes: Sequence[str], count: int, base: Any) -> None:
         seconds = time.perf_counter() - t0
         distinct = len({ind.phenotype_digest for ind in pop if ind.valid}) / len(pop)
         redraws = island.stats.founders_redrawn / len(pop)
-        print(f"| {name} | {sum(map(trivial, pop)) / len(pop):.3f} | {distinct:.3f} | {redraws:.2f} | "
+        share = sum(trivial(ind, island.phenotype) for ind in pop) / len(pop)
+        print(f"| {name} | {share:.3f} | {distinct:.3f} | {redraws:.2f} | "
               f"{seconds:.1f} |")
 
 
@@ -231,7 +243,7 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
     for seed in seeds:
         config = base.replace(seed=seed)
         t0 = time.perf_counter()
-        figures = describe(run_islands(config, last), tiles)
+        figures = describe(run_islands(config, last), tiles, phenotype_of_config(config))
         figures["seconds"] = time.perf_counter() - t0
         sample = random_sample(config, figures["evaluations"])
         figures["random"] = min(ind.fitness for ind in sample)
@@ -261,7 +273,7 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
     print(f"- evolved best: {spread([r['best'] for r in runs], '{:.4f}')}")
     print(f"- random best, same evaluations: {spread([r['random'] for r in runs], '{:.4f}')}")
     against_random("best fitness (lower is better)",
-                   [(r["random"] - r["best"]) / r["random"] if r["random"] > 0 else 0.0 for r in runs])
+                   [(r["random"] - r["best"]) / abs(r["random"]) if r["random"] else 0.0 for r in runs])
     if mode == "pareto":
         print(f"- hypervolume of the run's front (normalised, reference 1.1): "
               f"{spread([r['volumes'][0] for r in runs])}; of the random sample's front: "
@@ -275,8 +287,9 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
             against_random(f"archive {name}", [(r["archive"][i] - r["random_archive"][i])
                                                / r["random_archive"][i] for r in runs])
     reached = [r["reach"] for r in runs if r["reach"] is not None]
-    print(f"- evaluations to reach the four_sided_tiles score: reached in {len(reached)} of {len(runs)}"
-          f"; {spread(reached, '{:.0f}')}")
+    if math.isfinite(tiles):   # a fitness that can score the tiles (a surface universe's)
+        print(f"- evaluations to reach the four_sided_tiles score: reached in {len(reached)} of "
+              f"{len(runs)}; {spread(reached, '{:.0f}')}")
     print(f"- trivial share, all generations after 0: "
           f"{spread([statistics.fmean(r['trivial'][1:]) for r in runs if len(r['trivial']) > 1])}")
     print(f"- distinct surfaces, all generations: {spread([min(r['distinct']) for r in runs])} (lowest "
