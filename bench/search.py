@@ -318,7 +318,8 @@ def islands_vs_one(path: str, seeds: Sequence[int], count: int, generations: int
     tiles = tiles_score(base)
     results: dict[str, list[dict[str, Any]]] = {}
     for name, config in variants.items():
-        results[name] = [describe(run_islands(config.replace(seed=s), last), tiles) for s in seeds]
+        results[name] = [describe(run_islands(config.replace(seed=s), last), tiles,
+                                    phenotype_of_config(config)) for s in seeds]
     single = list(results)[1]
     goal = statistics.median(r["best"] for r in results[single])
     print(f"\n## islands against one population ({path}, {last} generations, {len(seeds)} seeds)\n")
