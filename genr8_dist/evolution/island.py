@@ -34,7 +34,9 @@ draw, origin ``random``, no parents), up to ``ea.unique_redraws`` times. Generat
 founder that is trivial (invalid, or trivial as its phenotype says: a surface of at most one region,
 the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
 times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
-trees (``grammar.derivations``).
+trees (``grammar.derivations``); the second half of a founder's redraws are bushy trees (every
+repetition at least a few rounds, no edge label born), so a universe whose random genomes seldom
+subdivide (``gecco``) still starts alive.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
@@ -520,7 +522,10 @@ class Island:
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
-        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again."""
+        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again: the first
+        half of ``ea.founder_retries`` (rounded up) as ``ea.init`` says, the rest as bushy derivation
+        trees (``grammar.derivations.bushy_genome``: longer repetitions, no edge label born). Bushy trees
+        cost more growth, so they come only where plain draws keep failing."""
         phenotype = self.phenotype
 
         def wasted(ev: Evaluation) -> bool:
@@ -529,12 +534,21 @@ class Island:
             return is_trivial(ev, phenotype) or ev.phenotype_digest in seen
 
         rng = None
-        for _ in range(self.config.ea.founder_retries):
+        retries = self.config.ea.founder_retries
+        plain = (retries + 1) // 2
+        for attempt in range(retries):
             evaluation = self._settled(genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
-            genome = tuple(self._founders(rng, 1, first=index)[0])
+            if attempt < plain:
+                genome = tuple(self._founders(rng, 1, first=index)[0])
+            else:   # plain draws keep failing: bushy trees over the labels a derivation starts with
+                from genr8_dist.grammar.derivations import bushy_genome
+
+                g = self.config.genome
+                genome = bushy_genome(self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
+                                      max_depth=g.max_depth)
             evaluation = self.evaluator.preview(genome)
             self.stats.founders_redrawn += 1
         evaluation = self.evaluator.measure(genome, evaluation)
