@@ -240,6 +240,25 @@ def test_founders_of_a_universe_whose_random_genomes_seldom_subdivide_are_redraw
     assert all(set(re.findall(r"Edge(\d+)", i.text)) <= {"0", "1"} for i in live)   # no label born
 
 
+def test_bushy_redraws_give_way_to_plain_ones_where_plain_draws_do_better(monkeypatch):
+    """Past the plain half of the retries a founder is drawn bushy only while bushy trees have given
+    live founders at least as often as plain draws in this generation 0 (Laplace's rule)."""
+    import genr8_dist.grammar.derivations as derivations
+
+    calls = []
+
+    def failing(universe, rng, **settings):   # one fixed genome: live at most once, then a repeat
+        calls.append(1)
+        return (0,) * 8
+
+    monkeypatch.setattr(derivations, "bushy_genome", failing)
+    config = small_config(ea={"population": 30, "founder_retries": 2}, environment={"steps": 3})
+    island = Island(config, 0)
+    island.initial()
+    assert 1 <= len(calls) <= 4
+    assert island._founder_draws["bushy"][0] == len(calls) and island._founder_draws["bushy"][1] <= 1
+
+
 def test_ramped_founders_are_seeded_and_alive():
     config = small_config(ea={"population": 16, "init": "ramped"})
     a, b = Island(config, 0).initial(), Island(config, 0).initial()
