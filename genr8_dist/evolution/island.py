@@ -34,7 +34,10 @@ draw, origin ``random``, no parents), up to ``ea.unique_redraws`` times. Generat
 founder that is trivial (invalid, or trivial as its phenotype says: a surface of at most one region,
 the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
 times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
-trees (``grammar.derivations``).
+trees (``grammar.derivations``); past the first half of a founder's redraws they are bushy trees
+(every repetition at least a few rounds, no edge label born) while those have given live founders at
+least as often as plain draws in this generation 0, so a universe whose random genomes seldom
+subdivide (``gecco``) still starts alive.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
@@ -138,6 +141,11 @@ def is_trivial(evaluation: Evaluation, phenotype: Any = None) -> bool:
     return not evaluation.valid or (phenotype or SURFACES).trivial(evaluation)
 
 
+def _rate(tally: list[int]) -> float:
+    """Laplace's estimate of the share of live founders among ``[draws, live]``."""
+    return (tally[1] + 1) / (tally[0] + 2)
+
+
 def _keys(ind: Individual | Evaluation) -> set[str]:
     keys = set()
     if ind.text is not None:
@@ -166,6 +174,7 @@ class Island:
             else Evaluator(config)
         self.config_of = config_of   # configuration version -> its configuration (None: unknown)
         self.stats = IslandStats()
+        self._founder_draws: dict[str, list[int]] = {"plain": [0, 0], "bushy": [0, 0]}
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
 
@@ -457,6 +466,8 @@ class Island:
                 self.evaluator.adopt(genome, made)
         population = []
         seen: set[str] = set()   # the phenotype digests of this generation so far
+        if generation == 0:
+            self._founder_draws = {"plain": [0, 0], "bushy": [0, 0]}
         for index, birth in enumerate(births):
             kept = birth.evaluation
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
@@ -520,7 +531,12 @@ class Island:
 
     def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
                         ) -> tuple[Genome, Evaluation]:
-        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again."""
+        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again: the first
+        half of ``ea.founder_retries`` (rounded up) as ``ea.init`` says; each later one as a bushy
+        derivation tree (``grammar.derivations.bushy_genome``: longer repetitions, no edge label born)
+        unless plain draws have so far given this generation 0 live founders more often (Laplace's rule
+        over the draws of the founders before, so a universe where bushy trees fail keeps its plain
+        draws). Bushy trees cost more growth, so they come only where plain draws keep failing."""
         phenotype = self.phenotype
 
         def wasted(ev: Evaluation) -> bool:
@@ -529,17 +545,34 @@ class Island:
             return is_trivial(ev, phenotype) or ev.phenotype_digest in seen
 
         rng = None
-        for _ in range(self.config.ea.founder_retries):
+        retries = self.config.ea.founder_retries
+        plain = (retries + 1) // 2
+        tally = self._founder_draws   # kind -> [draws, live ones] in this generation 0 so far
+        kind = "plain"                # the founder as born is a plain draw
+        for attempt in range(retries):
             evaluation = self._settled(genome, evaluation, wasted)
+            tally[kind][0] += 1
             if not wasted(evaluation):
+                tally[kind][1] += 1
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
-            genome = tuple(self._founders(rng, 1, first=index)[0])
+            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) else "bushy"
+            if kind == "plain":
+                genome = tuple(self._founders(rng, 1, first=index)[0])
+            else:   # plain draws keep failing: bushy trees over the labels a derivation starts with
+                from genr8_dist.grammar.derivations import bushy_genome
+
+                g = self.config.genome
+                genome = bushy_genome(self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
+                                      max_depth=g.max_depth)
             evaluation = self.evaluator.preview(genome)
             self.stats.founders_redrawn += 1
         evaluation = self.evaluator.measure(genome, evaluation)
+        tally[kind][0] += 1
         if wasted(evaluation):
             self.stats.unresolved += 1
+        else:
+            tally[kind][1] += 1
         return genome, evaluation
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,

@@ -16,6 +16,13 @@ derivation is followed by random codons up to the genome's length (a repair rule
 has one, reads them). It needs nothing but the grammar: it works for every universe, built-in or
 plugin. A ``DerivationSample`` keeps the tokens the sampler meant, so tests check that the mapper
 reads the genome the same way.
+
+``bushy_genome`` draws a *bushy* grown tree: every repetition takes at least a number of rounds drawn
+from ``0..rounds``, and no edge label is born (every edge takes one of the two labels a derivation
+starts with). More rules, items and branches over fewer labels make branches that can join far more
+likely: it is what the island falls back on when a founder's plain redraws stay trivial
+(``evolution.island``); in ``gecco``, whose random genomes subdivide about once in a thousand, 30% of
+bushy trees subdivide, each into a different surface.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ import numpy as np
 from genr8_dist.grammar.mapper import eligible
 from genr8_dist.grammar.universe import Universe
 
-__all__ = ["DerivationSample", "ramped_genomes", "sample_derivation"]
+__all__ = ["DerivationSample", "bushy_genome", "ramped_genomes", "sample_derivation"]
 
 METHODS = ("grow", "full")
 
@@ -44,12 +51,14 @@ class DerivationSample:
 
 class _Sampler:
     def __init__(self, universe: Universe, rng: np.random.Generator, max_depth: int, limit: int,
-                 method: str, codon_max: int) -> None:
+                 method: str, codon_max: int, births: bool = True, rounds: int = 0) -> None:
         self.cg = universe.grammar
         self.rng = rng
         self.maxd = max_depth
         self.limit = min(limit, max_depth)
         self.full = method == "full"
+        self.births = births
+        self.rounds = rounds
         self.codon_max = codon_max
         self.out = DerivationSample()
         self.count = 2
@@ -101,6 +110,8 @@ class _Sampler:
         return need == 0 or depth + need <= limit
 
     def label(self) -> int:
+        if not self.births:   # one of the labels there are: the mapper's codon mod (count + 1) < count
+            return self.write(int(self.rng.integers(0, self.count)), self.count + 1) % (self.count + 1)
         lab = self.any_codon() % (self.count + 1)
         if lab == self.count:
             self.count += 1
@@ -147,9 +158,17 @@ class _Sampler:
                 self.any_codon()
                 return
             mine = self.fits(inner, depth, self.limit)
+            # A bushy tree takes at least ``least`` rounds, then goes on by the natural chance.
+            bushy = self.rounds and mine and not self.full
+            least = int(self.rng.integers(0, self.rounds + 1)) if bushy else 0
             c = 0
             while True:
                 m = c + x
+                if c < least and c < self.codon_max:
+                    self.write(int(self.rng.integers(c + 1, min(m, self.codon_max + 1))), m)   # another round
+                    self.node(inner, depth, scope)
+                    c += 1
+                    continue
                 # A grown tree takes another round by the natural chance (m - c - 1) / m; a full
                 # one takes at least X rounds.
                 # No codon above codon_max exists: past round codon_max every codon stops the repetition.
@@ -167,14 +186,43 @@ class _Sampler:
 
 
 def sample_derivation(universe: Universe, rng: np.random.Generator, *, max_depth: int, limit: int,
-                      method: str, codon_max: int) -> DerivationSample:
+                      method: str, codon_max: int, births: bool = True, rounds: int = 0
+                      ) -> DerivationSample:
     """One derivation of ``universe`` drawn by ``method`` (``"grow"`` or ``"full"``) with its depth
-    limited to ``limit`` (at most ``max_depth``, the mapper's), as codons for a mapper at ``max_depth``."""
+    limited to ``limit`` (at most ``max_depth``, the mapper's), as codons for a mapper at ``max_depth``.
+    With ``births=False`` no edge label is born; with ``rounds`` (grow) every repetition takes at least
+    a number of rounds drawn from ``0..rounds``."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    sampler = _Sampler(universe, rng, max_depth, limit, method, codon_max)
+    sampler = _Sampler(universe, rng, max_depth, limit, method, codon_max, births, rounds)
     sampler.rule(sampler.cg.start, 1)
     return sampler.out
+
+
+def _padded(universe: Universe, rng: np.random.Generator, *, length: int, codon_max: int,
+            max_depth: int, limit: int, method: str, births: bool = True, rounds: int = 0
+            ) -> tuple[int, ...]:
+    """One derivation's codons followed by random codons up to ``length`` (a derivation too long to
+    sample leaves only the random codons)."""
+    try:
+        codons = sample_derivation(universe, rng, max_depth=max_depth, limit=limit, method=method,
+                                   codon_max=codon_max, births=births, rounds=rounds).codons
+    except OverflowError:
+        codons = []
+    tail = max(0, length - len(codons))
+    return tuple(codons + [int(c) for c in rng.integers(0, codon_max, size=tail, endpoint=True)])
+
+
+BUSHY_ROUNDS = 8
+
+
+def bushy_genome(universe: Universe, rng: np.random.Generator, *, length: int, codon_max: int,
+                 max_depth: int, rounds: int = BUSHY_ROUNDS) -> tuple[int, ...]:
+    """A genome of a grown tree at ``max_depth`` whose every repetition takes at least a number of
+    rounds drawn from ``0..rounds`` and in which no edge label is born, followed by random codons up
+    to ``length`` (a longer derivation keeps its own length). Every draw from ``rng``."""
+    return _padded(universe, rng, length=length, codon_max=codon_max, max_depth=max_depth,
+                   limit=max_depth, method="grow", births=False, rounds=rounds)
 
 
 def ramped_genomes(universe: Universe, rng: np.random.Generator, count: int, *, length: int,
@@ -189,13 +237,6 @@ def ramped_genomes(universe: Universe, rng: np.random.Generator, count: int, *, 
     genomes = []
     for i in range(first, first + count):
         limit = limits[(i // 2) % len(limits)]
-        method = METHODS[i % 2]
-        try:
-            codons = sample_derivation(universe, rng, max_depth=max_depth, limit=limit, method=method,
-                                       codon_max=codon_max).codons
-        except OverflowError:
-            codons = []
-        tail = max(0, length - len(codons))
-        codons = codons + [int(c) for c in rng.integers(0, codon_max, size=tail, endpoint=True)]
-        genomes.append(tuple(codons))
+        genomes.append(_padded(universe, rng, length=length, codon_max=codon_max, max_depth=max_depth,
+                               limit=limit, method=METHODS[i % 2]))
     return genomes

@@ -45,7 +45,9 @@ def test_generation_zero(history):
     gen0 = hist[0]
     assert [ind.index for ind in gen0] == list(range(config.ea.population))
     assert all(ind.generation == 0 and ind.island == 0 and ind.origin == "random" for ind in gen0)
-    assert all(len(ind.genome) == 40 and all(0 <= c <= 255 for c in ind.genome) for ind in gen0)
+    # 40 codons, or a bushy redraw's derivation tree, which keeps its own length
+    assert all(len(ind.genome) >= 40 and all(0 <= c <= 255 for c in ind.genome) for ind in gen0)
+    assert sum(len(ind.genome) == 40 for ind in gen0) >= len(gen0) // 2
     assert len({ind.genome for ind in gen0}) == len(gen0)
     for ind in gen0:
         if ind.valid:
@@ -74,6 +76,8 @@ def test_provenance(history):
                 assert ind.genome == parent.genome and ind.fitness == parent.fitness
             elif ind.origin.startswith("crossover"):
                 assert len(ind.parents) == 2
+            elif ind.origin == "random":   # a newcomer: re-variation could not escape a copy
+                assert ind.parents == ()
             else:
                 assert ind.origin == "mutation" and len(ind.parents) == 1
                 assert ind.genome != previous[ind.parents[0]].genome or len(ind.genome) == 0
@@ -170,7 +174,8 @@ def test_genomes_evaluated_elsewhere_complete_the_generation_step_builds(history
 
 
 def test_invalid_individuals_are_data_not_exceptions():
-    config = small_config(genome={"length": 3, "max_wraps": 0})
+    # founders not redrawn (a bushy redraw maps whatever the length)
+    config = small_config(genome={"length": 3, "max_wraps": 0}, ea={"founder_retries": 0})
     hist = Island(config, 0).run(2)
     invalid = [ind for pop in hist for ind in pop if not ind.valid]
     assert invalid, "three-codon genomes that may not wrap should mostly fail to map"
@@ -217,6 +222,43 @@ def test_founders_are_redrawn_until_they_are_not_trivial_nor_repeated():
     assert [untimed(i) for i in founders] == [untimed(i) for i in Island(config, 0).initial()]
 
 
+def test_founders_of_a_universe_whose_random_genomes_seldom_subdivide_are_redrawn_bushy():
+    """gecco's random genomes subdivide about once in a thousand: the plain half of the redraws
+    fails, the bushy half (longer repetitions, no label born) finds live, different founders (all but
+    4% of 200 in quick.toml's environment, bench/search.py; about 10% in this one)."""
+    import re
+
+    from genr8_dist.evolution.island import is_trivial
+
+    config = small_config(universe="gecco", ea={"population": 5, "elites": 1}, environment={"steps": 3})
+    founders = Island(config, 0).initial()
+    plain = Island(config.replace(ea={"founder_retries": 1}), 0).initial()   # one plain redraw only
+    assert sum(is_trivial(i) for i in plain) == 5
+    assert sum(is_trivial(i) for i in founders) <= 2
+    assert len({i.phenotype_digest for i in founders}) == 5
+    live = [i for i in founders if not is_trivial(i)]
+    assert all(set(re.findall(r"Edge(\d+)", i.text)) <= {"0", "1"} for i in live)   # no label born
+
+
+def test_bushy_redraws_give_way_to_plain_ones_where_plain_draws_do_better(monkeypatch):
+    """Past the plain half of the retries a founder is drawn bushy only while bushy trees have given
+    live founders at least as often as plain draws in this generation 0 (Laplace's rule)."""
+    import genr8_dist.grammar.derivations as derivations
+
+    calls = []
+
+    def failing(universe, rng, **settings):   # one fixed genome: live at most once, then a repeat
+        calls.append(1)
+        return (0,) * 8
+
+    monkeypatch.setattr(derivations, "bushy_genome", failing)
+    config = small_config(ea={"population": 30, "founder_retries": 2}, environment={"steps": 3})
+    island = Island(config, 0)
+    island.initial()
+    assert 1 <= len(calls) <= 4
+    assert island._founder_draws["bushy"][0] == len(calls) and island._founder_draws["bushy"][1] <= 1
+
+
 def test_ramped_founders_are_seeded_and_alive():
     config = small_config(ea={"population": 16, "init": "ramped"})
     a, b = Island(config, 0).initial(), Island(config, 0).initial()
@@ -261,7 +303,8 @@ def test_offspring_repeating_a_parent_or_a_sibling_are_varied_again_within_the_b
 
 def test_invalid_offspring_are_varied_again_within_the_bound():
     # a small edge cap and no wraps: many offspring are capped or map to nothing
-    config = small_config(ea={"population": 16}, genome={"length": 40, "max_wraps": 0},
+    # (founders redrawn once, plainly: their bushy redraws would only cost growth here)
+    config = small_config(ea={"population": 16, "founder_retries": 1}, genome={"length": 40, "max_wraps": 0},
                           environment={"steps": 3, "max_edges": 60})
     hist = Island(config, 0).run(1)
     offspring = ("crossover", "mutation", "crossover+mutation")
