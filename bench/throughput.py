@@ -124,10 +124,11 @@ def _one(universe, genome, config) -> tuple[float, float, str | None, bool]:
         try:
             result = grow(parse(mapped.text), config.environment)
             capped = result.capped
-            t1 = time.thread_time()
-            score_surface(result.surface, config.environment)
-            scoring = time.thread_time() - t1
-            valid = not capped
+            if not capped:   # a capped individual is invalid and, since round 4, never measured
+                t1 = time.thread_time()
+                score_surface(result.surface, config.environment)
+                scoring = time.thread_time() - t1
+                valid = True
         except Exception:  # failure is data, as in evaluation
             pass
     return time.thread_time() - t0, scoring, capped, valid
