@@ -121,9 +121,7 @@ def islands(steps: list[int], env: dict[str, object]) -> None:
 
 def _one(universe, genome, config) -> tuple[float, float, str | None, bool]:
     """CPU seconds to map, parse, grow and score ``genome`` and of those to score it (the criteria,
-    the triangulation ``slivers`` asks for included); the cap that cut growth short; valid. A growth
-    that a cap cut short is not scored: it fails the individual (stage ``grow``), and an island
-    discards it unmeasured (``Evaluator.preview``), so it costs a run its growth only."""
+    the triangulation ``slivers`` asks for included); the cap that cut growth short; valid."""
     from genr8_dist.fitness import score_surface
     from genr8_dist.hemls import grow, parse
 
@@ -135,7 +133,7 @@ def _one(universe, genome, config) -> tuple[float, float, str | None, bool]:
         try:
             result = grow(parse(mapped.text), config.environment)
             capped = result.capped
-            if not capped:
+            if not capped:   # a capped individual is invalid and, since round 4, never measured
                 t1 = time.thread_time()
                 score_surface(result.surface, config.environment)
                 scoring = time.thread_time() - t1
