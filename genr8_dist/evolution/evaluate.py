@@ -137,6 +137,8 @@ def _measure(grown: Evaluation, developed: Any, config: RunConfig) -> Evaluation
     from genr8_dist.phenotype import phenotype_of
 
     phenotype = phenotype_of(universe_for(config))
+    if grown.capped and phenotype.capped_is_invalid:
+        return _judge(grown, config)   # invalid whatever it measures: the largest surfaces, unmeasured
     t1 = time.perf_counter()
     try:
         criteria = phenotype.measure(developed, config)

@@ -69,6 +69,7 @@ def test_failures_are_data(config):
     assert not bad.valid and bad.stage == "parse" and "1:" in bad.error and bad.fitness == math.inf
     capped = evaluate_text(SQUARE, config.replace(environment={"max_edges": 10}))
     assert not capped.valid and capped.stage == "grow" and capped.capped and capped.fitness == math.inf
+    assert capped.criteria == {} and capped.score_seconds == 0.0   # invalid anyway: never measured
 
 
 @pytest.mark.parametrize("genome", [[], [-1, 2], ["a"]])
@@ -175,7 +176,8 @@ def test_evaluating_a_previewed_genome_measures_it(tight):
 
     ev._DEVELOPED.clear()
     lazy = Evaluator(tight)
-    g = next(g for g in genomes(40, seed=6) if isinstance(lazy.preview(g), Preview))
+    g = next(g for g in genomes(40, seed=6)
+             if isinstance(p := lazy.preview(g), Preview) and p.capped is None)   # capped: never measured
     full = lazy.evaluate(g)
     assert not isinstance(full, Preview) and full.criteria and lazy.cache_hits == 1
     assert full.untimed() == Evaluator(tight).evaluate(g).untimed()
