@@ -20,7 +20,7 @@ def _counts(result):
 
 @pytest.mark.parametrize("name", ["four_sided_tiles", "square"])
 def test_four_sided_tiles_counts_for_n_1_to_6(name):
-    result = grow(load_system(name), steps=6, keep_steps=True)
+    result = grow(load_system(name), Environment(max_work=0), steps=6, keep_steps=True)
     assert result.capped is None
     expected = [((2**n + 1) ** 2, 2 * 2**n * (2**n + 1), 4**n) for n in range(1, 7)]
     assert _counts(result) == expected
@@ -30,7 +30,7 @@ def test_four_sided_tiles_counts_for_n_1_to_6(name):
 
 
 def test_three_sided_tiles_counts_for_n_1_to_6():
-    result = grow(load_system("three_sided_tiles"), steps=6, keep_steps=True)
+    result = grow(load_system("three_sided_tiles"), Environment(max_work=0), steps=6, keep_steps=True)
     expected = []
     for n in range(1, 7):
         m = 2**n
@@ -255,6 +255,18 @@ def test_work_cap_stops_growth_at_a_count_and_says_so():
     assert (again.work, again.surface.digest()) == (result.work, result.surface.digest())
     below = grow(system, Environment(max_work=free.work), steps=6)
     assert below.capped is None and below.surface.digest() == free.surface.digest()
+
+
+def test_the_default_work_cap_keeps_five_steps_of_tiles_and_stops_the_sixth():
+    """four_sided_tiles costs 2,545 edge-steps to 5 steps and 8,152 to 6: the default cap (4,000)
+    stops the sixth step and leaves the 5-step surface; an environment that asks for 6 steps raises it
+    (examples/environments/*.toml)."""
+    system = load_system("four_sided_tiles")
+    assert Environment().max_work == 4000
+    five = grow(system, Environment(), steps=5)
+    assert five.capped is None and five.surface.n_vertices == 33 * 33
+    six = grow(system, Environment(), steps=6)
+    assert six.capped == "work" and six.surface.digest() == five.surface.digest()
 
 
 def test_joins_count_as_work():
