@@ -478,6 +478,11 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         reduced = _best_triangulations(points[corners][None], np.array([r]))[0]
     else:
         reduced = _clip_and_flip(points[corners])
+    kernels = _kernels()
+    if kernels is not None:
+        # 2.0 passed at run time: the reference's ``x ** 2`` is the C library's pow, not x * x
+        cut_ = kernels.cut_runs(reduced, corners, points, 2.0)
+        return _flipped(cut_, points, _plane_coordinates(points), kernels)
     pts = points.tolist()
     cut: list[tuple[int, int, int]] = []
     for tri in reduced.tolist():
@@ -532,8 +537,9 @@ def _cut(x: int, y: int, z: int, xy: list[int], yz: list[int], zx: list[int], pt
         q = [shared, *reversed(before[3]), before[0]]     # back along the side that ends at it
         p = [shared, *after[3], after[1]]                 # out along the side that starts at it
 
-        def d2(u: int, v: int) -> float:
-            return sum((pu - pv) ** 2 for pu, pv in zip(pts[u], pts[v], strict=True))
+        def d2(u: int, v: int) -> float:     # not sum(): Python 3.12's compensates its rounding
+            (ux, uy, uz), (vx, vy, vz) = pts[u], pts[v]
+            return (ux - vx) ** 2 + (uy - vy) ** 2 + (uz - vz) ** 2
 
         out.append((shared, q[1], p[1]))
         i = j = 1
@@ -553,6 +559,10 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     flips that lower the total cost the exact programme minimises, while any does.
     What is left when no ear can be found (a polygon that is not simple in that plane) is fanned."""
     xy = _plane_coordinates(points)
+    kernels = _kernels()
+    if kernels is not None:
+        return _flipped(kernels.clip(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])),
+                        points, xy, kernels)
     xs, ys = xy[:, 0].tolist(), xy[:, 1].tolist()
     px, py = xy[:, 0], xy[:, 1]
     n = len(points)
@@ -602,6 +612,15 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     _flip(tris, xs, ys, _delaunay_test(xs, ys), _FLIPS_PER_TRIANGLE * len(tris))
     _flip(tris, xs, ys, _cost_test(points), _FLIPS_PER_TRIANGLE * len(tris))
     return np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def _flipped(tris: np.ndarray, points: np.ndarray, xy: np.ndarray, kernels) -> np.ndarray:
+    """``tris`` (T, 3) after the compiled flips: to the constrained Delaunay triangulation, then
+    those that lower the cost, ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each at most."""
+    xs, ys = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+    kernels.flip(tris, xs, ys, points, False, _FLIPS_PER_TRIANGLE * len(tris))
+    kernels.flip(tris, xs, ys, points, True, _FLIPS_PER_TRIANGLE * len(tris))
+    return tris
 
 
 def _delaunay_test(xs: list[float], ys: list[float]) -> Callable[[int, int, int, int], bool]:

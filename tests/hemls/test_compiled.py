@@ -4,6 +4,8 @@ groups of many polygons, large regions and grown surfaces."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -89,6 +91,30 @@ def test_straight_runs_small_and_large(lift):
     vertices, offsets, cycles = _polygons(polygons)
     assert np.diff(offsets).max() > module._EXACT_MAX
     _both(vertices, offsets, cycles)
+
+
+@pytest.mark.parametrize("lift", [0.0, 0.3])
+def test_evenly_split_sides_tie_in_strips(lift):
+    """Large regions whose sides all carry the same number of evenly spaced vertices: the strips
+    between two such sides meet exact ties (which diagonal is shorter) that must break alike."""
+    shapes = [[(0, 0), (1, 0), (1, 1), (0, 1)], [(0, 0), (3, 0), (3, 1), (0, 1)], [(0, 0), (2, 0), (0, 2)],
+              [(0, 0), (1, 0), (1.5, 1), (0, 1)]]
+    polygons = []
+    for corners in shapes:
+        for per in (17, 20, 33, 40):
+            points = _with_runs(np.column_stack([corners, np.zeros(len(corners))]),
+                                np.full(len(corners), per))
+            points[:, 2] = lift * points[:, 0] * points[:, 1]
+            polygons.append(points)
+    _both(*_polygons(polygons))
+
+
+def test_strips_square_like_python():
+    """A grown region whose strips meet near-ties that ``x * x`` breaks unlike Python's ``x ** 2``
+    (``pow``): the compiled cut squares as Python does (tests/data/README.md)."""
+    points = np.loadtxt(Path(__file__).parents[1] / "data" / "strip-tie-region.txt")
+    assert points.shape == (81, 3)
+    _both(*_polygons([points]))
 
 
 def test_degenerate_polygons():
