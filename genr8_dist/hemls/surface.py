@@ -275,6 +275,9 @@ class Surface:
 #   constrained Delaunay triangulation and flips that lower the programme's cost, at most
 #   ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each. Linear in m beyond the true corners'
 #   programme, so a region of thousands of vertices costs milliseconds, not seconds.
+#
+# With numba (the ``fast`` extra) the loops run as compiled kernels (``_compiled``) that repeat the
+# code below operation for operation, so the triangles are the same bit for bit, about 6x faster.
 
 _EXACT_MAX = 64          # regions up to this many vertices get the exact best triangulation
 _QUALITY_FLOOR = 1e-9    # a triangle of lower quality costs as much as a degenerate one
@@ -286,12 +289,16 @@ _FLIPS_PER_TRIANGLE = 16  # edges tested for a flip per triangle of a large regi
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
+_LOAD_AFTER = 20_000      # region vertices the reference code triangulates in a process before it
+                          # loads the compiled kernels (about what loading them costs: ~0.4 s CPU)
+_reference_vertices = 0   # region vertices triangulated by the reference code in this process
+
+
 @functools.cache
-def _kernels():
-    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported the first time a
-    triangulation needs them; None, for the numpy/Python code below, when numba is not installed or
-    the environment sets ``GENR8_COMPILED=0``. Both give the same triangles bit for bit."""
-    if os.environ.get("GENR8_COMPILED", "1") == "0":
+def _load_kernels():
+    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported on first use; None, for
+    the numpy/Python reference code below, when numba is not installed or ``GENR8_COMPILED=0``."""
+    if os.environ.get("GENR8_COMPILED") == "0":
         return None
     try:
         from genr8_dist.hemls import _compiled
@@ -302,13 +309,33 @@ def _kernels():
     return _compiled
 
 
+def _kernels():
+    """The compiled kernels, or None for the reference code: both give the same triangles bit for
+    bit. A process loads them once it has triangulated ``_LOAD_AFTER`` region vertices (so a short
+    run does not pay for numba, a long one pays about twice the least it could), at once with
+    ``GENR8_COMPILED=1``, never with ``GENR8_COMPILED=0`` or without numba (the ``fast`` extra)."""
+    if _reference_vertices < _LOAD_AFTER and os.environ.get("GENR8_COMPILED") != "1":
+        return None
+    return _load_kernels()
+
+
 def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
     """(T, 3) triangles of ``vertices`` covering each polygon ``cycles[offsets[f]:offsets[f + 1]]``
     with ``m - 2`` triangles (polygons of fewer than 3 vertices get none), in polygon order and
     oriented like the polygons; deterministic. See the comment above for the rule."""
+    global _reference_vertices
     vertices = np.asarray(vertices, dtype=np.float64)
     offsets = np.asarray(offsets, dtype=np.int64)
     cycles = np.asarray(cycles, dtype=np.int64)
+    counted = _reference_vertices < _LOAD_AFTER
+    tri = _triangulate(vertices, offsets, cycles)
+    if counted:                 # counted after the call, so that one call takes one path
+        _reference_vertices += len(cycles)
+    return tri
+
+
+def _triangulate(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+    """``triangulate_polygons`` of checked arrays."""
     sizes = np.diff(offsets)
     parts: list[np.ndarray] = []
     owners: list[np.ndarray] = []

@@ -15,8 +15,16 @@ from genr8_dist.hemls import surface as module
 
 pytest.importorskip("numba", reason="numba is not installed: the compiled kernels (extra `fast`) are off")
 
-if module._kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
+if module._load_kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
     pytest.skip("GENR8_COMPILED=0: the compiled kernels are off", allow_module_level=True)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_at_once():
+    """The kernels from the first triangulation on (a process loads them only after some work)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(module, "_LOAD_AFTER", 0)
+        yield
 
 
 def _both(vertices, offsets, cycles) -> np.ndarray:
@@ -182,8 +190,39 @@ def test_grown_surfaces_of_random_genomes():
 
 def test_kernels_are_off_when_asked(monkeypatch):
     monkeypatch.setenv("GENR8_COMPILED", "0")
-    module._kernels.cache_clear()
+    module._load_kernels.cache_clear()
     try:
         assert module._kernels() is None
     finally:
-        module._kernels.cache_clear()
+        module._load_kernels.cache_clear()
+
+
+def test_a_process_loads_the_kernels_after_some_reference_work(monkeypatch):
+    """Below ``_LOAD_AFTER`` region vertices the reference code runs (a short run pays nothing for
+    numba); the call that passes it still does, the next one is compiled; GENR8_COMPILED=1 loads the
+    kernels at once."""
+    paths = []
+    real = module._load_kernels
+
+    def spy():
+        paths.append("compiled")
+        return real()
+
+    monkeypatch.setattr(module, "_load_kernels", spy)
+    monkeypatch.setattr(module, "_LOAD_AFTER", 100)
+    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.delenv("GENR8_COMPILED", raising=False)
+    square = _polygons([_with_runs(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
+                                   np.full(4, 20))])                  # 80 vertices, a large region
+    first = module.triangulate_polygons(*square)
+    assert paths == [] and module._reference_vertices == 80
+    second = module.triangulate_polygons(*square)
+    assert paths == [] and module._reference_vertices == 160
+    third = module.triangulate_polygons(*square)
+    assert paths and module._reference_vertices == 160
+    assert np.array_equal(first, second) and np.array_equal(first, third)
+    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.setenv("GENR8_COMPILED", "1")
+    paths.clear()
+    module.triangulate_polygons(*square)
+    assert paths
