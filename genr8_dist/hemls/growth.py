@@ -707,8 +707,10 @@ class _Grower:
         repl = np.arange(2 * m.ne, dtype=np.int64)
         repl[ho] = fwd[:, 0]
         repl[ht] = bwd[:, k - 1]
-        upto = 2 * ne0
-        m.nxt[:upto] = repl[m.nxt[:upto]]
+        # only the halves before ho and ht lead into the edges replaced (a pass over these, not over
+        # the map); one that is itself replaced is relinked below and then dropped
+        before = np.concatenate([m.prv[ho], m.prv[ht]])
+        m.nxt[before] = np.concatenate([fwd[:, 0], bwd[:, k - 1]])
         m.nxt[fwd[:, k - 1]] = repl[next_ho]
         m.nxt[bwd[:, 0]] = repl[next_ht]
         if k > 1:
@@ -719,7 +721,8 @@ class _Grower:
         m.alive[idx] = False
         m.nxt[ho] = -1
         m.nxt[ht] = -1
-        m._relink_prev()
+        changed = np.concatenate([before[m.alive[before >> 1]], fwd.ravel(), bwd.ravel()])
+        m.prv[m.nxt[changed]] = changed
         pending.remap_corners(repl)
         # branches
         nb = tpl.n_branches
