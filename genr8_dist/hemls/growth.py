@@ -169,8 +169,8 @@ def _compile(system: RewriteSystem) -> _Compiled:
 # -- the map ----------------------------------------------------------------------------------------
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (np.cross costs more than the work on small maps)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    """Row-wise cross product of two (n, 3) arrays (np.cross costs more than the work on small maps)."""
+    out = np.empty(a.shape)
     out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
     out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
     out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
@@ -842,9 +842,10 @@ class _Grower:
             pending.checked = n
             return
         score = -np.round(ci + cj, 9)
-        order = np.lexsort((pj, pi, np.round(dist, 9), score))
+        gap = np.round(dist, 9)
+        order = np.lexsort((pj, pi, gap, score))
         pi, pj = pi[order], pj[order]
-        rank = np.stack([score[order], np.round(dist, 9)[order]], axis=1)  # equal rows: a tie
+        score, gap = score[order], gap[order]   # pairs equal in both: a tie
         used = np.zeros(n, dtype=bool)
         live = np.ones(len(pi), dtype=bool)
         settled = np.zeros(len(pi), dtype=bool)   # tied pairs found to conflict with none of their ties
@@ -859,14 +860,20 @@ class _Grower:
             if not len(at):
                 break
             if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
-                pi, pj, live, fi, rank, settled = pi[at], pj[at], live[at], fi[at], rank[at], settled[at]
+                pi, pj, live, fi, settled = pi[at], pj[at], live[at], fi[at], settled[at]
+                score, gap = score[at], gap[at]
                 at = np.arange(len(pi))
-            # one join per face per round (a join splits its face), best pair first
-            _, firsts = np.unique(fi[at], return_index=True)
-            chosen = at[np.sort(firsts)]
+            # one join per face per round (a join splits its face), best pair first: each face's
+            # first live pair (a position in ``at``), found in one pass rather than a sort
+            fa = fi[at]
+            first = np.full(m.nf, len(at), dtype=np.int64)
+            np.minimum.at(first, fa, np.arange(len(at)))
+            firsts = first[first < len(at)]
+            firsts.sort()
+            chosen = at[firsts]
             if self.ties != "first":
-                chosen = self._settle_ties(chosen, at, fi, rank, live, settled, pi, pj, vert, corner,
-                                           heading, normal)
+                chosen = self._settle_ties(chosen, at, fi, fa, at[first[fa]], score, gap, live, settled, pi,
+                                           pj, vert, corner, heading, normal)
                 if not len(chosen):
                     continue
             a, b = pi[chosen], pj[chosen]
@@ -899,7 +906,8 @@ class _Grower:
                 raise _Capped("edges")
         pending.keep(~used)
 
-    def _settle_ties(self, chosen, at, fi, rank, live, settled, pi, pj, vert, corner, heading, normal):
+    def _settle_ties(self, chosen, at, fi, fa, lead, score, gap, live, settled, pi, pj, vert, corner,
+                     heading, normal):
         """Settle ties without looking at the order branches were drawn in (``branch_ties``).
 
         A face's tied pairs are its live pairs as good as its best (alignment and distance within
@@ -908,15 +916,13 @@ class _Grower:
         ``"none"`` makes none of them. Pairs left out are marked dead, pairs left in ``settled``;
         returns the chosen pairs, a face whose best pair was left out choosing its first tied pair
         left in (the others follow in later rounds, in any order: none crosses another)."""
-        _, firsts, inv = np.unique(fi[at], return_index=True, return_inverse=True)
-        close = np.all(np.abs(rank[at] - rank[at[firsts]][inv]) <= TIE, axis=1)
-        tied_faces = np.flatnonzero(np.bincount(inv, weights=close) > 1)
+        close = (np.abs(score[at] - score[lead]) <= TIE) & (np.abs(gap[at] - gap[lead]) <= TIE)
+        tied_faces = np.flatnonzero(np.bincount(fa, weights=close) > 1)
         if not len(tied_faces):
             return chosen
-        pick = {int(fi[c]): int(c) for c in chosen}
-        for k in tied_faces:
-            tied = at[close & (inv == k)]
-            face = int(fi[tied[0]])
+        pick = dict(zip(fi[chosen].tolist(), chosen.tolist(), strict=True))
+        for face in tied_faces.tolist():
+            tied = at[close & (fa == face)]
             if self.ties == "crossing" and not np.all(settled[tied]):
                 near = self._adjacent(corner[pi[tied]], vert[pj[tied]])  # would be dropped anyway
                 live[tied[near]] = False
