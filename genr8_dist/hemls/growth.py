@@ -1043,11 +1043,15 @@ class _Grower:
         size = np.sqrt(np.einsum("ij,ij->i", n, n))
         # opposite normals (a fold) leave no plane: compare in space, not in the plane of the
         # rounding error's direction
-        n = np.where((size > 1e-6)[:, None], n / np.maximum(size, 1e-300)[:, None], 0.0)
+        n /= np.maximum(size, 1e-300)[:, None]
+        n[~(size > 1e-6)] = 0.0
         # d and both headings projected on the plane and normalised, the three in one pass each
-        v = np.stack([d, heading[pi], heading[pj]])
-        v = v - np.einsum("kij,ij->ki", v, n)[:, :, None] * n
-        v = v / np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
+        v = np.empty((3, *d.shape))
+        v[0] = d
+        np.take(heading, pi, axis=0, out=v[1])
+        np.take(heading, pj, axis=0, out=v[2])
+        v -= np.einsum("kij,ij->ki", v, n)[:, :, None] * n
+        v /= np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
         u, hi, hj = v
         toward = np.einsum("kij,ij->ki", v[1:], u)
         return toward[0], -toward[1], dist, -np.einsum("ij,ij->i", hi, hj)
