@@ -798,11 +798,13 @@ class _Grower:
         first = np.ones(len(cand), dtype=bool)
         first[1:] = key[1:] != key[:-1]
         starts = first.nonzero()[0]
-        sizes = np.diff(np.append(starts, len(cand)))
+        sizes = np.empty(len(starts), dtype=np.int64)
+        sizes[:-1] = starts[1:] - starts[:-1]
+        sizes[-1] = len(cand) - starts[-1]
         points = m.pos[vert]
+        # every pair to test, counted as work group by group, then judged in one pass
         pi_all, pj_all = [], []
         small = (sizes >= 2) & (sizes <= 48)
-        aims: list[tuple[np.ndarray, ...]] = []
         for size in np.unique(sizes[small]).tolist():
             gs = starts[small & (sizes == size)]
             ti, tj = _triu(size)
@@ -811,10 +813,8 @@ class _Grower:
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
             self._spend(pairs=len(pi))
-            keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
-            pi_all.append(pi[keep])
-            pj_all.append(pj[keep])
-            aims.append(tuple(a[keep] for a in aim))
+            pi_all.append(pi)
+            pj_all.append(pj)
         for g in (sizes > 48).nonzero()[0]:
             members = cand[starts[g]:starts[g] + sizes[g]]
             new = members[members >= old]
@@ -826,18 +826,14 @@ class _Grower:
                 block = members[r0:r0 + rows]
                 self._spend(pairs=len(block) * len(new))
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
-                pi, pj = block[ri], new[cj]
-                keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
-                pi_all.append(pi[keep])
-                pj_all.append(pj[keep])
-                aims.append(tuple(a[keep] for a in aim))
-        if len(pi_all) == 1:
-            (pi,), (pj,), ((ci, cj, dist),) = pi_all, pj_all, aims
-        elif pi_all:
-            pi, pj = np.concatenate(pi_all), np.concatenate(pj_all)
-            ci, cj, dist = (np.concatenate(col) for col in zip(*aims, strict=True))
-        else:
-            pi = np.zeros(0, dtype=np.int64)
+                pi_all.append(block[ri])
+                pj_all.append(new[cj])
+        if not pi_all:
+            pending.checked = n
+            return
+        pi, pj = (pi_all[0], pj_all[0]) if len(pi_all) == 1 else (np.concatenate(pi_all), np.concatenate(pj_all))
+        keep, (ci, cj, dist) = self._pair_aim(pi, pj, points, heading, normal, max_dist)
+        pi, pj, ci, cj, dist = pi[keep], pj[keep], ci[keep], cj[keep], dist[keep]
         if not len(pi):
             pending.checked = n
             return
