@@ -22,7 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -117,27 +117,62 @@ class _Compiled:
 
 
 @functools.lru_cache(maxsize=4096)
-def _names(symbols: tuple) -> tuple[str, ...]:
-    """The segment names in ``symbols`` (brackets included), in order."""
-    out: list[str] = []
+def _segments(symbols: tuple) -> tuple[Segment, ...]:
+    """The segments in ``symbols`` (brackets included), in order."""
+    out: list[Segment] = []
     for sym in symbols:
         if isinstance(sym, Segment):
-            out.append(sym.name)
+            out.append(sym)
         elif isinstance(sym, Branch):
-            out.extend(_names(sym.symbols))
+            out.extend(_segments(sym.symbols))
     return tuple(out)
+
+
+def _shape(symbols: tuple, count: list[int]) -> tuple:
+    """``symbols`` with the i-th segment (in ``_segments`` order) replaced by the plain segment "i"."""
+    out: list = []
+    for sym in symbols:
+        if isinstance(sym, Segment):
+            out.append(Segment(str(count[0])))
+            count[0] += 1
+        elif isinstance(sym, Branch):
+            out.append(Branch(_shape(sym.symbols, count)))
+        else:
+            out.append(sym)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=4096)
+def _drawn_shape(shape: tuple, angle: float) -> Template:
+    """The template of successors of this shape: labels are segment positions, ages untimed."""
+    n = len(_segments(shape))
+    return draw(Successor(shape), angle, {str(i): i for i in range(n)})
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 @functools.lru_cache(maxsize=8192)
 def _drawn(successor: Successor, angle: float, labels: tuple[int, ...]) -> Template:
-    names = _names(successor.symbols)
-    return draw(successor, angle, dict(zip(names, labels, strict=True)))
+    """``draw(successor, angle, ...)``: the turtle walks once per shape (successors that differ only in
+    their labels and ages draw the same geometry); labels and ages are read from the segments."""
+    shape = _drawn_shape(_shape(successor.symbols, [0]), angle)
+    segments = _segments(successor.symbols)
+    ids = np.array(labels, dtype=np.int64)
+    ages = np.array([0 if s.age is None else s.age for s in segments], dtype=np.int64)
+    timed = np.array([s.age is not None for s in segments], dtype=bool)
+    main, branch = shape.main_labels, shape.branch_labels
+    return replace(shape, main_labels=_frozen(ids[main]), main_ages=_frozen(ages[main]),
+                   main_timed=_frozen(timed[main]), branch_labels=_frozen(ids[branch]),
+                   branch_ages=_frozen(ages[branch]), branch_timed=_frozen(timed[branch]))
 
 
 def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Template:
     """``draw(successor, angle, ids)``, drawn once per process for each successor, angle and labels
     (universes write the same successors into many rewrite systems)."""
-    return _drawn(successor, angle, tuple(ids[n] for n in _names(successor.symbols)))
+    return _drawn(successor, angle, tuple(ids[s.name] for s in _segments(successor.symbols)))
 
 
 @functools.lru_cache(maxsize=256)
