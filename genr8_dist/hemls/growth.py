@@ -213,6 +213,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 _XYZ = np.arange(3)
+_PAIR = np.arange(2)
 
 
 class _Map:
@@ -302,7 +303,7 @@ class _Map:
         ends = self.ev[e]
         c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
         cr = np.concatenate([c, -c])  # half-edges 2e (start to end), then 2e + 1 (end to start)
-        f = np.concatenate([self.face[2 * e], self.face[2 * e + 1]])
+        f = self.face[:2 * self.ne].reshape(-1, 2)[e].T.ravel()
         key = (3 * f)[:, None] + _XYZ  # one bincount for the three axes: the same sums, in order
         out = 0.5 * np.bincount(key.ravel(), weights=cr.ravel(), minlength=3 * self.nf).reshape(-1, 3)
         out[0] = 0.0
@@ -326,7 +327,7 @@ class _Map:
             return
         new_of = np.full(self.ne, -1, dtype=np.int64)
         new_of[keep] = np.arange(len(keep))
-        old_h = np.stack([2 * keep, 2 * keep + 1], axis=1).ravel()
+        old_h = (2 * keep[:, None] + _PAIR).ravel()   # the halves 2e, 2e + 1 of each edge kept
         hmap = np.full(2 * self.ne, -1, dtype=np.int64)
         hmap[old_h] = np.arange(2 * len(keep))
         nxt = hmap[self.nxt[old_h]]
@@ -486,8 +487,8 @@ class _Branches:
         return self.size
 
 
-def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
-    """Start, length and (heading, left, up) of edges ``idx``.
+def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray, left: bool = True):
+    """Start, length and (heading, left, up) of edges ``idx`` (left None unless asked for).
 
     Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge
     (so it agrees with the map's orientation, and tiny regions count little); where that sum is
@@ -502,8 +503,8 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
     h = d / safe[:, None]
     if not long.all():
         h[length <= 1e-300] = (1.0, 0.0, 0.0)
-    half = 2 * idx
-    n = areas[m.face[half]] + areas[m.face[half + 1]]
+    sides = m.face[:2 * m.ne].reshape(-1, 2)[idx]   # the faces of half-edges 2e and 2e + 1
+    n = areas[sides[:, 0]] + areas[sides[:, 1]]
     size = np.sqrt(np.einsum("ij,ij->i", n, n))
     weak = size <= 1e-9 * safe * safe
     n = n / np.where(weak, 1.0, size)[:, None]
@@ -521,8 +522,7 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
         u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
         un = np.sqrt(np.einsum("ij,ij->i", u, u))
     u = u / np.where(un > 1e-300, un, 1.0)[:, None]
-    left = _cross(u, h)
-    return s, t, p, length, h, left, u
+    return s, t, p, length, h, _cross(u, h) if left else None, u
 
 
 class _Grower:
@@ -702,50 +702,64 @@ class _Grower:
     def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
         m = self.m
         n, k = len(idx), tpl.n_segments
-        s, t, p, length, h, left, up = _frames(m, idx, areas)
-        pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
-        world = (p[:, None, :] + length[:, None, None]
-                 * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
-                    + pts[None, :, 2, None] * up[:, None, :]))
+        s, t, p, length, h, left, up = _frames(m, idx, areas, left=k > 1 or tpl.n_branches > 0)
         nv0, ne0 = m.nv, m.ne
         nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
-        m.reserve(nv1, ne1)
-        new_v = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
-        m.pos[nv0:nv1] = world.reshape(-1, 3)
-        m.mass[nv0:nv1] = self.env.vertex_mass
-        m.stopped[nv0:nv1] = False
-        # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
-        # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
-        both = m.stopped[s] & m.stopped[t]
-        if both.any():
-            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
-        m.nv = nv1
-        chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
-        new_e = np.arange(ne0, ne1, dtype=np.int64).reshape(n, k)
+        if nv1 > len(m.pos) or ne1 > len(m.ev):
+            m.reserve(nv1, ne1)
+        chain = np.empty((n, k + 1), dtype=np.int64)  # the vertices along each new main line
+        chain[:, 0] = s
+        chain[:, k] = t
+        if k > 1:
+            pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
+            world = (p[:, None, :] + length[:, None, None]
+                     * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
+                        + pts[None, :, 2, None] * up[:, None, :]))
+            m.pos[nv0:nv1] = world.reshape(-1, 3)
+            m.mass[nv0:nv1] = self.env.vertex_mass
+            m.stopped[nv0:nv1] = False
+            # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
+            # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
+            both = m.stopped[s] & m.stopped[t]
+            if both.any():
+                self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+            m.nv = nv1
+            chain[:, 1:k] = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
         rev = tpl.main_reversed
         a, b = chain[:, :k], chain[:, 1:]
         ev = m.ev[ne0:ne1]
         ev[:, 0] = np.where(rev, b, a).ravel()
         ev[:, 1] = np.where(rev, a, b).ravel()
-        m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
+        if self.env.label_noise > 0:
+            m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
+        else:
+            m.label[ne0:ne1].reshape(n, k)[:] = tpl.main_labels
         old_age = m.age[idx]
-        ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
-        m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        if tpl.main_timed.any():
+            ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
+            m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        else:   # untimed segments start at age 0
+            m.age[ne0:ne1] = 0
         m.alive[ne0:ne1] = True
-        m.up[ne0:ne1] = np.repeat(up, k, axis=0)
+        if k == 1:
+            m.up[ne0:ne1] = up
+        else:
+            m.up[ne0:ne1].reshape(n, k, 3)[:] = up[:, None, :]
         m.ne = ne1
         # half-edges along the main line (start to end) and back
-        fwd = 2 * new_e + rev
+        fwd = np.arange(2 * ne0, 2 * ne1, 2, dtype=np.int64).reshape(n, k) + rev
         bwd = fwd ^ 1
-        ho, ht = 2 * idx, 2 * idx + 1
-        next_ho, next_ht = m.nxt[ho].copy(), m.nxt[ht].copy()
-        repl = np.arange(2 * m.ne, dtype=np.int64)
-        repl[ho] = fwd[:, 0]
-        repl[ht] = bwd[:, k - 1]
+        ho = 2 * idx
+        ht = ho + 1
+        next_ho, next_ht = m.nxt[ho], m.nxt[ht]
+        first, last = fwd[:, 0], bwd[:, k - 1]
+        repl = np.arange(2 * ne1, dtype=np.int64)
+        repl[ho] = first
+        repl[ht] = last
         # only the halves before ho and ht lead into the edges replaced (a pass over these, not over
         # the map); one that is itself replaced is relinked below and then dropped
         before = np.concatenate([m.prv[ho], m.prv[ht]])
-        m.nxt[before] = np.concatenate([fwd[:, 0], bwd[:, k - 1]])
+        m.nxt[before] = np.concatenate([first, last])
         m.nxt[fwd[:, k - 1]] = repl[next_ho]
         m.nxt[bwd[:, 0]] = repl[next_ht]
         if k > 1:
