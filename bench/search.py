@@ -4,6 +4,7 @@
     python bench/search.py --configs examples/quick.toml --seeds 3 --founders 200
     python bench/search.py --skip founders islands --configs examples/long.toml \\
         --population 12 --generations 16                     # a long example, scaled-down EA budget
+    python bench/search.py --skip founders islands --configs examples/quick.toml --env max_work=5000
 
 Everything runs in plain Python (islands in lockstep with the run's own migration plan, no Ray), so the
 figures are the engine's, not the cluster's. Sections:
@@ -37,6 +38,7 @@ import math
 import statistics
 import sys
 import time
+import tomllib
 from collections.abc import Sequence
 from typing import Any
 
@@ -112,6 +114,8 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float, phenoty
             reach = evaluations
         curve.append((evaluations, best))
         by_id.update({ind.id: ind for ind in pops})
+    everyone = [ind for gen in history for pop in gen for ind in pop]
+    top = min(everyone, key=lambda ind: ind.fitness)
     last = history[-1]
     bests = []
     for pop in last:
@@ -120,7 +124,8 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float, phenoty
     return {"trivial": trivial_share, "distinct": distinct_share, "copies": copy_share, "curve": curve,
             "evaluations": evaluations, "best": best, "reach": reach,
             "distinct_island_bests": len(set(bests)), "islands": len(last),
-            "everyone": [ind for gen in history for pop in gen for ind in pop]}
+            "best_vertices": int(top.sizes.get("vertices", 0)),
+            "capped": sum(1 for ind in everyone if ind.capped) / len(everyone), "everyone": everyone}
 
 
 def random_sample(config: Any, evaluations: int) -> list[Any]:
@@ -233,10 +238,12 @@ def scaled(config: Any, population: int | None) -> Any:
 
 
 def per_config(path: str, seeds: Sequence[int], generations: int | None,
-               population: int | None = None) -> list[dict[str, Any]]:
+               population: int | None = None, env: dict[str, Any] | None = None) -> list[dict[str, Any]]:
     from genr8_dist.config import load_config
 
     base = scaled(load_config(path), population)
+    if env:
+        base = base.replace(environment=env)
     last = base.ea.generations if generations is None else generations
     tiles = tiles_score(base)
     runs = []
@@ -257,7 +264,8 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
         runs.append(figures)
     mode = mode_of(base)
     print(f"\n## {path} (mode {mode}, {base.islands.count} island(s) x {base.ea.population}, "
-          f"{last} generations, {len(seeds)} seeds; four_sided_tiles scores {tiles:.4f})\n")
+          f"{last} generations, {len(seeds)} seeds; four_sided_tiles scores {tiles:.4f}"
+          + (f"; environment {env}" if env else "") + ")\n")
     print("| generation | trivial | distinct surfaces | offspring equal to a parent | best (median) |")
     print("| --- | --- | --- | --- | --- |")
     for g in range(last + 1):
@@ -270,7 +278,8 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
         print(f"{statistics.median(r['curve'][g][1] for r in runs):.4f} |")
     print()
     print(f"- evaluations per run: {spread([r['evaluations'] for r in runs], '{:.0f}')}")
-    print(f"- evolved best: {spread([r['best'] for r in runs], '{:.4f}')}")
+    print(f"- evolved best: {spread([r['best'] for r in runs], '{:.4f}')}; its vertices "
+          f"{spread([r['best_vertices'] for r in runs], '{:.0f}')}")
     print(f"- random best, same evaluations: {spread([r['random'] for r in runs], '{:.4f}')}")
     against_random("best fitness (lower is better)",
                    [(r["random"] - r["best"]) / abs(r["random"]) if r["random"] else 0.0 for r in runs])
@@ -296,6 +305,8 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
           f"generation), {spread([statistics.fmean(r['distinct']) for r in runs])} (mean)")
     copies = [statistics.fmean(r["copies"]) for r in runs if r["copies"]]
     print(f"- offspring equal to a parent: {spread(copies)}")
+    print(f"- individuals a growth cap cut short (max_work {base.environment.max_work}, max_edges "
+          f"{base.environment.max_edges}): {spread([r['capped'] for r in runs])}")
     print(f"- seconds per run: {spread([r['seconds'] for r in runs], '{:.1f}')}")
     return runs
 
@@ -350,7 +361,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--universes", nargs="*", default=None, help="default: every built-in")
     parser.add_argument("--islands", type=int, default=4, help="islands in the islands comparison")
     parser.add_argument("--skip", nargs="*", default=[], choices=["founders", "configs", "islands"])
+    parser.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
+                        help="an environment field (TOML value) of every configuration (repeatable), "
+                             "e.g. --env max_work=5000")
     args = parser.parse_args(argv)
+    env = {}
+    for item in args.env:
+        key, _, value = item.partition("=")
+        env[key.strip()] = tomllib.loads(f"v = {value}")["v"]
     from genr8_dist import grammar
     from genr8_dist.config import load_config
 
@@ -361,7 +379,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         founders(names, args.founders, load_config(args.configs[0]))
     if "configs" not in args.skip:
         for path in args.configs:
-            per_config(path, seeds, args.generations, args.population)
+            per_config(path, seeds, args.generations, args.population, env)
     if "islands" not in args.skip:
         islands_vs_one(args.configs[0], seeds, args.islands, args.generations, args.population)
     print(f"\n(total {time.perf_counter() - t0:.0f} s)")

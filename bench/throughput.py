@@ -3,6 +3,8 @@
     python bench/throughput.py                         # everything (about 10 minutes on 2 cores)
     python bench/throughput.py --only islands          # the island configurations only
     python bench/throughput.py --only genomes --genomes 300
+    python bench/throughput.py --only genomes --genomes 300 --max-work 15000 8000 5000 3000   # caps
+    python bench/throughput.py --only genomes --env max_work=0 --universe default   # no work cap
     python bench/throughput.py --only startup
 
 Three parts, each a table:
@@ -14,11 +16,13 @@ Three parts, each a table:
   changes it less) and per wall second, evaluations (genomes mapped, the discarded redraws and
   re-variations included) per core-second, and the median surface (vertices) of the individuals.
 - genomes: ``--genomes`` random genomes of every universe (100 codons, default mapping, the default
-  environment at ``--steps`` derivation steps), each mapped, parsed, grown and scored on its own (no
-  cache): the median, 99th percentile and maximum CPU seconds per individual, how many growth caps
-  cut short, individuals per core-second, and the 99th percentile and maximum of the two parts of
-  that cost: map + parse + grow, and scoring (the criteria, with the triangulation ``slivers``
-  measures), so a tail says where it comes from.
+  environment at ``--steps`` derivation steps), each mapped, parsed, grown and (unless a cap cut its
+  growth short) scored on its own (no cache): the median, 99th percentile and maximum CPU seconds per
+  individual, how many growth caps cut short, individuals per core-second, and the 99th percentile and
+  maximum of the two parts of that cost: map + parse + grow, and scoring (the criteria, with the
+  triangulation ``slivers`` measures), so a tail says where it comes from. ``--max-work N [N ...]``
+  measures the table once per work cap and ends with p99/median and the share of genomes capped per
+  universe and cap: what choosing the default ``max_work`` weighs.
 - startup: ``genr8 run examples/quick.toml`` in a subprocess: seconds to its first line, to the first
   generation's progress line (``gen 0/...``) and to its end; and ``ray.init`` of a local Ray alone
   (what Ray itself needs: subtract it to get the time that is this program's own).
@@ -26,7 +30,8 @@ Three parts, each a table:
 It uses only APIs that every version of genr8_dist has had, so the same command measures an older
 checkout (``PYTHONPATH=/path/to/checkout python bench/throughput.py``): compare before and after in one
 sitting, on a shared machine, and read the ratios. Numpy runs single-threaded here (one core per
-process, as on an island host).
+process, as on an island host). ``--env KEY=VALUE`` (a TOML value, repeatable) sets an environment
+field of the islands' and the genomes' configurations.
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+import tomllib  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -57,18 +63,21 @@ def _percentile(values: list[float], q: float) -> float:
 
 # -- islands ------------------------------------------------------------------------------------------
 
-def _island_configs(steps: list[int]) -> list[tuple[str, object]]:
+def _island_configs(steps: list[int], env: dict[str, object]) -> list[tuple[str, object]]:
     from genr8_dist.config import RunConfig, load_config
 
     out: list[tuple[str, object]] = []
     for s in steps:   # bench/island.py's default: default universe, 50 x generations 0..3, seed 1
         out.append((f"island.py {s} steps", RunConfig(universe="default", seed=1,
                                                       ea={"population": 50, "generations": 3},
-                                                      environment={"steps": s})))
-    out.append(("islands.py RunConfig()", RunConfig(ea={"generations": 3})))
+                                                      environment={"steps": s, **env})))
+    out.append(("islands.py RunConfig()", RunConfig(ea={"generations": 3}, environment=dict(env))))
     for name in ("quick", "subdivide"):   # bench/search.py's configurations
         try:
-            out.append((f"examples/{name}.toml", load_config(ROOT / "examples" / f"{name}.toml")))
+            config = load_config(ROOT / "examples" / f"{name}.toml")
+            if env:
+                config = config.replace(environment=env)
+            out.append((f"examples/{name}.toml", config))
         except Exception as exc:   # an older checkout that does not know a key of today's file
             print(f"examples/{name}.toml: not measured, this checkout cannot load it "
                   f"({str(exc).splitlines()[0][-80:]})")
@@ -83,13 +92,13 @@ def _vertices(ind) -> int:
     return int(getattr(ind, "n_vertices", 0) or 0)
 
 
-def islands(steps: list[int]) -> None:
+def islands(steps: list[int], env: dict[str, object]) -> None:
     from genr8_dist.evolution import Island
 
-    print("\nislands: one island, generations 0..3, no Ray")
+    print("\nislands: one island, generations 0..3, no Ray" + (f"; environment {env}" if env else ""))
     print(f"{'configuration':<26} {'indiv':>6} {'evals':>6} {'cpu s':>7} {'wall s':>7} {'ind/core-s':>11} "
           f"{'eval/core-s':>12} {'ind/wall-s':>11} {'valid':>6} {'capped':>6} {'med V':>6}")
-    for name, config in _island_configs(steps):
+    for name, config in _island_configs(steps, env):
         island = Island(config, 0)
         c0, w0 = time.process_time(), time.perf_counter()
         history = island.run(3)
@@ -145,20 +154,24 @@ def _grows_surfaces(name: str) -> bool:
     return phenotype_of(load_universe(name)) is SURFACES
 
 
-def genomes(n: int, steps: int, universes: list[str] | None) -> None:
+def genomes(n: int, steps: int, universes: list[str] | None,
+            env: dict[str, object]) -> dict[str, tuple[float, float]]:
+    """The table of ``n`` random genomes per universe under ``env``; per universe, p99/median and the
+    share of genomes that a growth cap cut short."""
     from genr8_dist.config import RunConfig
     from genr8_dist.evolution.operators import random_genome
     from genr8_dist.grammar import list_universes, load_universe
     from genr8_dist.rng import stream
 
     names = universes or [u.name for u in list_universes() if _grows_surfaces(u.name)]
+    summary: dict[str, tuple[float, float]] = {}
     print(f"\ngenomes: {n} random genomes per universe (100 codons), {steps} derivation steps, each "
-          "evaluated on its own; CPU seconds per individual")
+          "evaluated on its own; CPU seconds per individual" + (f"; environment {env}" if env else ""))
     print(f"{'universe':<14} {'n':>5} {'valid':>6} {'capped':>6} {'median s':>9} {'p99 s':>8} "
           f"{'max s':>8} {'p99/med':>8} {'ind/core-s':>11} {'grow p99':>9} {'grow max':>9} "
           f"{'score p99':>9} {'score max':>9}")
     for name in names:
-        config = RunConfig(universe=name, environment={"steps": steps})
+        config = RunConfig(universe=name, environment={"steps": steps, **env})
         universe = load_universe(name)
         rng = stream(0, "bench", "throughput", name)
         costs, growing, scoring, caps, valid = [], [], [], 0, 0
@@ -176,6 +189,20 @@ def genomes(n: int, steps: int, universes: list[str] | None) -> None:
               f"{_percentile(growing, 0.99):>9.3f} {max(growing):>9.3f} "
               f"{_percentile(scoring, 0.99):>9.3f} {max(scoring):>9.3f}")
         sys.stdout.flush()
+        summary[name] = (p99 / med if med > 0 else float("inf"), caps / n)
+    return summary
+
+
+def cap_summary(by_cap: dict[int, dict[str, tuple[float, float]]]) -> None:
+    """p99/median per universe (rows) and work cap (columns), and the share of genomes each cap cut."""
+    caps = list(by_cap)
+    names = list(dict.fromkeys(name for table in by_cap.values() for name in table))
+    print("\nwork caps: p99/median per individual (share of random genomes capped)")
+    print(f"{'universe':<18}" + "".join(f"{f'max_work {c}':>22}" for c in caps))
+    for name in names:
+        cells = (by_cap[c].get(name) for c in caps)
+        print(f"{name:<18}" + "".join(f"{f'{cell[0]:.1f} ({cell[1]:.1%})' if cell else '-':>22}"
+                                      for cell in cells))
 
 
 # -- start-up -----------------------------------------------------------------------------------------
@@ -233,15 +260,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--genomes", type=int, default=1000, help="random genomes per universe")
     parser.add_argument("--universe", action="append", help="only this universe (repeatable)")
     parser.add_argument("--repeat", type=int, default=2, help="start-up measurements")
+    parser.add_argument("--env", action="append", default=[], metavar="KEY=VALUE",
+                        help="an environment field (TOML value) of the islands and genomes (repeatable)")
+    parser.add_argument("--max-work", type=int, nargs="+", metavar="N",
+                        help="the genomes table once per work cap, then p99/median per universe and cap")
     args = parser.parse_args(argv)
+    env: dict[str, object] = {}
+    for item in args.env:
+        key, _, value = item.partition("=")
+        env[key.strip()] = tomllib.loads(f"v = {value}")["v"]
     parts = args.only or ["islands", "genomes", "startup"]
     import genr8_dist
 
     print(f"genr8_dist from {Path(genr8_dist.__file__).parent.parent}")
     if "islands" in parts:
-        islands(args.island_steps)
+        islands(args.island_steps, env)
     if "genomes" in parts:
-        genomes(args.genomes, args.steps, args.universe)
+        if args.max_work:
+            cap_summary({cap: genomes(args.genomes, args.steps, args.universe, {**env, "max_work": cap})
+                         for cap in args.max_work})
+        else:
+            genomes(args.genomes, args.steps, args.universe, env)
     if "startup" in parts:
         startup(args.repeat)
     return 0

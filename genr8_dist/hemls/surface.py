@@ -12,6 +12,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
+import os
 from collections.abc import Callable
 
 import numpy as np
@@ -285,6 +286,22 @@ _FLIPS_PER_TRIANGLE = 16  # edges tested for a flip per triangle of a large regi
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
+@functools.cache
+def _kernels():
+    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported the first time a
+    triangulation needs them; None, for the numpy/Python code below, when numba is not installed or
+    the environment sets ``GENR8_COMPILED=0``. Both give the same triangles bit for bit."""
+    if os.environ.get("GENR8_COMPILED", "1") == "0":
+        return None
+    try:
+        from genr8_dist.hemls import _compiled
+    except ImportError:
+        return None
+    assert (_compiled.EXACT_MAX, _compiled.QUALITY_FLOOR, _compiled.OUTSIDE, _compiled.EPS) == (
+        _EXACT_MAX, _QUALITY_FLOOR, _OUTSIDE, _EPS)
+    return _compiled
+
+
 def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
     """(T, 3) triangles of ``vertices`` covering each polygon ``cycles[offsets[f]:offsets[f + 1]]``
     with ``m - 2`` triangles (polygons of fewer than 3 vertices get none), in polygon order and
@@ -369,6 +386,22 @@ def _plane_coordinates(points: np.ndarray) -> np.ndarray:
     return xy / np.where(extent > 0, extent, 1.0)
 
 
+def _pairwise(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, M, M) squared distances and (R, M, M) cross products ``p_a x p_b . normal`` in the plane of
+    each polygon ``points`` (R, M, 3), in coordinates centred on its mean and scaled to unit extent:
+    a triangle's turn about the Newell normal is a sum of three cross products."""
+    rel = points - points.mean(axis=1, keepdims=True)
+    rel /= np.maximum(np.abs(rel).max(axis=(1, 2), keepdims=True), 1e-300)     # unit extent
+    x, y, z = rel[..., 0], rel[..., 1], rel[..., 2]
+    xn, yn, zn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1), np.roll(z, -1, axis=1)
+    normal = np.stack([(y * zn - z * yn).sum(1), (z * xn - x * zn).sum(1), (x * yn - y * xn).sum(1)], 1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)  # Newell's, unit
+    d2 = np.sum((rel[:, :, None, :] - rel[:, None, :, :]) ** 2, axis=-1)
+    nx, ny, nz = normal[:, None, 0], normal[:, None, 1], normal[:, None, 2]
+    side = np.stack([y * nz - z * ny, z * nx - x * nz, x * ny - y * nx], -1)     # p_b x normal
+    return d2, np.einsum("rak,rbk->rab", rel, side)
+
+
 def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     """(R, M - 2, 3) corner positions of the least-cost triangulation of each polygon ``points``
     (R, M, 3) of ``sizes`` (R,) vertices (padded to M by repeating the last; the first ``m - 2`` rows
@@ -377,19 +410,12 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     a triangulation whose triangles all are lies inside the polygon and covers it once (the winding
     number of a simple polygon is 1 inside, 0 outside), so no diagonal test is needed."""
     R, M, _ = points.shape
+    d2, cr = _pairwise(points)
+    kernels = _kernels()
+    if kernels is not None:
+        return kernels.best_triangulations(d2, cr, np.asarray(sizes, dtype=np.int64))
     ik, kj, ij, ji, spans = _triples(M)
-    rel = points - points.mean(axis=1, keepdims=True)
-    rel /= np.maximum(np.abs(rel).max(axis=(1, 2), keepdims=True), 1e-300)     # unit extent
-    x, y, z = rel[..., 0], rel[..., 1], rel[..., 2]
-    xn, yn, zn = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1), np.roll(z, -1, axis=1)
-    normal = np.stack([(y * zn - z * yn).sum(1), (z * xn - x * zn).sum(1), (x * yn - y * xn).sum(1)], 1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)  # Newell's, unit
-    # pairwise values, flat (R, M * M): squared distances, and (p_a x p_b) . normal, the cross
-    # product in the polygon's plane: a triangle's turn about the normal is a sum of three of them
-    d2 = np.sum((rel[:, :, None, :] - rel[:, None, :, :]) ** 2, axis=-1).reshape(R, M * M)
-    nx, ny, nz = normal[:, None, 0], normal[:, None, 1], normal[:, None, 2]
-    side = np.stack([y * nz - z * ny, z * nx - x * nz, x * ny - y * nx], -1)     # p_b x normal
-    cr = np.einsum("rak,rbk->rab", rel, side).reshape(R, M * M)
+    d2, cr = d2.reshape(R, M * M), cr.reshape(R, M * M)
     a2, b2, c2 = d2[:, ik], d2[:, kj], d2[:, ij]
     sides = a2 + b2 + c2
     # Heron: 16 area^2 = sides^2 - 2 (a^4 + b^4 + c^4); cost = sides / (4 sqrt(3) area), floored
