@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
 from dataclasses import dataclass, field, replace
 
@@ -79,6 +80,21 @@ class _Capped(Exception):
     def __init__(self, what: str) -> None:
         super().__init__(what)
         self.what = what
+
+
+@functools.cache
+def _kernels():
+    """The compiled kernels (``genr8_dist.hemls._growth_compiled``, numba), imported the first time a
+    growth needs them; None, for the numpy code here, when numba is not installed or the environment
+    sets ``GENR8_COMPILED=0``. Both grow the same surfaces bit for bit."""
+    if os.environ.get("GENR8_COMPILED", "1") == "0":
+        return None
+    try:
+        from genr8_dist.hemls import _growth_compiled
+    except ImportError:
+        return None
+    assert (_growth_compiled.LEFT, _growth_compiled.RIGHT) == (LEFT, RIGHT)
+    return _growth_compiled
 
 
 # -- compiled rewrite systems -----------------------------------------------------------------------
@@ -299,6 +315,9 @@ class _Map:
 
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
+        kernels = _kernels()
+        if kernels is not None:
+            return kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne, self.nf)
         e = self.alive[:self.ne].nonzero()[0]
         ends = self.ev[e]
         c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
@@ -700,6 +719,10 @@ class _Grower:
         return out
 
     def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
+        kernels = _kernels()
+        if kernels is not None:
+            self._rewrite_compiled(kernels, idx, tpl, areas, pending)
+            return
         m = self.m
         n, k = len(idx), tpl.n_segments
         s, t, p, length, h, left, up = _frames(m, idx, areas, left=k > 1 or tpl.n_branches > 0)
@@ -789,16 +812,49 @@ class _Grower:
                 corner[:, br] = fwd[:, j[br]]
             elif side[br] == RIGHT:
                 corner[:, br] = bwd[:, j[br] - 1]
-            elif side[br] == AT_END:
-                start_half = fwd[:, 0] if j[br] == 0 else bwd[:, k - 1]
+        self._add_branches(pending, tpl, n, idx, bvert, corner, heading, up, first, last)
+
+    def _rewrite_compiled(self, kernels, idx: np.ndarray, tpl: Template, areas: np.ndarray,
+                          pending: _Branches) -> None:
+        """``_rewrite`` with its array work in one compiled call (``_growth_compiled.rewrite``)."""
+        m = self.m
+        n, k = len(idx), tpl.n_segments
+        nv0, ne0 = m.nv, m.ne
+        nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
+        if nv1 > len(m.pos) or ne1 > len(m.ev):
+            m.reserve(nv1, ne1)
+        labels = self._noisy(tpl.main_labels, n)
+        up, both, repl, first, last, bvert, heading, corner = kernels.rewrite(
+            m.pos, m.mass, m.stopped, m.ev, m.label, m.age, m.alive, m.up, m.nxt, m.prv, m.face, idx, areas,
+            nv0, ne0, float(self.env.vertex_mass), tpl.points, labels, tpl.main_ages, tpl.main_timed,
+            tpl.main_reversed, tpl.branch_vertex, tpl.branch_heading, tpl.branch_side)
+        m.nv, m.ne = nv1, ne1
+        if k > 1 and both.any():
+            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+        pending.remap_corners(repl)
+        nb = tpl.n_branches
+        if nb == 0:
+            return
+        self._add_branches(pending, tpl, n, idx, bvert, corner.reshape(n, nb), heading.reshape(n, nb, 3),
+                           up, first, last)
+
+    def _add_branches(self, pending: _Branches, tpl: Template, n: int, idx: np.ndarray, bvert: np.ndarray,
+                      corner: np.ndarray, heading: np.ndarray, up: np.ndarray, first: np.ndarray,
+                      last: np.ndarray) -> None:
+        """The successor's branches on the ``n`` edges ``idx`` rewritten, pending joining: their
+        corners at the main line's ends found (``_corner_at``), labels and ages drawn."""
+        nb = tpl.n_branches
+        for br in range(nb):
+            if tpl.branch_side[br] == AT_END:
+                start_half = first if tpl.branch_vertex[br] == 0 else last
                 for r in range(n):
                     corner[r, br] = self._corner_at(int(start_half[r]), heading[r, br], up[r])
+        old_age = self.m.age[idx]
         blabels = self._noisy(tpl.branch_labels, n).ravel()
         bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
                                     tpl.branch_ages), 0).ravel()
         pending.add(bvert.ravel(), corner.ravel(), blabels, bages, heading.reshape(-1, 3),
-                    _repeat_row(tpl.branch_reversed, n),
-                    np.repeat(up, nb, axis=0))
+                    _repeat_row(tpl.branch_reversed, n), np.repeat(up, nb, axis=0))
 
     def _corner_at(self, h0: int, heading: np.ndarray, normal: np.ndarray) -> int:
         """The half-edge leaving the vertex of ``h0`` into the region ``heading`` points into."""
@@ -880,7 +936,7 @@ class _Grower:
         if not pi_all:
             pending.checked = n
             return
-        pi, pj = (pi_all[0], pj_all[0]) if len(pi_all) == 1 else (np.concatenate(pi_all), np.concatenate(pj_all))
+        pi, pj = np.concatenate(pi_all), np.concatenate(pj_all)
         keep, (ci, cj, dist) = self._pair_aim(pi, pj, points, heading, normal, max_dist)
         pi, pj, ci, cj, dist = pi[keep], pj[keep], ci[keep], cj[keep], dist[keep]
         if not len(pi):
