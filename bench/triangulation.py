@@ -14,6 +14,11 @@
 2. *run best* (with ``--run DIR``): the same figures for the run's best individual, regrown.
 3. *export*: CPU seconds to triangulate (a fresh ``Surface``, nothing cached) and to write an OBJ and a
    PLY of four_sided_tiles at 5 steps (1,024 regions) and of the founder with the most regions.
+4. *kernels* (a checkout with the compiled kernels and numba installed): CPU seconds of the founders'
+   triangulation with the numpy/Python reference code and with the compiled kernels, whether every
+   founder's triangles are identical, and the CPU seconds a new process spends on its first
+   triangulation (numba's import and compiling, or loading the compiled code) with an empty cache
+   (cold) and again (warm).
 
 CPU seconds (``time.process_time``), the median of ``--repeat`` tries, so other work on the machine
 counts less. Run it on an older checkout (PYTHONPATH) for the figures before a change.
@@ -143,6 +148,49 @@ def export_times(surfaces: Sequence[Any], repeat: int) -> None:
                   f"| {ply:.3f} |")
 
 
+_FIRST = """
+import time
+from genr8_dist.hemls import grow, load_system
+surface = grow(load_system("four_sided_tiles"), steps=3).surface
+t = time.process_time()
+surface.triangles()
+print(time.process_time() - t)
+"""
+
+
+def kernels(surfaces: Sequence[Any], repeat: int) -> None:
+    import os
+    import subprocess
+
+    from genr8_dist.hemls import surface as module
+
+    compiled = getattr(module, "_load_kernels", lambda: None)()
+    if compiled is None:
+        print("\n## kernels\n\nno compiled kernels here (numba missing, GENR8_COMPILED=0, or an older "
+              "checkout)")
+        return
+    module._LOAD_AFTER = 0     # compiled from the first triangulation on
+    fast = [fresh(s).triangles() for s in surfaces]
+    fast_s = cpu(lambda: [fresh(s).triangles() for s in surfaces], repeat)
+    original = module._kernels
+    module._kernels = lambda: None
+    try:
+        slow = [fresh(s).triangles() for s in surfaces]
+        slow_s = cpu(lambda: [fresh(s).triangles() for s in surfaces], repeat)
+    finally:
+        module._kernels = original
+    same = sum(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
+    print("\n## kernels\n")
+    print(f"founders' triangulation: reference {slow_s:.3f} s CPU, compiled {fast_s:.3f} s "
+          f"({slow_s / max(fast_s, 1e-9):.1f}x); identical triangles on {same} of {len(surfaces)}")
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache, "GENR8_COMPILED": "1"}
+        first = [float(subprocess.run([sys.executable, "-c", _FIRST], env=env, check=True, text=True,
+                                      capture_output=True).stdout) for _ in range(2)]
+    print(f"a new process's first triangulation: {first[0]:.2f} s CPU cold (empty cache), "
+          f"{first[1]:.2f} s warm")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--config", default="examples/subdivide.toml")
@@ -154,6 +202,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.run:
         run_best(args.run)
     export_times(surfaces, args.repeat)
+    kernels(surfaces, args.repeat)
     return 0
 
 

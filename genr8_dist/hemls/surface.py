@@ -275,6 +275,9 @@ class Surface:
 #   constrained Delaunay triangulation and flips that lower the programme's cost, at most
 #   ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each. Linear in m beyond the true corners'
 #   programme, so a region of thousands of vertices costs milliseconds, not seconds.
+#
+# With numba (the ``fast`` extra) the loops run as compiled kernels (``_compiled``) that repeat the
+# code below operation for operation, so the triangles are the same bit for bit, about 6x faster.
 
 _EXACT_MAX = 64          # regions up to this many vertices get the exact best triangulation
 _QUALITY_FLOOR = 1e-9    # a triangle of lower quality costs as much as a degenerate one
@@ -286,12 +289,16 @@ _FLIPS_PER_TRIANGLE = 16  # edges tested for a flip per triangle of a large regi
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
+_LOAD_AFTER = 20_000      # region vertices the reference code triangulates in a process before it
+                          # loads the compiled kernels (about what loading them costs: ~0.4 s CPU)
+_reference_vertices = 0   # region vertices triangulated by the reference code in this process
+
+
 @functools.cache
-def _kernels():
-    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported the first time a
-    triangulation needs them; None, for the numpy/Python code below, when numba is not installed or
-    the environment sets ``GENR8_COMPILED=0``. Both give the same triangles bit for bit."""
-    if os.environ.get("GENR8_COMPILED", "1") == "0":
+def _load_kernels():
+    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported on first use; None, for
+    the numpy/Python reference code below, when numba is not installed or ``GENR8_COMPILED=0``."""
+    if os.environ.get("GENR8_COMPILED") == "0":
         return None
     try:
         from genr8_dist.hemls import _compiled
@@ -302,13 +309,33 @@ def _kernels():
     return _compiled
 
 
+def _kernels():
+    """The compiled kernels, or None for the reference code: both give the same triangles bit for
+    bit. A process loads them once it has triangulated ``_LOAD_AFTER`` region vertices (so a short
+    run does not pay for numba, a long one pays about twice the least it could), at once with
+    ``GENR8_COMPILED=1``, never with ``GENR8_COMPILED=0`` or without numba (the ``fast`` extra)."""
+    if _reference_vertices < _LOAD_AFTER and os.environ.get("GENR8_COMPILED") != "1":
+        return None
+    return _load_kernels()
+
+
 def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
     """(T, 3) triangles of ``vertices`` covering each polygon ``cycles[offsets[f]:offsets[f + 1]]``
     with ``m - 2`` triangles (polygons of fewer than 3 vertices get none), in polygon order and
     oriented like the polygons; deterministic. See the comment above for the rule."""
+    global _reference_vertices
     vertices = np.asarray(vertices, dtype=np.float64)
     offsets = np.asarray(offsets, dtype=np.int64)
     cycles = np.asarray(cycles, dtype=np.int64)
+    counted = _reference_vertices < _LOAD_AFTER
+    tri = _triangulate(vertices, offsets, cycles)
+    if counted:                 # counted after the call, so that one call takes one path
+        _reference_vertices += len(cycles)
+    return tri
+
+
+def _triangulate(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
+    """``triangulate_polygons`` of checked arrays."""
     sizes = np.diff(offsets)
     parts: list[np.ndarray] = []
     owners: list[np.ndarray] = []
@@ -478,6 +505,11 @@ def _large_polygon(points: np.ndarray) -> np.ndarray:
         reduced = _best_triangulations(points[corners][None], np.array([r]))[0]
     else:
         reduced = _clip_and_flip(points[corners])
+    kernels = _kernels()
+    if kernels is not None:
+        # 2.0 passed at run time: the reference's ``x ** 2`` is the C library's pow, not x * x
+        cut_ = kernels.cut_runs(reduced, corners, points, 2.0)
+        return _flipped(cut_, points, _plane_coordinates(points), kernels)
     pts = points.tolist()
     cut: list[tuple[int, int, int]] = []
     for tri in reduced.tolist():
@@ -532,8 +564,9 @@ def _cut(x: int, y: int, z: int, xy: list[int], yz: list[int], zx: list[int], pt
         q = [shared, *reversed(before[3]), before[0]]     # back along the side that ends at it
         p = [shared, *after[3], after[1]]                 # out along the side that starts at it
 
-        def d2(u: int, v: int) -> float:
-            return sum((pu - pv) ** 2 for pu, pv in zip(pts[u], pts[v], strict=True))
+        def d2(u: int, v: int) -> float:     # not sum(): Python 3.12's compensates its rounding
+            (ux, uy, uz), (vx, vy, vz) = pts[u], pts[v]
+            return (ux - vx) ** 2 + (uy - vy) ** 2 + (uz - vz) ** 2
 
         out.append((shared, q[1], p[1]))
         i = j = 1
@@ -553,6 +586,10 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     flips that lower the total cost the exact programme minimises, while any does.
     What is left when no ear can be found (a polygon that is not simple in that plane) is fanned."""
     xy = _plane_coordinates(points)
+    kernels = _kernels()
+    if kernels is not None:
+        return _flipped(kernels.clip(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])),
+                        points, xy, kernels)
     xs, ys = xy[:, 0].tolist(), xy[:, 1].tolist()
     px, py = xy[:, 0], xy[:, 1]
     n = len(points)
@@ -602,6 +639,15 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     _flip(tris, xs, ys, _delaunay_test(xs, ys), _FLIPS_PER_TRIANGLE * len(tris))
     _flip(tris, xs, ys, _cost_test(points), _FLIPS_PER_TRIANGLE * len(tris))
     return np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def _flipped(tris: np.ndarray, points: np.ndarray, xy: np.ndarray, kernels) -> np.ndarray:
+    """``tris`` (T, 3) after the compiled flips: to the constrained Delaunay triangulation, then
+    those that lower the cost, ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each at most."""
+    xs, ys = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+    kernels.flip(tris, xs, ys, points, False, _FLIPS_PER_TRIANGLE * len(tris))
+    kernels.flip(tris, xs, ys, points, True, _FLIPS_PER_TRIANGLE * len(tris))
+    return tris
 
 
 def _delaunay_test(xs: list[float], ys: list[float]) -> Callable[[int, int, int, int], bool]:

@@ -4,6 +4,8 @@ groups of many polygons, large regions and grown surfaces."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,8 +15,16 @@ from genr8_dist.hemls import surface as module
 
 pytest.importorskip("numba", reason="numba is not installed: the compiled kernels (extra `fast`) are off")
 
-if module._kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
+if module._load_kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
     pytest.skip("GENR8_COMPILED=0: the compiled kernels are off", allow_module_level=True)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_at_once():
+    """The kernels from the first triangulation on (a process loads them only after some work)."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(module, "_LOAD_AFTER", 0)
+        yield
 
 
 def _both(vertices, offsets, cycles) -> np.ndarray:
@@ -91,6 +101,30 @@ def test_straight_runs_small_and_large(lift):
     _both(vertices, offsets, cycles)
 
 
+@pytest.mark.parametrize("lift", [0.0, 0.3])
+def test_evenly_split_sides_tie_in_strips(lift):
+    """Large regions whose sides all carry the same number of evenly spaced vertices: the strips
+    between two such sides meet exact ties (which diagonal is shorter) that must break alike."""
+    shapes = [[(0, 0), (1, 0), (1, 1), (0, 1)], [(0, 0), (3, 0), (3, 1), (0, 1)], [(0, 0), (2, 0), (0, 2)],
+              [(0, 0), (1, 0), (1.5, 1), (0, 1)]]
+    polygons = []
+    for corners in shapes:
+        for per in (17, 20, 33, 40):
+            points = _with_runs(np.column_stack([corners, np.zeros(len(corners))]),
+                                np.full(len(corners), per))
+            points[:, 2] = lift * points[:, 0] * points[:, 1]
+            polygons.append(points)
+    _both(*_polygons(polygons))
+
+
+def test_strips_square_like_python():
+    """A grown region whose strips meet near-ties that ``x * x`` breaks unlike Python's ``x ** 2``
+    (``pow``): the compiled cut squares as Python does (tests/data/README.md)."""
+    points = np.loadtxt(Path(__file__).parents[1] / "data" / "strip-tie-region.txt")
+    assert points.shape == (81, 3)
+    _both(*_polygons([points]))
+
+
 def test_degenerate_polygons():
     """Collinear vertices (no area), repeated vertices, one point, zigzags, polygons of 1 and 2
     vertices (no triangles) and a large collinear one."""
@@ -156,8 +190,39 @@ def test_grown_surfaces_of_random_genomes():
 
 def test_kernels_are_off_when_asked(monkeypatch):
     monkeypatch.setenv("GENR8_COMPILED", "0")
-    module._kernels.cache_clear()
+    module._load_kernels.cache_clear()
     try:
         assert module._kernels() is None
     finally:
-        module._kernels.cache_clear()
+        module._load_kernels.cache_clear()
+
+
+def test_a_process_loads_the_kernels_after_some_reference_work(monkeypatch):
+    """Below ``_LOAD_AFTER`` region vertices the reference code runs (a short run pays nothing for
+    numba); the call that passes it still does, the next one is compiled; GENR8_COMPILED=1 loads the
+    kernels at once."""
+    paths = []
+    real = module._load_kernels
+
+    def spy():
+        paths.append("compiled")
+        return real()
+
+    monkeypatch.setattr(module, "_load_kernels", spy)
+    monkeypatch.setattr(module, "_LOAD_AFTER", 100)
+    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.delenv("GENR8_COMPILED", raising=False)
+    square = _polygons([_with_runs(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
+                                   np.full(4, 20))])                  # 80 vertices, a large region
+    first = module.triangulate_polygons(*square)
+    assert paths == [] and module._reference_vertices == 80
+    second = module.triangulate_polygons(*square)
+    assert paths == [] and module._reference_vertices == 160
+    third = module.triangulate_polygons(*square)
+    assert paths and module._reference_vertices == 160
+    assert np.array_equal(first, second) and np.array_equal(first, third)
+    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.setenv("GENR8_COMPILED", "1")
+    paths.clear()
+    module.triangulate_polygons(*square)
+    assert paths
