@@ -82,12 +82,16 @@ class _Capped(Exception):
         self.what = what
 
 
+_LOAD_AFTER = 200_000   # edge-steps (``GrowthResult.work``) the reference code grows in a process before
+                        # it loads the compiled kernels: ~0.4 s CPU, about what loading them costs
+_reference_work = 0     # edge-steps grown by the reference code in this process
+
+
 @functools.cache
-def _kernels():
-    """The compiled kernels (``genr8_dist.hemls._growth_compiled``, numba), imported the first time a
-    growth needs them; None, for the numpy code here, when numba is not installed or the environment
-    sets ``GENR8_COMPILED=0``. Both grow the same surfaces bit for bit."""
-    if os.environ.get("GENR8_COMPILED", "1") == "0":
+def _load_kernels():
+    """The compiled kernels (``genr8_dist.hemls._growth_compiled``, numba), imported on first use;
+    None, for the numpy reference code here, when numba is not installed or ``GENR8_COMPILED=0``."""
+    if os.environ.get("GENR8_COMPILED") == "0":
         return None
     try:
         from genr8_dist.hemls import _growth_compiled
@@ -95,6 +99,16 @@ def _kernels():
         return None
     assert (_growth_compiled.LEFT, _growth_compiled.RIGHT) == (LEFT, RIGHT)
     return _growth_compiled
+
+
+def _kernels():
+    """The compiled kernels, or None for the reference code: both grow the same surfaces bit for bit.
+    A process loads them once it has grown ``_LOAD_AFTER`` edge-steps with the reference code (so a
+    short run does not pay for numba), at once with ``GENR8_COMPILED=1``, never with
+    ``GENR8_COMPILED=0`` or without numba (the ``fast`` extra)."""
+    if _reference_work < _LOAD_AFTER and os.environ.get("GENR8_COMPILED") != "1":
+        return None
+    return _load_kernels()
 
 
 # -- compiled rewrite systems -----------------------------------------------------------------------
@@ -272,6 +286,7 @@ class _Map:
         self.face[back] = 0
         self._relink_prev()
         self.nf = 2  # face 0 = outside, face 1 = the seed polygon
+        self.kernels = None  # the compiled kernels this map's growth uses (``_kernels``), if any
 
     # -- capacity ------------------------------------------------------------------------------
     def reserve(self, nv: int, ne: int) -> None:
@@ -315,9 +330,8 @@ class _Map:
 
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
-        kernels = _kernels()
-        if kernels is not None:
-            return kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne, self.nf)
+        if self.kernels is not None:
+            return self.kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne, self.nf)
         e = self.alive[:self.ne].nonzero()[0]
         ends = self.ev[e]
         c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
@@ -553,6 +567,7 @@ class _Grower:
         self.rng = rng
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
+        self.m.kernels = _kernels()
         self.max_edges = int(env.max_edges)
         self.max_work = int(getattr(env, "max_work", 0) or 0)   # 0: no work cap
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
@@ -719,9 +734,8 @@ class _Grower:
         return out
 
     def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
-        kernels = _kernels()
-        if kernels is not None:
-            self._rewrite_compiled(kernels, idx, tpl, areas, pending)
+        if self.m.kernels is not None:
+            self._rewrite_compiled(self.m.kernels, idx, tpl, areas, pending)
             return
         m = self.m
         n, k = len(idx), tpl.n_segments
@@ -1387,4 +1401,7 @@ def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int
         if capped:
             break
     surface = history[-1] if keep_steps else grower.m.surface()
+    if grower.m.kernels is None:
+        global _reference_work
+        _reference_work += grower.spent
     return GrowthResult(surface, stats, capped, history, grower.spent)

@@ -18,7 +18,7 @@ from genr8_dist.rng import stream
 
 pytest.importorskip("numba", reason="numba is not installed: the compiled kernels (extra `fast`) are off")
 
-if module._kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
+if module._load_kernels() is None:   # numba is installed, so only GENR8_COMPILED=0 turns them off
     pytest.skip("GENR8_COMPILED=0: the compiled kernels are off", allow_module_level=True)
 
 _FIELDS = ("vertices", "edges", "labels", "ages", "region_offsets", "region_vertices", "masses", "stopped")
@@ -26,8 +26,9 @@ _FIELDS = ("vertices", "edges", "labels", "ages", "region_offsets", "region_vert
 
 def _same_growth(system, env, **kwargs):
     """Grow ``system`` with the kernels and with the numpy reference; assert every result is equal."""
-    compiled = grow(system, env, **kwargs)
     with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(module, "_kernels", module._load_kernels)
+        compiled = grow(system, env, **kwargs)
         patch.setattr(module, "_kernels", lambda: None)
         reference = grow(system, env, **kwargs)
     for name in _FIELDS:
@@ -88,10 +89,20 @@ def test_random_systems_of_every_universe(env):
     assert grown > 500
 
 
-def test_kernels_are_off_when_asked(monkeypatch):
+def test_kernels_load_after_some_reference_growth_or_as_asked(monkeypatch):
+    monkeypatch.setattr(module, "_reference_work", 0)
+    monkeypatch.delenv("GENR8_COMPILED", raising=False)
+    assert module._kernels() is None   # a short run does not load numba
+    grow(load_system("four_sided_tiles"), Environment(max_work=0), steps=6)
+    assert module._reference_work > 5000
+    monkeypatch.setattr(module, "_reference_work", module._LOAD_AFTER)
+    assert module._kernels() is module._load_kernels() is not None
+    monkeypatch.setattr(module, "_reference_work", 0)
+    monkeypatch.setenv("GENR8_COMPILED", "1")
+    assert module._kernels() is not None
     monkeypatch.setenv("GENR8_COMPILED", "0")
-    module._kernels.cache_clear()
+    module._load_kernels.cache_clear()
     try:
         assert module._kernels() is None
     finally:
-        module._kernels.cache_clear()
+        module._load_kernels.cache_clear()
