@@ -11,6 +11,9 @@ same bit for bit.
 
 ``face_areas``: the area vector of every face (``_Map.face_areas``). ``rewrite``: one successor
 placed on a batch of edges (``_Grower._rewrite`` up to the branches' corners at the main line's ends).
+``pair_aim``: which branch pairs may join and how well they aim (``_Grower._pair_aim``). ``new_faces``:
+the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``cycles``: the walk round every
+face (``_Map.cycles``).
 
 Compiled code is cached on disk (``cache=True``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -23,7 +26,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["face_areas", "rewrite"]
+__all__ = ["cycles", "face_areas", "new_faces", "pair_aim", "rewrite"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -223,3 +226,85 @@ def rewrite(pos, mass, stopped, ev, label, age, alive, up, nxt, prv, face, idx, 
             bw = (2 * (ne0 + r * k + i) + main_reversed[i]) ^ 1
             prv[nxt[bw]] = bw
     return upn, both, repl, first, last, bvert, heading, corner
+
+
+@_jit
+def _np_max(a: float, b: float) -> float:
+    return a if a >= b or a != a else b    # np.maximum: NaN propagates
+
+
+@_jit
+def pair_aim(pi, pj, points, heading, normal, max_dist, cos_cone, cone):
+    """``_Grower._pair_aim``: whether each branch pair (pi, pj) may join, and its (ci, cj, dist)."""
+    count = len(pi)
+    ok = np.empty(count, dtype=np.bool_)
+    ci = np.empty(count)
+    cj = np.empty(count)
+    dist = np.empty(count)
+    for r in range(count):
+        a, b = pi[r], pj[r]
+        d0, d1, d2 = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1], points[b, 2] - points[a, 2]
+        dd = math.sqrt(_dot(d0, d1, d2, d0, d1, d2))
+        n0, n1, n2 = normal[a, 0] + normal[b, 0], normal[a, 1] + normal[b, 1], normal[a, 2] + normal[b, 2]
+        size = math.sqrt(_dot(n0, n1, n2, n0, n1, n2))
+        scale = _np_max(size, 1e-300)
+        n0, n1, n2 = n0 / scale, n1 / scale, n2 / scale
+        if not size > 1e-6:
+            n0, n1, n2 = 0.0, 0.0, 0.0
+        # d and both headings projected on the plane and normalised
+        c = _dot(d0, d1, d2, n0, n1, n2)
+        u0, u1, u2 = d0 - c * n0, d1 - c * n1, d2 - c * n2
+        x0, x1, x2 = heading[a, 0], heading[a, 1], heading[a, 2]
+        c = _dot(x0, x1, x2, n0, n1, n2)
+        x0, x1, x2 = x0 - c * n0, x1 - c * n1, x2 - c * n2
+        y0, y1, y2 = heading[b, 0], heading[b, 1], heading[b, 2]
+        c = _dot(y0, y1, y2, n0, n1, n2)
+        y0, y1, y2 = y0 - c * n0, y1 - c * n1, y2 - c * n2
+        s = _np_max(math.sqrt(_dot(u0, u1, u2, u0, u1, u2)), 1e-300)
+        u0, u1, u2 = u0 / s, u1 / s, u2 / s
+        s = _np_max(math.sqrt(_dot(x0, x1, x2, x0, x1, x2)), 1e-300)
+        x0, x1, x2 = x0 / s, x1 / s, x2 / s
+        s = _np_max(math.sqrt(_dot(y0, y1, y2, y0, y1, y2)), 1e-300)
+        y0, y1, y2 = y0 / s, y1 / s, y2 / s
+        toward_i = _dot(x0, x1, x2, u0, u1, u2)
+        toward_j = -_dot(y0, y1, y2, u0, u1, u2)
+        opposite = -_dot(x0, x1, x2, y0, y1, y2)
+        good = dd > 1e-12 and dd <= max_dist
+        if cone:
+            good = good and toward_i >= cos_cone and toward_j >= cos_cone
+        else:
+            good = good and opposite >= cos_cone and toward_i > 1e-9 and toward_j > 1e-9
+        ok[r] = good
+        ci[r] = toward_i
+        cj[r] = toward_j
+        dist[r] = dd
+    return ok, ci, cj, dist
+
+
+@_jit
+def new_faces(nxt, face, x, y, new_face):
+    """``_Grower._new_faces_one_by_one``: of the two cycles through each new edge's halves x and y, the
+    shorter (x's on a tie) becomes ``new_face``."""
+    for r in range(len(x)):
+        xr, yr = x[r], y[r]
+        px, py = nxt[xr], nxt[yr]
+        while px != xr and py != yr:
+            px, py = nxt[px], nxt[py]
+        h0 = xr if px == xr else yr
+        face[h0] = new_face[r]
+        h = nxt[h0]
+        while h != h0:
+            face[h] = new_face[r]
+            h = nxt[h]
+
+
+@_jit
+def cycles(nxt, starts, offsets, count):
+    """``_Map.cycles``' walk: the half-edges of each face cycle from its start, face after face."""
+    order = np.empty(count, dtype=np.int64)
+    for f in range(len(starts)):
+        h = starts[f]
+        for i in range(offsets[f], offsets[f + 1]):
+            order[i] = h
+            h = nxt[h]
+    return order

@@ -394,6 +394,8 @@ class _Map:
         sizes = np.bincount(fs, minlength=self.nf)[faces]
         offsets = np.zeros(len(starts) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
+        if self.kernels is not None:
+            return faces, offsets, self.origin(self.kernels.cycles(nxt, starts, offsets, len(halves)))
         short = sizes <= 64
         cur = starts[short].copy()
         base = offsets[:-1][short]
@@ -561,13 +563,15 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray, left: bool = True):
 class _Grower:
     """One growth: the map, the compiled system, the environment, the random stream and the caps."""
 
+    kernels = None   # the compiled kernels (``_kernels``) this growth uses, if any
+
     def __init__(self, system: RewriteSystem, env, rng: np.random.Generator, deadline: float) -> None:
         self.c = _compile(system)
         self.env = env
         self.rng = rng
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
-        self.m.kernels = _kernels()
+        self.kernels = self.m.kernels = _kernels()
         self.max_edges = int(env.max_edges)
         self.max_work = int(getattr(env, "max_work", 0) or 0)   # 0: no work cap
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
@@ -734,8 +738,8 @@ class _Grower:
         return out
 
     def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
-        if self.m.kernels is not None:
-            self._rewrite_compiled(self.m.kernels, idx, tpl, areas, pending)
+        if self.kernels is not None:
+            self._rewrite_compiled(self.kernels, idx, tpl, areas, pending)
             return
         m = self.m
         n, k = len(idx), tpl.n_segments
@@ -1185,6 +1189,10 @@ class _Grower:
         """``_pair_ok`` and the (ci, cj, dist) of ``_aim`` it judged by (joining ranks the pairs
         that pass by them)."""
         cos_cone = self.c.cos_cone - 1e-9
+        if self.kernels is not None:
+            ok, ci, cj, dist = self.kernels.pair_aim(pi, pj, points, heading, normal, float(max_dist),
+                                                       cos_cone, self.cone)
+            return ok, (ci, cj, dist)
         ci, cj, dist, opposite = self._aim(pi, pj, points, heading, normal)
         ok = (dist > 1e-12) & (dist <= max_dist)
         if self.cone:
@@ -1312,7 +1320,9 @@ class _Grower:
         m.nf += j
         m.face[x] = f
         m.face[y] = f
-        if j <= _FEW_JOINS:
+        if self.kernels is not None:
+            self.kernels.new_faces(m.nxt, m.face, x, y, new_face)
+        elif j <= _FEW_JOINS:
             self._new_faces_one_by_one(x, y, new_face)
         else:
             self._new_faces_lockstep(x, y, new_face)
@@ -1401,7 +1411,7 @@ def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int
         if capped:
             break
     surface = history[-1] if keep_steps else grower.m.surface()
-    if grower.m.kernels is None:
+    if grower.kernels is None:
         global _reference_work
         _reference_work += grower.spent
     return GrowthResult(surface, stats, capped, history, grower.spent)
