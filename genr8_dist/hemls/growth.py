@@ -205,15 +205,22 @@ def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Templa
     return _drawn(successor, angle, tuple(ids[s.name] for s in _segments(successor.symbols)))
 
 
-@functools.lru_cache(maxsize=256)
+_CERTAIN = np.ones(1)   # the cumulative weights of a rule with one successor
+_CERTAIN.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=1024)
 def _compile(system: RewriteSystem) -> _Compiled:
     ids = system.label_ids()
     groups: dict[int, list[_CompiledRule]] = {}
     for rule in system.rules:
         templates = tuple(_template(s, system.turn_angle, ids) for s in rule.successors)
-        w = np.array(rule.weights, dtype=np.float64)
-        cum = np.cumsum(w / w.sum())
-        cum[-1] = 1.0
+        if len(templates) == 1:
+            cum = _CERTAIN
+        else:
+            w = np.array(rule.weights, dtype=np.float64)
+            cum = np.cumsum(w / w.sum())
+            cum[-1] = 1.0
         groups.setdefault(ids[rule.predecessor.name], []).append(_CompiledRule(
             None if rule.left is None else ids[rule.left.name],
             None if rule.right is None else ids[rule.right.name],
@@ -275,13 +282,14 @@ class _Map:
         self.label[:n] = labels
         self.alive[:n] = True
         centre = positions.mean(axis=0)
-        normal = _cross(positions - centre, np.roll(positions, -1, axis=0) - centre).sum(axis=0)
+        following = np.concatenate([positions[1:], positions[:1]])   # np.roll(positions, -1, axis=0)
+        normal = _cross(positions - centre, following - centre).sum(axis=0)
         norm = float(np.linalg.norm(normal))
         self.up[:n] = normal / norm if norm > 1e-300 else (0.0, 0.0, 1.0)
         path = 2 * k + reversed_.astype(np.int64)  # half-edges along the polygon (counter-clockwise)
         back = path ^ 1
-        self.nxt[path] = np.roll(path, -1)
-        self.nxt[back] = np.roll(back, 1)
+        self.nxt[path] = np.concatenate([path[1:], path[:1]])
+        self.nxt[back] = np.concatenate([back[-1:], back[:-1]])
         self.face[path] = 1
         self.face[back] = 0
         self._relink_prev()
