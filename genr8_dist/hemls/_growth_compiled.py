@@ -12,8 +12,8 @@ same bit for bit.
 ``face_areas``: the area vector of every face (``_Map.face_areas``). ``rewrite``: one successor
 placed on a batch of edges (``_Grower._rewrite`` up to the branches' corners at the main line's ends).
 ``pair_aim``: which branch pairs may join and how well they aim (``_Grower._pair_aim``). ``new_faces``:
-the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``cycles``: the walk round every
-face (``_Map.cycles``).
+the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``centre_on_left``: the direction
+of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every face (``_Map.cycles``).
 
 Compiled code is cached on disk (``cache=True``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -26,7 +26,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["cycles", "face_areas", "new_faces", "pair_aim", "rewrite"]
+__all__ = ["centre_on_left", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -308,3 +308,25 @@ def cycles(nxt, starts, offsets, count):
             order[i] = h
             h = nxt[h]
     return order
+
+
+@_jit
+def centre_on_left(a, b, vert, pos, normal, centre):
+    """``_Grower._centre_on_left``: join pairs (a, b) reordered so that the new edge has the map's
+    centre on its left about the branches' surface normal."""
+    first = a.copy()
+    second = b.copy()
+    c0, c1, c2 = centre[0], centre[1], centre[2]
+    for r in range(len(a)):
+        u, w = vert[a[r]], vert[b[r]]
+        a0, a1, a2 = pos[w, 0] - pos[u, 0], pos[w, 1] - pos[u, 1], pos[w, 2] - pos[u, 2]
+        t0, t1, t2 = c0 - pos[u, 0], c1 - pos[u, 1], c2 - pos[u, 2]
+        na, nb = normal[a[r]], normal[b[r]]
+        n0, n1, n2 = na[0] + nb[0], na[1] + nb[1], na[2] + nb[2]
+        x0, x1, x2 = a1 * t2 - a2 * t1, a2 * t0 - a0 * t2, a0 * t1 - a1 * t0
+        side = _dot(x0, x1, x2, n0, n1, n2)
+        scale = math.sqrt(_dot(a0, a1, a2, a0, a1, a2) * _dot(t0, t1, t2, t0, t1, t2)
+                          * _dot(n0, n1, n2, n0, n1, n2))
+        if side < -1e-9 * scale:
+            first[r], second[r] = b[r], a[r]
+    return first, second

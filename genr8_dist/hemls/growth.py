@@ -1012,13 +1012,14 @@ class _Grower:
             if self.ties != "first":
                 a, b = self._centre_on_left(a, b, vert, normal, centre)
             # one new edge per vertex pair per round
-            u, w = vert[a], vert[b]
-            pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
-            _, uniq = np.unique(pair_key, return_index=True)
-            if len(uniq) != len(chosen):
-                keep = np.zeros(len(chosen), dtype=bool)
-                keep[uniq] = True
-                chosen, a, b = chosen[keep], a[keep], b[keep]
+            if len(chosen) > 1:
+                u, w = vert[a], vert[b]
+                pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
+                _, uniq = np.unique(pair_key, return_index=True)
+                if len(uniq) != len(chosen):
+                    keep = np.zeros(len(chosen), dtype=bool)
+                    keep[uniq] = True
+                    chosen, a, b = chosen[keep], a[keep], b[keep]
             room = self.max_edges - m.n_alive()
             capped = len(chosen) > room
             if capped:
@@ -1077,6 +1078,8 @@ class _Grower:
         mirror-image directions (the mirror edge of an edge runs the other way), where the order
         the branches were drawn in need not."""
         m = self.m
+        if self.kernels is not None:
+            return self.kernels.centre_on_left(a, b, vert, m.pos, normal, centre)
         u, w = m.pos[vert[a]], m.pos[vert[b]]
         along, to_centre = w - u, centre - u
         n = normal[a] + normal[b]
