@@ -15,7 +15,7 @@ placed on a batch of edges (``_Grower._rewrite`` up to the branches' corners at 
 the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``centre_on_left``: the direction
 of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every face (``_Map.cycles``).
 
-Compiled code is cached on disk (``cache=True``); where no cache directory is writable the kernels
+Compiled code is cached on disk (``_compiled._jit``); where no cache directory is writable the kernels
 are compiled in memory instead.
 """
 
@@ -23,21 +23,15 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from genr8_dist.hemls._compiled import _jit, _np_max  # numba.njit, cached on disk; np.maximum
 
 __all__ = ["centre_on_left", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
 RIGHT = -1
-
-
-def _jit(fn):
-    try:
-        return numba.njit(cache=True)(fn)
-    except RuntimeError:        # no writable cache location: compile in memory, every process
-        return numba.njit(fn)
 
 
 @_jit
@@ -226,11 +220,6 @@ def rewrite(pos, mass, stopped, ev, label, age, alive, up, nxt, prv, face, idx, 
             bw = (2 * (ne0 + r * k + i) + main_reversed[i]) ^ 1
             prv[nxt[bw]] = bw
     return upn, both, repl, first, last, bvert, heading, corner
-
-
-@_jit
-def _np_max(a: float, b: float) -> float:
-    return a if a >= b or a != a else b    # np.maximum: NaN propagates
 
 
 @_jit

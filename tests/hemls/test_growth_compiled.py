@@ -101,8 +101,4 @@ def test_kernels_load_after_some_reference_growth_or_as_asked(monkeypatch):
     monkeypatch.setenv("GENR8_COMPILED", "1")
     assert module._kernels() is not None
     monkeypatch.setenv("GENR8_COMPILED", "0")
-    module._load_kernels.cache_clear()
-    try:
-        assert module._kernels() is None
-    finally:
-        module._load_kernels.cache_clear()
+    assert module._load_kernels.__wrapped__() is None   # what a process started so would load
