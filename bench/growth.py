@@ -5,7 +5,10 @@
 
 Prints one table per tile system (step, V, E, regions, seconds, edges/s, ratio of this step's time
 per edge to the previous step's: about 1 or below means cost linear in edges), then random
-individuals of every universe grown 4, 5 and 6 steps in a capped environment.
+individuals of every universe with surfaces grown 4, 5 and 6 steps in a capped environment, then the
+CPU per text of parsing and growing random texts of each universe at 4 steps (the default environment)
+with the numpy reference code and with the compiled kernels (the ``fast`` extra), and whether both
+grew the same surfaces (vertices, edges, labels, regions, work, cap: bit for bit).
 """
 
 from __future__ import annotations
@@ -16,8 +19,9 @@ import time
 import numpy as np
 
 from genr8_dist.environment import Environment
+from genr8_dist.errors import ParseError
 from genr8_dist.grammar import list_universes, load_universe
-from genr8_dist.hemls import grow, load_system
+from genr8_dist.hemls import grow, growth, load_system, parse
 from genr8_dist.rng import stream
 
 
@@ -44,23 +48,35 @@ def tiles(name: str, steps: int, repeats: int) -> None:
               f"{rate:>11,.0f} {ratio:>12}")
 
 
+def _texts(name: str, count: int, seed: int) -> list[str]:
+    """Up to ``count`` texts of random valid genomes of universe ``name`` that parse as rewrite
+    systems (none for a universe of another phenotype)."""
+    universe = load_universe(name)
+    rng = stream(seed, "bench", name)
+    texts: list[str] = []
+    tries = 0
+    while len(texts) < count and tries < 50 * count:
+        tries += 1
+        mapped = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
+        if mapped.valid:
+            try:
+                parse(mapped.text)
+            except ParseError:
+                return []
+            texts.append(mapped.text)
+    return texts
+
+
 def universes(per_universe: int) -> None:
     env = Environment(max_edges=200_000, max_work=0, max_seconds=60)
     print(f"\nrandom individuals ({per_universe} valid per universe; genome 50-150 codons, seed 0)")
     print(f"{'universe':>14} {'steps':>5} {'mean s':>8} {'max s':>8} {'mean E':>9} {'max E':>9} "
           f"{'edges/s':>11} {'capped':>6}")
     for info in list_universes():
-        universe = load_universe(info.name)
-        rng = stream(0, "bench", info.name)
-        systems = []
-        tries = 0
-        while len(systems) < per_universe and tries < 50 * per_universe:
-            tries += 1
-            mapped = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
-            if mapped.valid:
-                from genr8_dist.hemls import parse
-
-                systems.append(parse(mapped.text))
+        systems = [parse(text) for text in _texts(info.name, per_universe, 0)]
+        if not systems:
+            print(f"{info.name:>14} (its texts are not rewrite systems)")
+            continue
         for steps in (4, 5, 6):
             times, edges, capped = [], [], 0
             for i, system in enumerate(systems):
@@ -74,6 +90,43 @@ def universes(per_universe: int) -> None:
                   f"{np.mean(edges):>9,.0f} {np.max(edges):>9,} {rate:>11,.0f} {capped:>6}")
 
 
+def _grown(texts: list[str], env: Environment) -> tuple[float, list[tuple]]:
+    """CPU seconds to parse and grow ``texts`` (best of two), and what each growth gave."""
+    best, out = float("inf"), []
+    for _ in range(2):
+        t0 = time.process_time()
+        results = [grow(parse(text), env) for text in texts]
+        best = min(best, time.process_time() - t0)
+        out = [(r.surface.vertices.tobytes(), r.surface.edges.tobytes(), r.surface.labels.tobytes(),
+                r.surface.region_vertices.tobytes(), r.work, r.capped) for r in results]
+    return best, out
+
+
+def kernels(per_universe: int) -> None:
+    compiled = growth._load_kernels()
+    print(f"\nparse + grow, 4 steps, default environment ({per_universe} random texts per universe, seed 1): "
+          "CPU ms per text")
+    if compiled is None:
+        print("  the compiled kernels are off (no numba: the `fast` extra; or GENR8_COMPILED=0)")
+        return
+    print(f"{'universe':>16} {'reference':>10} {'compiled':>9} {'speed-up':>9} {'same surfaces':>14}")
+    env = Environment(steps=4)
+    saved = growth._kernels
+    for info in list_universes():
+        texts = _texts(info.name, per_universe, 1)
+        if not texts:
+            continue
+        try:
+            growth._kernels = lambda: None
+            slow, expected = _grown(texts, env)
+            growth._kernels = lambda: compiled
+            fast, got = _grown(texts, env)
+        finally:
+            growth._kernels = saved
+        print(f"{info.name:>16} {1e3 * slow / len(texts):>10.2f} {1e3 * fast / len(texts):>9.2f} "
+              f"{slow / fast:>8.2f}x {'yes' if got == expected else 'NO':>14}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer steps and individuals")
@@ -82,6 +135,7 @@ def main() -> None:
     for name in ("four_sided_tiles", "three_sided_tiles", "square"):
         tiles(name, steps, repeats=1 if args.quick else 3)
     universes(2 if args.quick else 5)
+    kernels(20 if args.quick else 100)
 
 
 if __name__ == "__main__":

@@ -14,11 +14,11 @@
 2. *run best* (with ``--run DIR``): the same figures for the run's best individual, regrown.
 3. *export*: CPU seconds to triangulate (a fresh ``Surface``, nothing cached) and to write an OBJ and a
    PLY of four_sided_tiles at 5 steps (1,024 regions) and of the founder with the most regions.
-4. *kernels* (a checkout with the compiled kernels and numba installed): CPU seconds of the founders'
-   triangulation with the numpy/Python reference code and with the compiled kernels, whether every
-   founder's triangles are identical, and the CPU seconds a new process spends on its first
-   triangulation (numba's import and compiling, or loading the compiled code) with an empty cache
-   (cold) and again (warm).
+4. *kernels* (a checkout with the compiled kernels and numba installed): CPU seconds to triangulate
+   the founders and every surface bench/island.py's default run scores (4 steps), with the
+   numpy/Python reference code and with the compiled kernels, and on how many the triangles are
+   identical; and the CPU seconds a new process spends on its first triangulation (numba's import
+   and compiling, or loading the compiled code) with an empty cache (cold) and again (warm).
 
 CPU seconds (``time.process_time``), the median of ``--repeat`` tries, so other work on the machine
 counts less. Run it on an older checkout (PYTHONPATH) for the figures before a change.
@@ -158,6 +158,30 @@ print(time.process_time() - t)
 """
 
 
+def island_inputs() -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """The (vertices, offsets, cycles) of every triangulation bench/island.py's default run asks for
+    (default universe, 4 steps, 50 x generations 0..3, seed 1): the scoring of ``slivers``."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution import Island
+    from genr8_dist.hemls import surface as module
+
+    inputs = []
+    original = module.triangulate_polygons
+
+    def record(vertices, offsets, cycles):
+        inputs.append((np.array(vertices), np.array(offsets), np.array(cycles)))
+        return original(vertices, offsets, cycles)
+
+    module.triangulate_polygons = record
+    try:
+        config = RunConfig(universe="default", seed=1, ea={"population": 50, "generations": 3},
+                           environment={"steps": 4})
+        Island(config, 0).run(3)
+    finally:
+        module.triangulate_polygons = original
+    return inputs
+
+
 def kernels(surfaces: Sequence[Any], repeat: int) -> None:
     import os
     import subprocess
@@ -170,25 +194,33 @@ def kernels(surfaces: Sequence[Any], repeat: int) -> None:
               "checkout)")
         return
     module._LOAD_AFTER = 0     # compiled from the first triangulation on
-    fast = [fresh(s).triangles() for s in surfaces]
-    fast_s = cpu(lambda: [fresh(s).triangles() for s in surfaces], repeat)
-    original = module._kernels
-    module._kernels = lambda: None
-    try:
-        slow = [fresh(s).triangles() for s in surfaces]
-        slow_s = cpu(lambda: [fresh(s).triangles() for s in surfaces], repeat)
-    finally:
-        module._kernels = original
-    same = sum(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
     print("\n## kernels\n")
-    print(f"founders' triangulation: reference {slow_s:.3f} s CPU, compiled {fast_s:.3f} s "
-          f"({slow_s / max(fast_s, 1e-9):.1f}x); identical triangles on {same} of {len(surfaces)}")
+    print("| surfaces | triangles | reference s | compiled s | speed-up | identical |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    cases = [("founders", [(s.vertices, s.region_offsets, s.region_vertices) for s in surfaces]),
+             ("bench/island.py's default run (4 steps)", island_inputs())]
+    for name, inputs in cases:
+        def work(inputs=inputs):
+            return [module.triangulate_polygons(*args) for args in inputs]
+
+        fast = work()
+        fast_s = cpu(work, repeat)
+        original = module._kernels
+        module._kernels = lambda: None
+        try:
+            slow = work()
+            slow_s = cpu(work, repeat)
+        finally:
+            module._kernels = original
+        same = sum(a.dtype == b.dtype and np.array_equal(a, b) for a, b in zip(fast, slow, strict=True))
+        print(f"| {name}: {len(inputs)} | {sum(len(t) for t in slow)} | {slow_s:.3f} | {fast_s:.3f} | "
+              f"{slow_s / max(fast_s, 1e-9):.1f}x | {same} of {len(inputs)} |")
     with tempfile.TemporaryDirectory() as cache:
         env = {**os.environ, "NUMBA_CACHE_DIR": cache, "GENR8_COMPILED": "1"}
         first = [float(subprocess.run([sys.executable, "-c", _FIRST], env=env, check=True, text=True,
                                       capture_output=True).stdout) for _ in range(2)]
-    print(f"a new process's first triangulation: {first[0]:.2f} s CPU cold (empty cache), "
-          f"{first[1]:.2f} s warm")
+    print(f"\na new process's first triangulation (numba's import, and compiling or loading the "
+          f"kernels): {first[0]:.2f} s CPU cold (empty cache), {first[1]:.2f} s warm")
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -44,6 +44,52 @@ def _jit(fn):
         return numba.njit(fn)
 
 
+# -- small array helpers (explicit loops: numba compiles them much faster than slicing) -------------
+
+@_jit
+def _where(mask: np.ndarray, out: np.ndarray) -> int:
+    """``np.flatnonzero(mask)`` into ``out``: returns how many."""
+    n = 0
+    for v in range(len(mask)):
+        if mask[v]:
+            out[n] = v
+            n += 1
+    return n
+
+
+@_jit
+def _rows(a: np.ndarray, n: int) -> np.ndarray:
+    """A copy of the first ``n`` rows of ``a`` (R, C)."""
+    out = np.empty((n, a.shape[1]), dtype=a.dtype)
+    for i in range(n):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j]
+    return out
+
+
+@_jit
+def _grown(a: np.ndarray, n: int) -> np.ndarray:
+    """``a`` (R, C) with twice the rows, its first ``n`` copied."""
+    out = np.empty((2 * a.shape[0], a.shape[1]), dtype=a.dtype)
+    for i in range(n):
+        for j in range(a.shape[1]):
+            out[i, j] = a[i, j]
+    return out
+
+
+@_jit
+def _sorted3(a: np.ndarray, row: int, out: np.ndarray) -> None:
+    """``out[:] = sorted(a[row])`` for a row of three."""
+    u, v, w = a[row, 0], a[row, 1], a[row, 2]
+    if u > v:
+        u, v = v, u
+    if v > w:
+        v, w = w, v
+    if u > v:
+        u, v = v, u
+    out[0], out[1], out[2] = u, v, w
+
+
 # -- the exact programme -----------------------------------------------------------------------------
 
 @_jit
@@ -65,7 +111,6 @@ def best_triangulations(d2: np.ndarray, cr: np.ndarray, sizes: np.ndarray) -> np
     cap = 1.0 / QUALITY_FLOOR
     for r in range(R):
         m = sizes[r]
-        best[:, :] = 0.0
         for span in range(2, m):
             for i in range(m - span):
                 j = i + span
@@ -130,7 +175,8 @@ def clip(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     reflex = np.empty(n, dtype=np.bool_)
     for v in range(n):
         reflex[v] = _turn(xs, ys, prv[v], v, nxt[v]) <= EPS
-    ridx = np.flatnonzero(reflex)
+    ridx = np.empty(n, dtype=np.int64)
+    nr = _where(reflex, ridx)
     dirty = False
     tris = np.empty((max(n - 2, 0), 3), dtype=np.int64)
     nt = 0
@@ -140,9 +186,10 @@ def clip(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
         ear = not reflex[i] and _turn(xs, ys, a, i, c) > EPS
         if ear:
             if dirty:
-                ridx = np.flatnonzero(reflex)
+                nr = _where(reflex, ridx)
                 dirty = False
-            for q in ridx:
+            for r in range(nr):
+                q = ridx[r]
                 if q in (a, c):
                     continue
                 qx, qy = xs[q], ys[q]
@@ -176,7 +223,7 @@ def clip(xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     for k in range(1, size - 1):
         tris[nt, 0], tris[nt, 1], tris[nt, 2] = rest[0], rest[k], rest[k + 1]
         nt += 1
-    return tris[:nt].copy()
+    return _rows(tris, nt)
 
 
 @_jit
@@ -194,7 +241,8 @@ def _cut(x: int, y: int, z: int, runs: np.ndarray, pts: np.ndarray, two: float, 
     ``out`` from row ``nout`` on, returns the rows used. Its recursion is a stack, first call on top."""
     tasks = np.empty((64, 9), dtype=np.int64)
     tasks[0, 0], tasks[0, 1], tasks[0, 2] = x, y, z
-    tasks[0, 3:] = runs
+    for s in range(6):
+        tasks[0, 3 + s] = runs[s]
     ntask = 1
     corners = np.empty(3, dtype=np.int64)
     lo = np.empty(3, dtype=np.int64)
@@ -229,9 +277,7 @@ def _cut(x: int, y: int, z: int, runs: np.ndarray, pts: np.ndarray, two: float, 
             s, t, o = corners[n], corners[(n + 1) % 3], corners[(n + 2) % 3]
             mid = lo[n] + (hi[n] - lo[n]) // 2
             if ntask + 2 > len(tasks):
-                grown = np.empty((2 * len(tasks), 9), dtype=np.int64)
-                grown[:ntask] = tasks[:ntask]
-                tasks = grown
+                tasks = _grown(tasks, ntask)
             b, a = (n + 1) % 3, (n + 2) % 3
             second = tasks[ntask]             # _cut(mid, t, o, run[k + 1:], sides[n + 1], [])
             second[0], second[1], second[2] = mid, t, o
@@ -282,7 +328,7 @@ def cut_runs(reduced: np.ndarray, corners: np.ndarray, points: np.ndarray, two: 
     total = 0
     tri = np.empty(3, dtype=np.int64)
     for row in range(len(reduced)):
-        tri[:] = np.sort(reduced[row])
+        _sorted3(reduced, row, tri)
         total += 1                            # a ring of 3 + (its sides' vertices) gives ring - 2
         for e in range(3):
             i, j = tri[e], tri[(e + 1) % 3]
@@ -296,7 +342,7 @@ def cut_runs(reduced: np.ndarray, corners: np.ndarray, points: np.ndarray, two: 
     local = np.empty((m + 1, 3), dtype=np.int64)
     pts = np.empty((m + 3, 3))
     for row in range(len(reduced)):
-        tri[:] = np.sort(reduced[row])
+        _sorted3(reduced, row, tri)
         size = 0
         for e in range(3):
             i, j = tri[e], tri[(e + 1) % 3]
@@ -313,7 +359,8 @@ def cut_runs(reduced: np.ndarray, corners: np.ndarray, points: np.ndarray, two: 
                     size += 1
             runs[2 * e + 1] = size
         for k in range(size):
-            pts[k, :] = points[ring[k]]
+            for e in range(3):
+                pts[k, e] = points[ring[k], e]
         nlocal = _cut(0, runs[1], runs[3], runs, pts, two, local, 0)
         for row2 in range(nlocal):
             u, v, w = local[row2, 0], local[row2, 1], local[row2, 2]
@@ -325,7 +372,7 @@ def cut_runs(reduced: np.ndarray, corners: np.ndarray, points: np.ndarray, two: 
                 u, v = v, u
             cut[ncut, 0], cut[ncut, 1], cut[ncut, 2] = ring[u], ring[v], ring[w]
             ncut += 1
-    return cut[:ncut].copy()
+    return _rows(cut, ncut)
 
 
 @_jit
@@ -370,7 +417,9 @@ def _put(keys: np.ndarray, vals: np.ndarray, key: int, val: int) -> int:
 @_jit
 def _rehash(keys: np.ndarray, vals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The table without its removed slots."""
-    fresh_keys = np.full(len(keys), -1, dtype=np.int64)
+    fresh_keys = np.empty(len(keys), dtype=np.int64)
+    for h in range(len(keys)):
+        fresh_keys[h] = -1
     fresh_vals = np.empty(len(keys), dtype=np.int64)
     for h in range(len(keys)):
         if keys[h] >= 0:
@@ -412,7 +461,9 @@ def flip(tris: np.ndarray, xs: np.ndarray, ys: np.ndarray, points: np.ndarray, c
     cap = 16
     while cap < 8 * 3 * T:
         cap *= 2
-    keys = np.full(cap, -1, dtype=np.int64)
+    keys = np.empty(cap, dtype=np.int64)
+    for h in range(cap):
+        keys[h] = -1
     vals = np.empty(cap, dtype=np.int64)
     order = np.empty(3 * T, dtype=np.int64)       # the keys in the dictionary's insertion order
     norder = 0
@@ -457,18 +508,19 @@ def flip(tris: np.ndarray, xs: np.ndarray, ys: np.ndarray, points: np.ndarray, c
         tris[t2, 0], tris[t2, 1], tris[t2, 2] = d, b, c
         keys[h1] = -2
         keys[h2] = -2
-        for key, t in ((a * n + d, t1), (d * n + c, t1), (c * n + a, t1),
-                       (d * n + b, t2), (b * n + c, t2), (c * n + d, t2)):
-            used += _put(keys, vals, key, t) == 2
+        used += _put(keys, vals, a * n + d, t1) == 2
+        used += _put(keys, vals, d * n + c, t1) == 2
+        used += _put(keys, vals, c * n + a, t1) == 2
+        used += _put(keys, vals, d * n + b, t2) == 2
+        used += _put(keys, vals, b * n + c, t2) == 2
+        used += _put(keys, vals, c * n + d, t2) == 2
         if 2 * used > cap:
             keys, vals = _rehash(keys, vals)
             used = 0
             for h in range(cap):
                 used += keys[h] >= 0
         if top + 4 > len(stack):
-            grown = np.empty((2 * len(stack), 2), dtype=np.int64)
-            grown[:top] = stack[:top]
-            stack = grown
+            stack = _grown(stack, top)
         stack[top, 0], stack[top, 1] = a, d
         stack[top + 1, 0], stack[top + 1, 1] = d, b
         stack[top + 2, 0], stack[top + 2, 1] = b, c

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -81,6 +82,35 @@ class _Capped(Exception):
         self.what = what
 
 
+_LOAD_AFTER = 200_000   # edge-steps (``GrowthResult.work``) the reference code grows in a process before
+                        # it loads the compiled kernels: ~0.4 s CPU, about what loading them costs
+_reference_work = 0     # edge-steps grown by the reference code in this process
+
+
+@functools.cache
+def _load_kernels():
+    """The compiled kernels (``genr8_dist.hemls._growth_compiled``, numba), imported on first use;
+    None, for the numpy reference code here, when numba is not installed or ``GENR8_COMPILED=0``."""
+    if os.environ.get("GENR8_COMPILED") == "0":
+        return None
+    try:
+        from genr8_dist.hemls import _growth_compiled
+    except ImportError:
+        return None
+    assert (_growth_compiled.LEFT, _growth_compiled.RIGHT) == (LEFT, RIGHT)
+    return _growth_compiled
+
+
+def _kernels():
+    """The compiled kernels, or None for the reference code: both grow the same surfaces bit for bit.
+    A process loads them once it has grown ``_LOAD_AFTER`` edge-steps with the reference code (so a
+    short run does not pay for numba), at once with ``GENR8_COMPILED=1``, never with
+    ``GENR8_COMPILED=0`` or without numba (the ``fast`` extra)."""
+    if _reference_work < _LOAD_AFTER and os.environ.get("GENR8_COMPILED") != "1":
+        return None
+    return _load_kernels()
+
+
 # -- compiled rewrite systems -----------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -117,38 +147,80 @@ class _Compiled:
 
 
 @functools.lru_cache(maxsize=4096)
-def _names(symbols: tuple) -> tuple[str, ...]:
-    """The segment names in ``symbols`` (brackets included), in order."""
-    out: list[str] = []
+def _segments(symbols: tuple) -> tuple[Segment, ...]:
+    """The segments in ``symbols`` (brackets included), in order."""
+    out: list[Segment] = []
     for sym in symbols:
         if isinstance(sym, Segment):
-            out.append(sym.name)
+            out.append(sym)
         elif isinstance(sym, Branch):
-            out.extend(_names(sym.symbols))
+            out.extend(_segments(sym.symbols))
     return tuple(out)
+
+
+def _shape(symbols: tuple, count: list[int]) -> tuple:
+    """``symbols`` with the i-th segment (in ``_segments`` order) replaced by the plain segment "i"."""
+    out: list = []
+    for sym in symbols:
+        if isinstance(sym, Segment):
+            out.append(Segment(str(count[0])))
+            count[0] += 1
+        elif isinstance(sym, Branch):
+            out.append(Branch(_shape(sym.symbols, count)))
+        else:
+            out.append(sym)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=4096)
+def _drawn_shape(shape: tuple, angle: float) -> Template:
+    """The template of successors of this shape: labels are segment positions, ages untimed."""
+    n = len(_segments(shape))
+    return draw(Successor(shape), angle, {str(i): i for i in range(n)})
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 @functools.lru_cache(maxsize=8192)
 def _drawn(successor: Successor, angle: float, labels: tuple[int, ...]) -> Template:
-    names = _names(successor.symbols)
-    return draw(successor, angle, dict(zip(names, labels, strict=True)))
+    """``draw(successor, angle, ...)``: the turtle walks once per shape (successors that differ only in
+    their labels and ages draw the same geometry); labels and ages are read from the segments."""
+    shape = _drawn_shape(_shape(successor.symbols, [0]), angle)
+    segments = _segments(successor.symbols)
+    ids = np.array(labels, dtype=np.int64)
+    ages = np.array([0 if s.age is None else s.age for s in segments], dtype=np.int64)
+    timed = np.array([s.age is not None for s in segments], dtype=bool)
+    main, branch = shape.main_labels, shape.branch_labels
+    return replace(shape, main_labels=_frozen(ids[main]), main_ages=_frozen(ages[main]),
+                   main_timed=_frozen(timed[main]), branch_labels=_frozen(ids[branch]),
+                   branch_ages=_frozen(ages[branch]), branch_timed=_frozen(timed[branch]))
 
 
 def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Template:
     """``draw(successor, angle, ids)``, drawn once per process for each successor, angle and labels
     (universes write the same successors into many rewrite systems)."""
-    return _drawn(successor, angle, tuple(ids[n] for n in _names(successor.symbols)))
+    return _drawn(successor, angle, tuple(ids[s.name] for s in _segments(successor.symbols)))
 
 
-@functools.lru_cache(maxsize=256)
+_CERTAIN = np.ones(1)   # the cumulative weights of a rule with one successor
+_CERTAIN.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=1024)
 def _compile(system: RewriteSystem) -> _Compiled:
     ids = system.label_ids()
     groups: dict[int, list[_CompiledRule]] = {}
     for rule in system.rules:
         templates = tuple(_template(s, system.turn_angle, ids) for s in rule.successors)
-        w = np.array(rule.weights, dtype=np.float64)
-        cum = np.cumsum(w / w.sum())
-        cum[-1] = 1.0
+        if len(templates) == 1:
+            cum = _CERTAIN
+        else:
+            w = np.array(rule.weights, dtype=np.float64)
+            cum = np.cumsum(w / w.sum())
+            cum[-1] = 1.0
         groups.setdefault(ids[rule.predecessor.name], []).append(_CompiledRule(
             None if rule.left is None else ids[rule.left.name],
             None if rule.right is None else ids[rule.right.name],
@@ -169,8 +241,8 @@ def _compile(system: RewriteSystem) -> _Compiled:
 # -- the map ----------------------------------------------------------------------------------------
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (n, 3) arrays (np.cross costs more than the work on small maps)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    """Row-wise cross product of two (n, 3) arrays (np.cross costs more than the work on small maps)."""
+    out = np.empty(a.shape)
     out[:, 0] = a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1]
     out[:, 1] = a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2]
     out[:, 2] = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
@@ -178,6 +250,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 _XYZ = np.arange(3)
+_PAIR = np.arange(2)
 
 
 class _Map:
@@ -209,17 +282,19 @@ class _Map:
         self.label[:n] = labels
         self.alive[:n] = True
         centre = positions.mean(axis=0)
-        normal = _cross(positions - centre, np.roll(positions, -1, axis=0) - centre).sum(axis=0)
+        following = np.concatenate([positions[1:], positions[:1]])   # np.roll(positions, -1, axis=0)
+        normal = _cross(positions - centre, following - centre).sum(axis=0)
         norm = float(np.linalg.norm(normal))
         self.up[:n] = normal / norm if norm > 1e-300 else (0.0, 0.0, 1.0)
         path = 2 * k + reversed_.astype(np.int64)  # half-edges along the polygon (counter-clockwise)
         back = path ^ 1
-        self.nxt[path] = np.roll(path, -1)
-        self.nxt[back] = np.roll(back, 1)
+        self.nxt[path] = np.concatenate([path[1:], path[:1]])
+        self.nxt[back] = np.concatenate([back[-1:], back[:-1]])
         self.face[path] = 1
         self.face[back] = 0
         self._relink_prev()
         self.nf = 2  # face 0 = outside, face 1 = the seed polygon
+        self.kernels = None  # the compiled kernels this map's growth uses (``_kernels``), if any
 
     # -- capacity ------------------------------------------------------------------------------
     def reserve(self, nv: int, ne: int) -> None:
@@ -263,11 +338,13 @@ class _Map:
 
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
+        if self.kernels is not None:
+            return self.kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne, self.nf)
         e = self.alive[:self.ne].nonzero()[0]
         ends = self.ev[e]
         c = _cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
         cr = np.concatenate([c, -c])  # half-edges 2e (start to end), then 2e + 1 (end to start)
-        f = np.concatenate([self.face[2 * e], self.face[2 * e + 1]])
+        f = self.face[:2 * self.ne].reshape(-1, 2)[e].T.ravel()
         key = (3 * f)[:, None] + _XYZ  # one bincount for the three axes: the same sums, in order
         out = 0.5 * np.bincount(key.ravel(), weights=cr.ravel(), minlength=3 * self.nf).reshape(-1, 3)
         out[0] = 0.0
@@ -291,7 +368,7 @@ class _Map:
             return
         new_of = np.full(self.ne, -1, dtype=np.int64)
         new_of[keep] = np.arange(len(keep))
-        old_h = np.stack([2 * keep, 2 * keep + 1], axis=1).ravel()
+        old_h = (2 * keep[:, None] + _PAIR).ravel()   # the halves 2e, 2e + 1 of each edge kept
         hmap = np.full(2 * self.ne, -1, dtype=np.int64)
         hmap[old_h] = np.arange(2 * len(keep))
         nxt = hmap[self.nxt[old_h]]
@@ -325,6 +402,8 @@ class _Map:
         sizes = np.bincount(fs, minlength=self.nf)[faces]
         offsets = np.zeros(len(starts) + 1, dtype=np.int64)
         np.cumsum(sizes, out=offsets[1:])
+        if self.kernels is not None:
+            return faces, offsets, self.origin(self.kernels.cycles(nxt, starts, offsets, len(halves)))
         short = sizes <= 64
         cur = starts[short].copy()
         base = offsets[:-1][short]
@@ -451,8 +530,8 @@ class _Branches:
         return self.size
 
 
-def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
-    """Start, length and (heading, left, up) of edges ``idx``.
+def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray, left: bool = True):
+    """Start, length and (heading, left, up) of edges ``idx`` (left None unless asked for).
 
     Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge
     (so it agrees with the map's orientation, and tiny regions count little); where that sum is
@@ -467,8 +546,8 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
     h = d / safe[:, None]
     if not long.all():
         h[length <= 1e-300] = (1.0, 0.0, 0.0)
-    half = 2 * idx
-    n = areas[m.face[half]] + areas[m.face[half + 1]]
+    sides = m.face[:2 * m.ne].reshape(-1, 2)[idx]   # the faces of half-edges 2e and 2e + 1
+    n = areas[sides[:, 0]] + areas[sides[:, 1]]
     size = np.sqrt(np.einsum("ij,ij->i", n, n))
     weak = size <= 1e-9 * safe * safe
     n = n / np.where(weak, 1.0, size)[:, None]
@@ -486,12 +565,13 @@ def _frames(m: _Map, idx: np.ndarray, areas: np.ndarray):
         u = n - np.einsum("ij,ij->i", n, h)[:, None] * h
         un = np.sqrt(np.einsum("ij,ij->i", u, u))
     u = u / np.where(un > 1e-300, un, 1.0)[:, None]
-    left = _cross(u, h)
-    return s, t, p, length, h, left, u
+    return s, t, p, length, h, _cross(u, h) if left else None, u
 
 
 class _Grower:
     """One growth: the map, the compiled system, the environment, the random stream and the caps."""
+
+    kernels = None   # the compiled kernels (``_kernels``) this growth uses, if any
 
     def __init__(self, system: RewriteSystem, env, rng: np.random.Generator, deadline: float) -> None:
         self.c = _compile(system)
@@ -499,6 +579,7 @@ class _Grower:
         self.rng = rng
         self.deadline = deadline
         self.m = _seed_map(self.c, env)
+        self.kernels = self.m.kernels = _kernels()
         self.max_edges = int(env.max_edges)
         self.max_work = int(getattr(env, "max_work", 0) or 0)   # 0: no work cap
         self.work = 0       # edge-steps: the edges alive at the start of each step, and those it makes
@@ -665,50 +746,69 @@ class _Grower:
         return out
 
     def _rewrite(self, idx: np.ndarray, tpl: Template, areas: np.ndarray, pending: _Branches) -> None:
+        if self.kernels is not None:
+            self._rewrite_compiled(self.kernels, idx, tpl, areas, pending)
+            return
         m = self.m
         n, k = len(idx), tpl.n_segments
-        s, t, p, length, h, left, up = _frames(m, idx, areas)
-        pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
-        world = (p[:, None, :] + length[:, None, None]
-                 * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
-                    + pts[None, :, 2, None] * up[:, None, :]))
+        s, t, p, length, h, left, up = _frames(m, idx, areas, left=k > 1 or tpl.n_branches > 0)
         nv0, ne0 = m.nv, m.ne
         nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
-        m.reserve(nv1, ne1)
-        new_v = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
-        m.pos[nv0:nv1] = world.reshape(-1, 3)
-        m.mass[nv0:nv1] = self.env.vertex_mass
-        m.stopped[nv0:nv1] = False
-        # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
-        # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
-        both = m.stopped[s] & m.stopped[t]
-        if both.any():
-            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
-        m.nv = nv1
-        chain = np.concatenate([s[:, None], new_v, t[:, None]], axis=1)  # (n, k+1)
-        new_e = np.arange(ne0, ne1, dtype=np.int64).reshape(n, k)
+        if nv1 > len(m.pos) or ne1 > len(m.ev):
+            m.reserve(nv1, ne1)
+        chain = np.empty((n, k + 1), dtype=np.int64)  # the vertices along each new main line
+        chain[:, 0] = s
+        chain[:, k] = t
+        if k > 1:
+            pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
+            world = (p[:, None, :] + length[:, None, None]
+                     * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
+                        + pts[None, :, 2, None] * up[:, None, :]))
+            m.pos[nv0:nv1] = world.reshape(-1, 3)
+            m.mass[nv0:nv1] = self.env.vertex_mass
+            m.stopped[nv0:nv1] = False
+            # a part of the surface that a cut-off wall stopped does not grow again (thesis 2.7.3): the
+            # vertices drawn on an edge whose two ends are stopped stop too, at the end of the step
+            both = m.stopped[s] & m.stopped[t]
+            if both.any():
+                self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+            m.nv = nv1
+            chain[:, 1:k] = np.arange(nv0, nv1, dtype=np.int64).reshape(n, k - 1)
         rev = tpl.main_reversed
         a, b = chain[:, :k], chain[:, 1:]
         ev = m.ev[ne0:ne1]
         ev[:, 0] = np.where(rev, b, a).ravel()
         ev[:, 1] = np.where(rev, a, b).ravel()
-        m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
+        if self.env.label_noise > 0:
+            m.label[ne0:ne1] = self._noisy(tpl.main_labels, n)
+        else:
+            m.label[ne0:ne1].reshape(n, k)[:] = tpl.main_labels
         old_age = m.age[idx]
-        ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
-        m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        if tpl.main_timed.any():
+            ages = np.where(tpl.main_timed, old_age[:, None] + tpl.main_ages, tpl.main_ages)
+            m.age[ne0:ne1] = np.maximum(ages, 0).ravel()
+        else:   # untimed segments start at age 0
+            m.age[ne0:ne1] = 0
         m.alive[ne0:ne1] = True
-        m.up[ne0:ne1] = np.repeat(up, k, axis=0)
+        if k == 1:
+            m.up[ne0:ne1] = up
+        else:
+            m.up[ne0:ne1].reshape(n, k, 3)[:] = up[:, None, :]
         m.ne = ne1
         # half-edges along the main line (start to end) and back
-        fwd = 2 * new_e + rev
+        fwd = np.arange(2 * ne0, 2 * ne1, 2, dtype=np.int64).reshape(n, k) + rev
         bwd = fwd ^ 1
-        ho, ht = 2 * idx, 2 * idx + 1
-        next_ho, next_ht = m.nxt[ho].copy(), m.nxt[ht].copy()
-        repl = np.arange(2 * m.ne, dtype=np.int64)
-        repl[ho] = fwd[:, 0]
-        repl[ht] = bwd[:, k - 1]
-        upto = 2 * ne0
-        m.nxt[:upto] = repl[m.nxt[:upto]]
+        ho = 2 * idx
+        ht = ho + 1
+        next_ho, next_ht = m.nxt[ho], m.nxt[ht]
+        first, last = fwd[:, 0], bwd[:, k - 1]
+        repl = np.arange(2 * ne1, dtype=np.int64)
+        repl[ho] = first
+        repl[ht] = last
+        # only the halves before ho and ht lead into the edges replaced (a pass over these, not over
+        # the map); one that is itself replaced is relinked below and then dropped
+        before = np.concatenate([m.prv[ho], m.prv[ht]])
+        m.nxt[before] = np.concatenate([first, last])
         m.nxt[fwd[:, k - 1]] = repl[next_ho]
         m.nxt[bwd[:, 0]] = repl[next_ht]
         if k > 1:
@@ -719,7 +819,8 @@ class _Grower:
         m.alive[idx] = False
         m.nxt[ho] = -1
         m.nxt[ht] = -1
-        m._relink_prev()
+        changed = np.concatenate([before[m.alive[before >> 1]], fwd.ravel(), bwd.ravel()])
+        m.prv[m.nxt[changed]] = changed
         pending.remap_corners(repl)
         # branches
         nb = tpl.n_branches
@@ -737,16 +838,49 @@ class _Grower:
                 corner[:, br] = fwd[:, j[br]]
             elif side[br] == RIGHT:
                 corner[:, br] = bwd[:, j[br] - 1]
-            elif side[br] == AT_END:
-                start_half = fwd[:, 0] if j[br] == 0 else bwd[:, k - 1]
+        self._add_branches(pending, tpl, n, idx, bvert, corner, heading, up, first, last)
+
+    def _rewrite_compiled(self, kernels, idx: np.ndarray, tpl: Template, areas: np.ndarray,
+                          pending: _Branches) -> None:
+        """``_rewrite`` with its array work in one compiled call (``_growth_compiled.rewrite``)."""
+        m = self.m
+        n, k = len(idx), tpl.n_segments
+        nv0, ne0 = m.nv, m.ne
+        nv1, ne1 = nv0 + n * (k - 1), ne0 + n * k
+        if nv1 > len(m.pos) or ne1 > len(m.ev):
+            m.reserve(nv1, ne1)
+        labels = self._noisy(tpl.main_labels, n)
+        up, both, repl, first, last, bvert, heading, corner = kernels.rewrite(
+            m.pos, m.mass, m.stopped, m.ev, m.label, m.age, m.alive, m.up, m.nxt, m.prv, m.face, idx, areas,
+            nv0, ne0, float(self.env.vertex_mass), tpl.points, labels, tpl.main_ages, tpl.main_timed,
+            tpl.main_reversed, tpl.branch_vertex, tpl.branch_heading, tpl.branch_side)
+        m.nv, m.ne = nv1, ne1
+        if k > 1 and both.any():
+            self._stop_later.append(nv0 + np.repeat(both, k - 1).nonzero()[0])
+        pending.remap_corners(repl)
+        nb = tpl.n_branches
+        if nb == 0:
+            return
+        self._add_branches(pending, tpl, n, idx, bvert, corner.reshape(n, nb), heading.reshape(n, nb, 3),
+                           up, first, last)
+
+    def _add_branches(self, pending: _Branches, tpl: Template, n: int, idx: np.ndarray, bvert: np.ndarray,
+                      corner: np.ndarray, heading: np.ndarray, up: np.ndarray, first: np.ndarray,
+                      last: np.ndarray) -> None:
+        """The successor's branches on the ``n`` edges ``idx`` rewritten, pending joining: their
+        corners at the main line's ends found (``_corner_at``), labels and ages drawn."""
+        nb = tpl.n_branches
+        for br in range(nb):
+            if tpl.branch_side[br] == AT_END:
+                start_half = first if tpl.branch_vertex[br] == 0 else last
                 for r in range(n):
                     corner[r, br] = self._corner_at(int(start_half[r]), heading[r, br], up[r])
+        old_age = self.m.age[idx]
         blabels = self._noisy(tpl.branch_labels, n).ravel()
         bages = np.maximum(np.where(tpl.branch_timed, old_age[:, None] + tpl.branch_ages,
                                     tpl.branch_ages), 0).ravel()
         pending.add(bvert.ravel(), corner.ravel(), blabels, bages, heading.reshape(-1, 3),
-                    _repeat_row(tpl.branch_reversed, n),
-                    np.repeat(up, nb, axis=0))
+                    _repeat_row(tpl.branch_reversed, n), np.repeat(up, nb, axis=0))
 
     def _corner_at(self, h0: int, heading: np.ndarray, normal: np.ndarray) -> int:
         """The half-edge leaving the vertex of ``h0`` into the region ``heading`` points into."""
@@ -795,11 +929,13 @@ class _Grower:
         first = np.ones(len(cand), dtype=bool)
         first[1:] = key[1:] != key[:-1]
         starts = first.nonzero()[0]
-        sizes = np.diff(np.append(starts, len(cand)))
+        sizes = np.empty(len(starts), dtype=np.int64)
+        sizes[:-1] = starts[1:] - starts[:-1]
+        sizes[-1] = len(cand) - starts[-1]
         points = m.pos[vert]
+        # every pair to test, counted as work group by group, then judged in one pass
         pi_all, pj_all = [], []
         small = (sizes >= 2) & (sizes <= 48)
-        aims: list[tuple[np.ndarray, ...]] = []
         for size in np.unique(sizes[small]).tolist():
             gs = starts[small & (sizes == size)]
             ti, tj = _triu(size)
@@ -808,10 +944,8 @@ class _Grower:
             fresh = pj >= old  # pi < pj within a group: a pair is new when pj is
             pi, pj = pi[fresh], pj[fresh]
             self._spend(pairs=len(pi))
-            keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
-            pi_all.append(pi[keep])
-            pj_all.append(pj[keep])
-            aims.append(tuple(a[keep] for a in aim))
+            pi_all.append(pi)
+            pj_all.append(pj)
         for g in (sizes > 48).nonzero()[0]:
             members = cand[starts[g]:starts[g] + sizes[g]]
             new = members[members >= old]
@@ -823,25 +957,22 @@ class _Grower:
                 block = members[r0:r0 + rows]
                 self._spend(pairs=len(block) * len(new))
                 ri, cj = self._prefilter(block, new, points, heading, max_dist)
-                pi, pj = block[ri], new[cj]
-                keep, aim = self._pair_aim(pi, pj, points, heading, normal, max_dist)
-                pi_all.append(pi[keep])
-                pj_all.append(pj[keep])
-                aims.append(tuple(a[keep] for a in aim))
-        if len(pi_all) == 1:
-            (pi,), (pj,), ((ci, cj, dist),) = pi_all, pj_all, aims
-        elif pi_all:
-            pi, pj = np.concatenate(pi_all), np.concatenate(pj_all)
-            ci, cj, dist = (np.concatenate(col) for col in zip(*aims, strict=True))
-        else:
-            pi = np.zeros(0, dtype=np.int64)
+                pi_all.append(block[ri])
+                pj_all.append(new[cj])
+        if not pi_all:
+            pending.checked = n
+            return
+        pi, pj = np.concatenate(pi_all), np.concatenate(pj_all)
+        keep, (ci, cj, dist) = self._pair_aim(pi, pj, points, heading, normal, max_dist)
+        pi, pj, ci, cj, dist = pi[keep], pj[keep], ci[keep], cj[keep], dist[keep]
         if not len(pi):
             pending.checked = n
             return
         score = -np.round(ci + cj, 9)
-        order = np.lexsort((pj, pi, np.round(dist, 9), score))
+        gap = np.round(dist, 9)
+        order = np.lexsort((pj, pi, gap, score))
         pi, pj = pi[order], pj[order]
-        rank = np.stack([score[order], np.round(dist, 9)[order]], axis=1)  # equal rows: a tie
+        score, gap = score[order], gap[order]   # pairs equal in both: a tie
         used = np.zeros(n, dtype=bool)
         live = np.ones(len(pi), dtype=bool)
         settled = np.zeros(len(pi), dtype=bool)   # tied pairs found to conflict with none of their ties
@@ -856,14 +987,20 @@ class _Grower:
             if not len(at):
                 break
             if 2 * len(at) < len(pi):   # pairs never come back to life: test only the live ones
-                pi, pj, live, fi, rank, settled = pi[at], pj[at], live[at], fi[at], rank[at], settled[at]
+                pi, pj, live, fi, settled = pi[at], pj[at], live[at], fi[at], settled[at]
+                score, gap = score[at], gap[at]
                 at = np.arange(len(pi))
-            # one join per face per round (a join splits its face), best pair first
-            _, firsts = np.unique(fi[at], return_index=True)
-            chosen = at[np.sort(firsts)]
+            # one join per face per round (a join splits its face), best pair first: each face's
+            # first live pair (a position in ``at``), found in one pass rather than a sort
+            fa = fi[at]
+            first = np.full(m.nf, len(at), dtype=np.int64)
+            np.minimum.at(first, fa, np.arange(len(at)))
+            firsts = first[first < len(at)]
+            firsts.sort()
+            chosen = at[firsts]
             if self.ties != "first":
-                chosen = self._settle_ties(chosen, at, fi, rank, live, settled, pi, pj, vert, corner,
-                                           heading, normal)
+                chosen = self._settle_ties(chosen, at, fi, fa, at[first[fa]], score, gap, live, settled, pi,
+                                           pj, vert, corner, heading, normal)
                 if not len(chosen):
                     continue
             a, b = pi[chosen], pj[chosen]
@@ -875,13 +1012,14 @@ class _Grower:
             if self.ties != "first":
                 a, b = self._centre_on_left(a, b, vert, normal, centre)
             # one new edge per vertex pair per round
-            u, w = vert[a], vert[b]
-            pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
-            _, uniq = np.unique(pair_key, return_index=True)
-            if len(uniq) != len(chosen):
-                keep = np.zeros(len(chosen), dtype=bool)
-                keep[uniq] = True
-                chosen, a, b = chosen[keep], a[keep], b[keep]
+            if len(chosen) > 1:
+                u, w = vert[a], vert[b]
+                pair_key = np.minimum(u, w) * m.nv + np.maximum(u, w)
+                _, uniq = np.unique(pair_key, return_index=True)
+                if len(uniq) != len(chosen):
+                    keep = np.zeros(len(chosen), dtype=bool)
+                    keep[uniq] = True
+                    chosen, a, b = chosen[keep], a[keep], b[keep]
             room = self.max_edges - m.n_alive()
             capped = len(chosen) > room
             if capped:
@@ -896,7 +1034,8 @@ class _Grower:
                 raise _Capped("edges")
         pending.keep(~used)
 
-    def _settle_ties(self, chosen, at, fi, rank, live, settled, pi, pj, vert, corner, heading, normal):
+    def _settle_ties(self, chosen, at, fi, fa, lead, score, gap, live, settled, pi, pj, vert, corner,
+                     heading, normal):
         """Settle ties without looking at the order branches were drawn in (``branch_ties``).
 
         A face's tied pairs are its live pairs as good as its best (alignment and distance within
@@ -905,15 +1044,13 @@ class _Grower:
         ``"none"`` makes none of them. Pairs left out are marked dead, pairs left in ``settled``;
         returns the chosen pairs, a face whose best pair was left out choosing its first tied pair
         left in (the others follow in later rounds, in any order: none crosses another)."""
-        _, firsts, inv = np.unique(fi[at], return_index=True, return_inverse=True)
-        close = np.all(np.abs(rank[at] - rank[at[firsts]][inv]) <= TIE, axis=1)
-        tied_faces = np.flatnonzero(np.bincount(inv, weights=close) > 1)
+        close = (np.abs(score[at] - score[lead]) <= TIE) & (np.abs(gap[at] - gap[lead]) <= TIE)
+        tied_faces = np.flatnonzero(np.bincount(fa, weights=close) > 1)
         if not len(tied_faces):
             return chosen
-        pick = {int(fi[c]): int(c) for c in chosen}
-        for k in tied_faces:
-            tied = at[close & (inv == k)]
-            face = int(fi[tied[0]])
+        pick = dict(zip(fi[chosen].tolist(), chosen.tolist(), strict=True))
+        for face in tied_faces.tolist():
+            tied = at[close & (fa == face)]
             if self.ties == "crossing" and not np.all(settled[tied]):
                 near = self._adjacent(corner[pi[tied]], vert[pj[tied]])  # would be dropped anyway
                 live[tied[near]] = False
@@ -941,6 +1078,8 @@ class _Grower:
         mirror-image directions (the mirror edge of an edge runs the other way), where the order
         the branches were drawn in need not."""
         m = self.m
+        if self.kernels is not None:
+            return self.kernels.centre_on_left(a, b, vert, m.pos, normal, centre)
         u, w = m.pos[vert[a]], m.pos[vert[b]]
         along, to_centre = w - u, centre - u
         n = normal[a] + normal[b]
@@ -1034,11 +1173,15 @@ class _Grower:
         size = np.sqrt(np.einsum("ij,ij->i", n, n))
         # opposite normals (a fold) leave no plane: compare in space, not in the plane of the
         # rounding error's direction
-        n = np.where((size > 1e-6)[:, None], n / np.maximum(size, 1e-300)[:, None], 0.0)
+        n /= np.maximum(size, 1e-300)[:, None]
+        n[~(size > 1e-6)] = 0.0
         # d and both headings projected on the plane and normalised, the three in one pass each
-        v = np.stack([d, heading[pi], heading[pj]])
-        v = v - np.einsum("kij,ij->ki", v, n)[:, :, None] * n
-        v = v / np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
+        v = np.empty((3, *d.shape))
+        v[0] = d
+        np.take(heading, pi, axis=0, out=v[1])
+        np.take(heading, pj, axis=0, out=v[2])
+        v -= np.einsum("kij,ij->ki", v, n)[:, :, None] * n
+        v /= np.maximum(np.sqrt(np.einsum("kij,kij->ki", v, v)), 1e-300)[:, :, None]
         u, hi, hj = v
         toward = np.einsum("kij,ij->ki", v[1:], u)
         return toward[0], -toward[1], dist, -np.einsum("ij,ij->i", hi, hj)
@@ -1057,6 +1200,10 @@ class _Grower:
         """``_pair_ok`` and the (ci, cj, dist) of ``_aim`` it judged by (joining ranks the pairs
         that pass by them)."""
         cos_cone = self.c.cos_cone - 1e-9
+        if self.kernels is not None:
+            ok, ci, cj, dist = self.kernels.pair_aim(pi, pj, points, heading, normal, float(max_dist),
+                                                       cos_cone, self.cone)
+            return ok, (ci, cj, dist)
         ci, cj, dist, opposite = self._aim(pi, pj, points, heading, normal)
         ok = (dist > 1e-12) & (dist <= max_dist)
         if self.cone:
@@ -1184,7 +1331,9 @@ class _Grower:
         m.nf += j
         m.face[x] = f
         m.face[y] = f
-        if j <= _FEW_JOINS:
+        if self.kernels is not None:
+            self.kernels.new_faces(m.nxt, m.face, x, y, new_face)
+        elif j <= _FEW_JOINS:
             self._new_faces_one_by_one(x, y, new_face)
         else:
             self._new_faces_lockstep(x, y, new_face)
@@ -1273,4 +1422,7 @@ def grow(system: RewriteSystem, env=None, *, steps: int | None = None, seed: int
         if capped:
             break
     surface = history[-1] if keep_steps else grower.m.surface()
+    if grower.kernels is None:
+        global _reference_work
+        _reference_work += grower.spent
     return GrowthResult(surface, stats, capped, history, grower.spent)
