@@ -226,3 +226,24 @@ def test_a_process_loads_the_kernels_after_some_reference_work(monkeypatch):
     paths.clear()
     module.triangulate_polygons(*square)
     assert paths
+
+
+def test_kernels_compile_in_memory_when_no_cache_directory_is_writable(monkeypatch):
+    """numba refuses ``cache=True`` when it finds no writable cache directory: the kernels are then
+    compiled in memory instead of failing the run."""
+    from genr8_dist.hemls import _compiled
+
+    real = _compiled.numba.njit
+
+    def njit(*args, **kwargs):
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available for file 'f.py'")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(_compiled.numba, "njit", njit)
+
+    def square(x: float) -> float:
+        return x * x
+
+    kernel = _compiled._jit(square)
+    assert kernel(3.0) == 9.0 and type(kernel._cache).__name__ == "NullCache"
