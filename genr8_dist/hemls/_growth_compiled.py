@@ -14,6 +14,8 @@ placed on a batch of edges (``_Grower._rewrite`` up to the branches' corners at 
 ``pair_aim``: which branch pairs may join and how well they aim (``_Grower._pair_aim``). ``new_faces``:
 the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``centre_on_left``: the direction
 of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every face (``_Map.cycles``).
+``split``: the new edges and faces of a round of joins (``_Grower._split``, before the pending branches'
+corners move). ``compact``: ``_Map.compact``. ``ties``: the tied pairs of a round (``_settle_ties``).
 
 Compiled code is cached on disk (``_compiled._jit``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -27,7 +29,8 @@ import numpy as np
 
 from genr8_dist.hemls._compiled import _jit, _np_max  # numba.njit, cached on disk; np.maximum
 
-__all__ = ["centre_on_left", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite"]
+__all__ = ["centre_on_left", "compact", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite", "split",
+           "ties"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -319,3 +322,108 @@ def centre_on_left(a, b, vert, pos, normal, centre):
         if side < -1e-9 * scale:
             first[r], second[r] = b[r], a[r]
     return first, second
+
+
+@_jit
+def split(ev, label, age, alive, up, nxt, prv, face, a, b, vert, corner, blabel, bage, rev, normal, ne0, nf):
+    """``_Grower._split`` up to the pending branches' corners: a new edge for each join pair (a, b),
+    from ``ne0``, linked into its face, and the faces ``nf``, ``nf + 1``, ... it makes
+    (``new_faces``; each pair lies in another face). Returns the new edges' half-edges from a's vertex
+    to b's (x) and back (y)."""
+    j = len(a)
+    x = np.empty(j, dtype=np.int64)
+    y = np.empty(j, dtype=np.int64)
+    new_face = np.empty(j, dtype=np.int64)
+    for r in range(j):
+        e = ne0 + r
+        u, w = vert[a[r]], vert[b[r]]
+        flip = rev[a[r]]
+        if flip:
+            ev[e, 0], ev[e, 1] = w, u
+        else:
+            ev[e, 0], ev[e, 1] = u, w
+        label[e] = blabel[a[r]]
+        age[e] = bage[a[r]]
+        up[e, 0], up[e, 1], up[e, 2] = normal[a[r], 0], normal[a[r], 1], normal[a[r], 2]
+        alive[e] = True
+        xr = 2 * e + flip
+        yr = xr ^ 1
+        ha, hb = corner[a[r]], corner[b[r]]
+        pa, pb = prv[ha], prv[hb]
+        f = face[ha]
+        nxt[pa] = xr
+        prv[xr] = pa
+        nxt[xr] = hb
+        prv[hb] = xr
+        nxt[pb] = yr
+        prv[yr] = pb
+        nxt[yr] = ha
+        prv[ha] = yr
+        face[xr] = f
+        face[yr] = f
+        x[r], y[r] = xr, yr
+        new_face[r] = nf + r
+    new_faces(nxt, face, x, y, new_face)
+    return x, y
+
+
+@_jit
+def compact(ev, label, age, alive, up, nxt, prv, face, ne):
+    """``_Map.compact``: the living edges renumbered 0, 1, ... in order, their half-edges' links
+    mapped, dead slots cleared; returns how many live."""
+    hmap = np.full(2 * ne, -1, dtype=np.int64)
+    m = 0
+    for e in range(ne):
+        if alive[e]:
+            hmap[2 * e] = 2 * m
+            hmap[2 * e + 1] = 2 * m + 1
+            m += 1
+    j = 0
+    for e in range(ne):
+        if alive[e]:
+            ev[j, 0], ev[j, 1] = ev[e, 0], ev[e, 1]
+            label[j] = label[e]
+            age[j] = age[e]
+            up[j, 0], up[j, 1], up[j, 2] = up[e, 0], up[e, 1], up[e, 2]
+            for s in range(2):
+                nxt[2 * j + s] = hmap[nxt[2 * e + s]]
+                face[2 * j + s] = face[2 * e + s]
+            j += 1
+    for e in range(m):
+        alive[e] = True
+    for e in range(m, ne):
+        alive[e] = False
+    for h in range(2 * m, 2 * ne):
+        nxt[h] = -1
+    for h in range(2 * m):
+        prv[nxt[h]] = h
+    return m
+
+
+@_jit
+def ties(at, fa, lead, score, gap, tie):
+    """``_Grower._settle_ties``' first pass: which live pairs are as good as their face's best (within
+    ``tie``), and the faces (ascending) with more than one such pair."""
+    count = len(at)
+    close = np.empty(count, dtype=np.bool_)
+    top = 0
+    for i in range(count):
+        if fa[i] + 1 > top:
+            top = fa[i] + 1
+    counts = np.zeros(top, dtype=np.int64)
+    for i in range(count):
+        near = abs(score[at[i]] - score[lead[i]]) <= tie and abs(gap[at[i]] - gap[lead[i]]) <= tie
+        close[i] = near
+        if near:
+            counts[fa[i]] += 1
+    many = 0
+    for f in range(top):
+        if counts[f] > 1:
+            many += 1
+    faces = np.empty(many, dtype=np.int64)
+    many = 0
+    for f in range(top):
+        if counts[f] > 1:
+            faces[many] = f
+            many += 1
+    return close, faces

@@ -366,8 +366,10 @@ class _Map:
         keep = alive.nonzero()[0]
         if len(keep) == self.ne:
             return
-        new_of = np.full(self.ne, -1, dtype=np.int64)
-        new_of[keep] = np.arange(len(keep))
+        if self.kernels is not None:
+            self.ne = self.kernels.compact(self.ev, self.label, self.age, self.alive, self.up, self.nxt,
+                                           self.prv, self.face, self.ne)
+            return
         old_h = (2 * keep[:, None] + _PAIR).ravel()   # the halves 2e, 2e + 1 of each edge kept
         hmap = np.full(2 * self.ne, -1, dtype=np.int64)
         hmap[old_h] = np.arange(2 * len(keep))
@@ -1044,8 +1046,11 @@ class _Grower:
         ``"none"`` makes none of them. Pairs left out are marked dead, pairs left in ``settled``;
         returns the chosen pairs, a face whose best pair was left out choosing its first tied pair
         left in (the others follow in later rounds, in any order: none crosses another)."""
-        close = (np.abs(score[at] - score[lead]) <= TIE) & (np.abs(gap[at] - gap[lead]) <= TIE)
-        tied_faces = np.flatnonzero(np.bincount(fa, weights=close) > 1)
+        if self.kernels is not None:
+            close, tied_faces = self.kernels.ties(at, fa, lead, score, gap, TIE)
+        else:
+            close = (np.abs(score[at] - score[lead]) <= TIE) & (np.abs(gap[at] - gap[lead]) <= TIE)
+            tied_faces = np.flatnonzero(np.bincount(fa, weights=close) > 1)
         if not len(tied_faces):
             return chosen
         pick = dict(zip(fi[chosen].tolist(), chosen.tolist(), strict=True))
@@ -1304,6 +1309,13 @@ class _Grower:
         j = len(a)
         ne0 = m.ne
         m.reserve(m.nv, ne0 + j)
+        if self.kernels is not None:
+            x, y = self.kernels.split(m.ev, m.label, m.age, m.alive, m.up, m.nxt, m.prv, m.face, a, b, vert,
+                                      corner, label, age, rev, normal, ne0, m.nf)
+            m.ne = ne0 + j
+            m.nf += j
+            self._move_corners(a, b, x, y, vert, corner, used, heading, normal)
+            return
         e = ne0 + np.arange(j, dtype=np.int64)
         u, w = vert[a], vert[b]
         flip = rev[a]
@@ -1331,14 +1343,20 @@ class _Grower:
         m.nf += j
         m.face[x] = f
         m.face[y] = f
-        if self.kernels is not None:
-            self.kernels.new_faces(m.nxt, m.face, x, y, new_face)
-        elif j <= _FEW_JOINS:
+        if j <= _FEW_JOINS:
             self._new_faces_one_by_one(x, y, new_face)
         else:
             self._new_faces_lockstep(x, y, new_face)
-        # pending branches whose corner was split: keep ha (sector from ha's direction round to the
-        # new edge) or move to the new edge's half leaving the same vertex
+        self._move_corners(a, b, x, y, vert, corner, used, heading, normal)
+
+    def _move_corners(self, a, b, x, y, vert, corner, used, heading, normal) -> None:
+        """After joins (a, b) made edges with halves x (a's vertex to b's) and y: the other pending
+        branches at a split corner keep it (the sector from its direction round to the new edge)
+        or move to the new edge's half leaving the same vertex."""
+        m = self.m
+        j = len(a)
+        ha, hb = corner[a], corner[b]
+        u, w = vert[a], vert[b]
         split_corners = np.concatenate([ha, hb])
         order = np.argsort(split_corners)
         sorted_corners = split_corners[order]

@@ -48,6 +48,15 @@ def test_predefined_systems(name):
     assert result.surface.n_edges > 100
 
 
+def test_reversed_and_timed_branches():
+    """Joins whose first branch is reversed (``~``) and whose two branches differ in age."""
+    system = parse("Edge0 + ~ Edge1 + ~ Edge0 + Edge1\n"
+                   "Edge0 -> Edge0 [ [ + ~ Edge1_i+1 ] - Edge1 ] Edge0\n"
+                   "Edge1 -> Edge1 [ [ + ~ Edge0_i+2 ] - Edge0 ] Edge1\n")
+    result = _same_growth(system, Environment(max_work=0), steps=5)
+    assert result.surface.n_regions > 100 and len(set(result.surface.ages.tolist())) > 2
+
+
 def _systems(per_universe: int) -> list:
     """Rewrite systems of random genomes, ``per_universe`` of each universe whose texts are HEMLS."""
     systems = []
