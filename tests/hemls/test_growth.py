@@ -258,11 +258,11 @@ def test_work_cap_stops_growth_at_a_count_and_says_so():
 
 
 def test_the_default_work_cap_keeps_five_steps_of_tiles_and_stops_the_sixth():
-    """four_sided_tiles costs 2,545 edge-steps to 5 steps and 8,152 to 6: the default cap (6,000)
+    """four_sided_tiles costs 2,545 edge-steps to 5 steps and 8,152 to 6: the default cap (8,000)
     cuts the sixth step short (half its regions split), so an environment that asks for 6 steps
     raises it (examples/environments/*.toml)."""
     system = load_system("four_sided_tiles")
-    assert Environment().max_work == 6000
+    assert Environment().max_work == 8000
     five = grow(system, Environment(), steps=5)
     assert five.capped is None and five.surface.n_vertices == 33 * 33
     six = grow(system, Environment(), steps=6)
