@@ -16,6 +16,7 @@ the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``centre_o
 of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every face (``_Map.cycles``).
 ``split``: the new edges and faces of a round of joins (``_Grower._split``, before the pending branches'
 corners move). ``compact``: ``_Map.compact``. ``ties``: the tied pairs of a round (``_settle_ties``).
+``cycle_places``: where tied pairs' corners lie along their face's cycle (``_Grower._cycle_places``).
 
 Compiled code is cached on disk (``_compiled._jit``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -29,8 +30,8 @@ import numpy as np
 
 from genr8_dist.hemls._compiled import _jit, _np_max  # numba.njit, cached on disk; np.maximum
 
-__all__ = ["centre_on_left", "compact", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite", "split",
-           "ties"]
+__all__ = ["centre_on_left", "compact", "cycle_places", "cycles", "face_areas", "new_faces", "pair_aim",
+           "rewrite", "split", "ties"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -427,3 +428,25 @@ def ties(at, fa, lead, score, gap, tie):
             faces[many] = f
             many += 1
     return close, faces
+
+
+@_jit
+def cycle_places(nxt, origin, ha, hb):
+    """``_Grower._cycle_places``: the length of the cycle through ``origin`` and the place of each
+    half-edge of ``ha`` and ``hb`` along it, counted forward from ``origin``."""
+    place = np.full(len(nxt), -1, dtype=np.int64)
+    h = origin
+    size = 0
+    while True:
+        place[h] = size
+        size += 1
+        h = nxt[h]
+        if h == origin:
+            break
+    at_ha = np.empty(len(ha), dtype=np.int64)
+    at_hb = np.empty(len(hb), dtype=np.int64)
+    for i in range(len(ha)):
+        at_ha[i] = place[ha[i]]
+    for i in range(len(hb)):
+        at_hb[i] = place[hb[i]]
+    return size, at_ha, at_hb
