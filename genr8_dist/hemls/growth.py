@@ -1117,7 +1117,11 @@ class _Grower:
             at_a = hc[None, :] == ha[:, None]
             shared = at_a | (hc[None, :] == hb[:, None])
             r, c = np.nonzero(shared)
-            if len(r):
+            if len(r) and self.kernels is not None:
+                terms = self.kernels.sweep_terms(m.pos, m.ev, vert, corner, heading, normal, branch, a, b,
+                                                 r, c, at_a[r, c])
+                side[r, c] = _swept(*terms) ^ at_a[r, c]
+            elif len(r):
                 here = m.pos[vert[branch[c]]]
                 along = m.pos[m.dest(hc[c])] - here
                 other = m.pos[np.where(at_a[r, c], vert[b[r]], vert[a[r]])] - here
@@ -1423,12 +1427,16 @@ def _triu(size: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _in_sweep(a: np.ndarray, b: np.ndarray, v: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Whether v lies strictly inside the counter-clockwise (about n) sweep from a to b, row-wise."""
-    def rel(p, q):
-        return np.arctan2(np.einsum("ij,ij->i", _cross(p, q), n), np.einsum("ij,ij->i", p, q))
+    return _swept(np.einsum("ij,ij->i", _cross(a, b), n), np.einsum("ij,ij->i", a, b),
+                  np.einsum("ij,ij->i", _cross(a, v), n), np.einsum("ij,ij->i", a, v))
 
+
+def _swept(sweep_y: np.ndarray, sweep_x: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``_in_sweep`` from the arguments of its two angles: whether the angle of (x, y) lies strictly
+    inside (0, angle of (sweep_x, sweep_y)), both taken in [0, 2 pi)."""
     two_pi = 2.0 * np.pi
-    sweep = np.mod(rel(a, b), two_pi)
-    ang = np.mod(rel(a, v), two_pi)
+    sweep = np.mod(np.arctan2(sweep_y, sweep_x), two_pi)
+    ang = np.mod(np.arctan2(y, x), two_pi)
     return (ang > 1e-9) & (ang < sweep - 1e-9)
 
 
