@@ -16,6 +16,9 @@ the faces a round of joins makes (``_Grower._new_faces_one_by_one``). ``centre_o
 of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every face (``_Map.cycles``).
 ``split``: the new edges and faces of a round of joins (``_Grower._split``, before the pending branches'
 corners move). ``compact``: ``_Map.compact``. ``ties``: the tied pairs of a round (``_settle_ties``).
+``cycle_places``: where tied pairs' corners lie along their face's cycle (``_Grower._cycle_places``).
+``sweep_terms``: the sines and cosines (unnormalised) whose angles ``_in_sweep`` compares, for the branches
+at a tied join's own corners (``_Grower._conflicts``; the angles themselves stay numpy's ``arctan2``).
 
 Compiled code is cached on disk (``_compiled._jit``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -29,8 +32,8 @@ import numpy as np
 
 from genr8_dist.hemls._compiled import _jit, _np_max  # numba.njit, cached on disk; np.maximum
 
-__all__ = ["centre_on_left", "compact", "cycles", "face_areas", "new_faces", "pair_aim", "rewrite", "split",
-           "ties"]
+__all__ = ["centre_on_left", "compact", "cycle_places", "cycles", "face_areas", "new_faces", "pair_aim",
+           "rewrite", "split", "sweep_terms", "ties"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -427,3 +430,55 @@ def ties(at, fa, lead, score, gap, tie):
             faces[many] = f
             many += 1
     return close, faces
+
+
+@_jit
+def cycle_places(nxt, origin, ha, hb):
+    """``_Grower._cycle_places``: the length of the cycle through ``origin`` and the place of each
+    half-edge of ``ha`` and ``hb`` along it, counted forward from ``origin``."""
+    place = np.full(len(nxt), -1, dtype=np.int64)
+    h = origin
+    size = 0
+    while True:
+        place[h] = size
+        size += 1
+        h = nxt[h]
+        if h == origin:
+            break
+    at_ha = np.empty(len(ha), dtype=np.int64)
+    at_hb = np.empty(len(hb), dtype=np.int64)
+    for i in range(len(ha)):
+        at_ha[i] = place[ha[i]]
+    for i in range(len(hb)):
+        at_hb[i] = place[hb[i]]
+    return size, at_ha, at_hb
+
+
+@_jit
+def sweep_terms(pos, ev, vert, corner, heading, normal, branch, a, b, r, c, at_a):
+    """``_Grower._conflicts``' arguments of ``_in_sweep`` for the branches ``branch[c]`` at the
+    corners of joins (``a[r]``, ``b[r]``), and the ``arctan2`` arguments of its two ``rel`` calls:
+    (y, x) of the sweep from the branch's edge to the join's other end, and of the sweep from that
+    edge to the branch's heading, each y = (p x q) . n and x = p . q as ``np.einsum`` adds them."""
+    k = len(r)
+    out = np.empty((4, k))
+    for i in range(k):
+        own = branch[c[i]]
+        here = vert[own]
+        h = corner[own]
+        dest = ev[h >> 1, 1 - (h & 1)]
+        far = vert[b[r[i]]] if at_a[i] else vert[a[r[i]]]
+        x, y, z = pos[here, 0], pos[here, 1], pos[here, 2]
+        p0, p1, p2 = pos[dest, 0] - x, pos[dest, 1] - y, pos[dest, 2] - z
+        n0, n1, n2 = normal[own, 0], normal[own, 1], normal[own, 2]
+        for j in range(2):
+            if j == 0:
+                q0, q1, q2 = pos[far, 0] - x, pos[far, 1] - y, pos[far, 2] - z
+            else:
+                q0, q1, q2 = heading[own, 0], heading[own, 1], heading[own, 2]
+            c0 = p1 * q2 - p2 * q1
+            c1 = p2 * q0 - p0 * q2
+            c2 = p0 * q1 - p1 * q0
+            out[2 * j, i] = _dot(c0, c1, c2, n0, n1, n2)
+            out[2 * j + 1, i] = _dot(p0, p1, p2, q0, q1, q2)
+    return out

@@ -1107,28 +1107,21 @@ class _Grower:
         self._spend(pairs=t * t)
         a, b = pi[tied], pj[tied]
         ha, hb = corner[a], corner[b]
-        cycle = [int(ha[0])]
-        h = int(m.nxt[cycle[0]])
-        while h != cycle[0]:
-            cycle.append(h)
-            h = int(m.nxt[h])
-        halves = np.array(cycle, dtype=np.int64)
-        order = np.argsort(halves)
-
-        def where(hs):
-            return order[np.searchsorted(halves[order], hs)]
-
-        size = len(halves)
-        start, span = where(ha), (where(hb) - where(ha)) % size
+        size, at_ha, at_hb = self._cycle_places(ha, hb)
+        start, span = at_ha, (at_hb - at_ha) % size
         cross = np.zeros((t, t), dtype=bool)
         first_side = None
-        for branch in (a, b):   # the side of the other pair's (column's) branch after the row's join
-            hc = corner[branch]
-            side = (where(hc)[None, :] - start[:, None]) % size >= span[:, None]
+        for branch, place in ((a, at_ha), (b, at_hb)):   # the side of the other pair's (column's)
+            hc = corner[branch]                          # branch after the row's join
+            side = (place[None, :] - start[:, None]) % size >= span[:, None]
             at_a = hc[None, :] == ha[:, None]
             shared = at_a | (hc[None, :] == hb[:, None])
             r, c = np.nonzero(shared)
-            if len(r):
+            if len(r) and self.kernels is not None:
+                terms = self.kernels.sweep_terms(m.pos, m.ev, vert, corner, heading, normal, branch, a, b,
+                                                 r, c, at_a[r, c])
+                side[r, c] = _swept(*terms) ^ at_a[r, c]
+            elif len(r):
                 here = m.pos[vert[branch[c]]]
                 along = m.pos[m.dest(hc[c])] - here
                 other = m.pos[np.where(at_a[r, c], vert[b[r]], vert[a[r]])] - here
@@ -1144,6 +1137,41 @@ class _Grower:
                  | cross | cross.T)
         np.fill_diagonal(clash, False)
         return clash.any(axis=1)
+
+    def _cycle_places(self, ha: np.ndarray, hb: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+        """The length of the face cycle through half-edge ``ha[0]`` and the place of each half-edge of
+        ``ha`` and ``hb`` (all on that cycle) along it, counted forward from ``ha[0]``.
+
+        The reference ranks the face's living half-edges by pointer doubling (log-many array passes
+        rather than a Python step per half-edge of a face that grows with the map); where the face's
+        half-edges are not exactly one cycle through ``ha[0]`` it walks the cycle."""
+        m = self.m
+        origin = int(ha[0])
+        if self.kernels is not None:
+            return self.kernels.cycle_places(m.nxt, origin, ha, hb)
+        halves = np.flatnonzero(m.face[:2 * m.ne] == m.face[origin])
+        halves = halves[m.alive[halves >> 1]]
+        size = len(halves)
+        link = np.minimum(np.searchsorted(halves, m.nxt[halves]), size - 1)
+        if np.array_equal(halves[link], m.nxt[halves]):
+            first = int(np.searchsorted(halves, origin))
+            link[first] = first
+            dist = np.ones(size, dtype=np.int64)   # steps forward to ``origin``
+            dist[first] = 0
+            for _ in range((size - 1).bit_length()):
+                dist = dist + dist[link]
+                link = link[link]
+            if (link == first).all():   # one cycle: every half-edge reaches the origin
+                place = (size - dist) % size
+                return size, place[np.searchsorted(halves, ha)], place[np.searchsorted(halves, hb)]
+        cycle = [origin]
+        h = int(m.nxt[origin])
+        while h != origin:
+            cycle.append(h)
+            h = int(m.nxt[h])
+        walk = np.array(cycle, dtype=np.int64)
+        order = np.argsort(walk)
+        return len(walk), order[np.searchsorted(walk[order], ha)], order[np.searchsorted(walk[order], hb)]
 
     def _prefilter(self, rows, cols, points, heading, max_dist):
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.
@@ -1399,12 +1427,16 @@ def _triu(size: int) -> tuple[np.ndarray, np.ndarray]:
 
 def _in_sweep(a: np.ndarray, b: np.ndarray, v: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Whether v lies strictly inside the counter-clockwise (about n) sweep from a to b, row-wise."""
-    def rel(p, q):
-        return np.arctan2(np.einsum("ij,ij->i", _cross(p, q), n), np.einsum("ij,ij->i", p, q))
+    return _swept(np.einsum("ij,ij->i", _cross(a, b), n), np.einsum("ij,ij->i", a, b),
+                  np.einsum("ij,ij->i", _cross(a, v), n), np.einsum("ij,ij->i", a, v))
 
+
+def _swept(sweep_y: np.ndarray, sweep_x: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``_in_sweep`` from the arguments of its two angles: whether the angle of (x, y) lies strictly
+    inside (0, angle of (sweep_x, sweep_y)), both taken in [0, 2 pi)."""
     two_pi = 2.0 * np.pi
-    sweep = np.mod(rel(a, b), two_pi)
-    ang = np.mod(rel(a, v), two_pi)
+    sweep = np.mod(np.arctan2(sweep_y, sweep_x), two_pi)
+    ang = np.mod(np.arctan2(y, x), two_pi)
     return (ang > 1e-9) & (ang < sweep - 1e-9)
 
 

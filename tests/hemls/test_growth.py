@@ -477,3 +477,44 @@ def test_branches_on_a_fold_are_compared_in_space_so_mirror_images_score_alike()
     np.testing.assert_allclose(ci, [2 / math.sqrt(5)] * 2)
     np.testing.assert_allclose(cj, [2 / math.sqrt(5)] * 2)
     np.testing.assert_allclose(dist, [math.sqrt(5)] * 2)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_places_along_a_face_cycle_are_those_of_a_walk_round_it(compiled):
+    """``_cycle_places`` (which side of a tied join a branch falls on) ranks a face's half-edges as a
+    walk round it from the first one does, by pointer doubling or the compiled walk; and, where a
+    face's marked half-edges are not one cycle (a stale mark), by the walk."""
+    from genr8_dist.hemls import growth as module
+
+    kernels = module._load_kernels() if compiled else None
+    if compiled and kernels is None:
+        pytest.skip("the compiled kernels are off (no numba, or GENR8_COMPILED=0)")
+    grower = module._Grower(load_system("four_sided_tiles"), Environment(max_work=0),
+                            np.random.default_rng(0), math.inf)
+    for step in (1, 2, 3):
+        grower.step(step)
+    grower.kernels = kernels
+    m = grower.m
+
+    def walk(origin):
+        cycle = [origin]
+        while int(m.nxt[cycle[-1]]) != origin:
+            cycle.append(int(m.nxt[cycle[-1]]))
+        return cycle
+
+    halves = m.alive_halves()
+    faces = [0, *np.unique(m.face[halves]).tolist()[1::5]]   # the outside (a long cycle) and regions
+    for face in faces:
+        members = halves[m.face[halves] == face]
+        ha, hb = members[::-1], members[::2]
+        cycle = walk(int(ha[0]))
+        size, at_ha, at_hb = grower._cycle_places(ha, hb)
+        assert size == len(cycle) == len(members)
+        assert at_ha.tolist() == [cycle.index(h) for h in ha.tolist()]
+        assert at_hb.tolist() == [cycle.index(h) for h in hb.tolist()]
+    assert len(faces) > 10 and len(walk(int(halves[m.face[halves] == 0][0]))) >= 32
+    members = halves[m.face[halves] == 1]
+    m.face[halves[m.face[halves] == 2][0]] = 1   # a half-edge of region 2 marked as region 1's
+    size, at_ha, _ = grower._cycle_places(members, members)
+    assert size == len(members) and at_ha.tolist() == [walk(int(members[0])).index(h)
+                                                       for h in members.tolist()]
