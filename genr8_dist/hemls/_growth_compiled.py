@@ -17,8 +17,8 @@ of each new edge (``_Grower._centre_on_left``). ``cycles``: the walk round every
 ``split``: the new edges and faces of a round of joins (``_Grower._split``, before the pending branches'
 corners move). ``compact``: ``_Map.compact``. ``ties``: the tied pairs of a round (``_settle_ties``).
 ``cycle_places``: where tied pairs' corners lie along their face's cycle (``_Grower._cycle_places``).
-``sweep_terms``: the sines and cosines (unnormalised) whose angles ``_in_sweep`` compares, for the branches
-at a tied join's own corners (``_Grower._conflicts``; the angles themselves stay numpy's ``arctan2``).
+``tie_side`` and ``clashes``: which tied pairs conflict (``_Grower._conflicts``), the angles of its
+``_in_sweep`` tests left to numpy's ``arctan2`` between the two (``tie_side`` gives their arguments).
 
 Compiled code is cached on disk (``_compiled._jit``); where no cache directory is writable the kernels
 are compiled in memory instead.
@@ -32,8 +32,8 @@ import numpy as np
 
 from genr8_dist.hemls._compiled import _jit, _np_max  # numba.njit, cached on disk; np.maximum
 
-__all__ = ["centre_on_left", "compact", "cycle_places", "cycles", "face_areas", "new_faces", "pair_aim",
-           "rewrite", "split", "sweep_terms", "ties"]
+__all__ = ["centre_on_left", "clashes", "compact", "cycle_places", "cycles", "face_areas", "new_faces",
+           "pair_aim", "rewrite", "split", "tie_side", "ties"]
 
 # ``turtle.LEFT`` and ``turtle.RIGHT`` (asserted equal in ``growth``, where this module is imported)
 LEFT = 1
@@ -481,4 +481,54 @@ def sweep_terms(pos, ev, vert, corner, heading, normal, branch, a, b, r, c, at_a
             c2 = p0 * q1 - p1 * q0
             out[2 * j, i] = _dot(c0, c1, c2, n0, n1, n2)
             out[2 * j + 1, i] = _dot(p0, p1, p2, q0, q1, q2)
+    return out
+
+
+@_jit
+def tie_side(pos, ev, vert, corner, heading, normal, branch, a, b, place, at_ha, at_hb, size):
+    """``_Grower._conflicts`` for one end (``branch``, ``a`` or ``b``) of the tied joins (``a[i]``,
+    ``b[i]``): on which side of row i's join column j's branch falls, by its place along the face's
+    cycle; and, for the branches at a row's own corners (row-major, as ``np.nonzero``), their rows,
+    columns, whether at the row's ``a`` corner, and ``sweep_terms`` to decide them with."""
+    t = len(a)
+    side = np.empty((t, t), dtype=np.bool_)
+    count = 0
+    for i in range(t):
+        span = (at_hb[i] - at_ha[i]) % size
+        ha, hb = corner[a[i]], corner[b[i]]
+        for j in range(t):
+            side[i, j] = (place[j] - at_ha[i]) % size >= span
+            hc = corner[branch[j]]
+            if (hc == ha) | (hc == hb):
+                count += 1
+    r = np.empty(count, dtype=np.int64)
+    c = np.empty(count, dtype=np.int64)
+    at_a = np.empty(count, dtype=np.bool_)
+    k = 0
+    for i in range(t):
+        ha, hb = corner[a[i]], corner[b[i]]
+        for j in range(t):
+            hc = corner[branch[j]]
+            if (hc == ha) | (hc == hb):
+                r[k], c[k], at_a[k] = i, j, hc == ha
+                k += 1
+    return side, r, c, at_a, sweep_terms(pos, ev, vert, corner, heading, normal, branch, a, b, r, c, at_a)
+
+
+@_jit
+def clashes(a, b, vert, first_side, side):
+    """``_Grower._conflicts``' answer: whether each tied join shares a branch or a vertex pair with
+    another, or crosses it (a branch of one on different sides of the other from its partner)."""
+    t = len(a)
+    out = np.zeros(t, dtype=np.bool_)
+    for i in range(t):
+        vai, vbi = min(vert[a[i]], vert[b[i]]), max(vert[a[i]], vert[b[i]])
+        for j in range(t):
+            if j == i:
+                continue
+            vaj, vbj = min(vert[a[j]], vert[b[j]]), max(vert[a[j]], vert[b[j]])
+            if (a[i] == a[j] or a[i] == b[j] or b[i] == a[j] or b[i] == b[j] or (vai == vaj and vbi == vbj)
+                    or first_side[i, j] != side[i, j] or first_side[j, i] != side[j, i]):
+                out[i] = True
+                break
     return out

@@ -1108,6 +1108,15 @@ class _Grower:
         a, b = pi[tied], pj[tied]
         ha, hb = corner[a], corner[b]
         size, at_ha, at_hb = self._cycle_places(ha, hb)
+        if self.kernels is not None:   # the same decisions, the integer work compiled
+            sides = []
+            for branch, place in ((a, at_ha), (b, at_hb)):
+                side, r, c, at_a, terms = self.kernels.tie_side(m.pos, m.ev, vert, corner, heading, normal,
+                                                                branch, a, b, place, at_ha, at_hb, size)
+                if len(r):
+                    side[r, c] = _swept(*terms) ^ at_a
+                sides.append(side)
+            return self.kernels.clashes(a, b, vert, sides[0], sides[1])
         start, span = at_ha, (at_hb - at_ha) % size
         cross = np.zeros((t, t), dtype=bool)
         first_side = None
@@ -1117,11 +1126,7 @@ class _Grower:
             at_a = hc[None, :] == ha[:, None]
             shared = at_a | (hc[None, :] == hb[:, None])
             r, c = np.nonzero(shared)
-            if len(r) and self.kernels is not None:
-                terms = self.kernels.sweep_terms(m.pos, m.ev, vert, corner, heading, normal, branch, a, b,
-                                                 r, c, at_a[r, c])
-                side[r, c] = _swept(*terms) ^ at_a[r, c]
-            elif len(r):
+            if len(r):
                 here = m.pos[vert[branch[c]]]
                 along = m.pos[m.dest(hc[c])] - here
                 other = m.pos[np.where(at_a[r, c], vert[b[r]], vert[a[r]])] - here

@@ -41,7 +41,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 HANG_SECONDS = 30
-MEMORY_LIMIT = 3 << 30  # bytes of address space a worker may use
+MEMORY_LIMIT = 4 << 30  # bytes of address space a worker may use (numba's compiled kernels map ~0.5 GiB)
 READERS = ("history", "top", "lineage", "show", "query", "gallery", "report")
 EDGES = ["-1", "0", "1", "2147483648", str(2**70), "-" + str(2**70), "1e309", "nan", "inf", "", "abc",
          "-0", "999999999", "0x10", "1_000", " 3", "\x00", "é"]
