@@ -74,7 +74,7 @@ def symmetric_share(n_genomes: int) -> None:
     print(f"{'universe':>20} {'ties':>5} {'mapped':>6} {'grown':>6} {'capped':>6} {'mirror':>6} {'share':>7} "
           f"{'regions':>7} {'s':>6}")
     for name, ties in [(n, "crossing") for n in names] + [("symmetric", t) for t in ("first", "none")]:
-        env = Environment(max_edges=20_000, max_seconds=10.0, branch_ties=ties)
+        env = Environment(max_edges=20_000, max_work=15_000, max_seconds=10.0, branch_ties=ties)
         universe = load_universe(name)
         rng = stream(0, "bench", "fidelity", name)
         mapped = grown = capped = mirror = regions = 0
