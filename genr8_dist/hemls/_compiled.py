@@ -363,14 +363,8 @@ def cut_runs(reduced: np.ndarray, corners: np.ndarray, points: np.ndarray, two: 
                 pts[k, e] = points[ring[k], e]
         nlocal = _cut(0, runs[1], runs[3], runs, pts, two, local, 0)
         for row2 in range(nlocal):
-            u, v, w = local[row2, 0], local[row2, 1], local[row2, 2]
-            if u > v:
-                u, v = v, u
-            if v > w:
-                v, w = w, v
-            if u > v:
-                u, v = v, u
-            cut[ncut, 0], cut[ncut, 1], cut[ncut, 2] = ring[u], ring[v], ring[w]
+            _sorted3(local, row2, tri)        # ``tri`` is free again: this row's corners are read
+            cut[ncut, 0], cut[ncut, 1], cut[ncut, 2] = ring[tri[0]], ring[tri[1]], ring[tri[2]]
             ncut += 1
     return _rows(cut, ncut)
 
