@@ -2,6 +2,7 @@
 
     python bench/throughput.py                         # everything (about 10 minutes on 2 cores)
     python bench/throughput.py --only islands          # the island configurations only
+    python bench/throughput.py --only islands --steady # the same, each timed in a warmed-up process
     python bench/throughput.py --only genomes --genomes 300
     python bench/throughput.py --only genomes --genomes 300 --max-work 15000 8000 5000 3000   # caps
     python bench/throughput.py --only genomes --env max_work=0 --universe default   # no work cap
@@ -93,13 +94,19 @@ def _vertices(ind) -> int:
     return int(getattr(ind, "n_vertices", 0) or 0)
 
 
-def islands(steps: list[int], env: dict[str, object]) -> None:
+def islands(steps: list[int], env: dict[str, object], steady: bool = False) -> None:
+    import dataclasses
+
     from genr8_dist.evolution import Island
 
-    print("\nislands: one island, generations 0..3, no Ray" + (f"; environment {env}" if env else ""))
+    print("\nislands: one island, generations 0..3, no Ray" + (f"; environment {env}" if env else "")
+          + ("; steady state: each timed after the same configuration ran untimed with seed + 1"
+             if steady else ""))
     print(f"{'configuration':<26} {'indiv':>6} {'evals':>6} {'cpu s':>7} {'wall s':>7} {'ind/core-s':>11} "
           f"{'eval/core-s':>12} {'ind/wall-s':>11} {'valid':>6} {'capped':>6} {'med V':>6}")
     for name, config in _island_configs(steps, env):
+        if steady:   # as in a long-lived island host: imports, tables and compiled kernels loaded
+            Island(dataclasses.replace(config, seed=config.seed + 1), 0).run(3)
         island = Island(config, 0)
         c0, w0 = time.process_time(), time.perf_counter()
         history = island.run(3)
@@ -277,6 +284,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="run only this part (repeatable)")
     parser.add_argument("--steps", type=int, default=4, help="derivation steps of the random genomes")
     parser.add_argument("--island-steps", type=int, nargs="+", default=[4, 5])
+    parser.add_argument("--steady", action="store_true",
+                        help="islands: time each configuration in a process that has just run it with "
+                             "seed + 1 (the steady state of an island host)")
     parser.add_argument("--genomes", type=int, default=1000, help="random genomes per universe")
     parser.add_argument("--universe", action="append", help="only this universe (repeatable)")
     parser.add_argument("--repeat", type=int, default=2, help="start-up measurements")
@@ -294,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"genr8_dist from {Path(genr8_dist.__file__).parent.parent}")
     if "islands" in parts:
-        islands(args.island_steps, env)
+        islands(args.island_steps, env, args.steady)
     if "genomes" in parts:
         if args.max_work:
             cap_summary({cap: genomes(args.genomes, args.steps, args.universe, {**env, "max_work": cap})
