@@ -42,7 +42,7 @@ No growth is spent where the text already shows the waste (the phenotype's ``scr
 ``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
 a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
-(``IslandStats.screened``). An offspring that grows trivial is varied again too, from its first
+(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again too, from its first
 parent (its own variation broke what made the parent split its regions, so its neighbourhood is
 mostly trivial), as is one whose growth was capped.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
@@ -226,6 +226,13 @@ class Island:
         g = self.config.genome
         result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
         return result.text, result.codons_used
+
+    @property
+    def _varies_trivial(self) -> bool:
+        """Whether a trivial offspring is varied again: in ``weighted`` mode, where it only costs
+        the fitness it lacks; a Pareto front or a MAP-Elites archive may want its extremes (one
+        region is the most symmetric surface, the emptiest cell)."""
+        return self.config.search.mode == "weighted"
 
     def _founder(self, rng, index: int) -> Genome:
         """One founder genome drawn from ``rng`` at position ``index`` of generation 0."""
@@ -444,6 +451,7 @@ class Island:
                             avoid.add(str(self._screen(pool[i].text)[1]))
                     text, read = self._mapped(genome)
                     trivial, key = self._screen(text)
+                    trivial = trivial and (text is None or self._varies_trivial)
                     for _ in range(ea.unique_retries):
                         if not trivial and key not in avoid and key not in texts:
                             break
@@ -456,6 +464,7 @@ class Island:
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
                         trivial, key = self._screen(text)
+                        trivial = trivial and (text is None or self._varies_trivial)
                         if origin == "crossover":
                             origin = "crossover+mutation"
                     texts.add(key)
@@ -664,8 +673,8 @@ class Island:
         phenotype = self.phenotype
 
         def trivial(ev: Evaluation) -> bool:
-            return ev.valid and (not isinstance(ev, Preview) or phenotype.trivial_from_sizes) \
-                and is_trivial(ev, phenotype)
+            measured = not isinstance(ev, Preview) or phenotype.trivial_from_sizes
+            return self._varies_trivial and ev.valid and measured and is_trivial(ev, phenotype)
 
         def wasted(ev: Evaluation) -> bool:
             return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid \

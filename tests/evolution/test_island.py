@@ -401,7 +401,7 @@ def test_map_elites_archive_holds_every_cell_found_beyond_the_population():
 
     config = small_config(ea={"population": 6},
                           search={"mode": "map-elites", "descriptors": ["size_regions", "size_vertices"],
-                                  "ranges": [[1, 13], [3, 60]], "bins": [4, 6], "offspring": 0.5})
+                                  "ranges": [[1, 13], [3, 27]], "bins": [4, 6], "offspring": 0.5})
     hist = Island(config, 0).run(4)
     grid = Grid.from_settings(config.search)
     found: set[int] = set()
