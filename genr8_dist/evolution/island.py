@@ -42,9 +42,9 @@ No growth is spent where the text already shows the waste (the phenotype's ``scr
 ``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
 a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
-(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again too, from its first
-parent (its own variation broke what made the parent split its regions, so its neighbourhood is
-mostly trivial), as is one whose growth was capped.
+(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
+too, from its first parent (its own variation broke what made the parent split its regions, so
+its neighbourhood is mostly trivial), as is one whose growth was capped.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
