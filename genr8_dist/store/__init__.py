@@ -7,6 +7,7 @@ See docs/run-store.md for the layout and every column.
 
 from __future__ import annotations
 
+from genr8_dist.store.parts import Part, write_part
 from genr8_dist.store.runstore import (
     COMPACT_EVERY,
     COMPACT_TARGET_ROWS,
@@ -30,6 +31,7 @@ __all__ = [
     "COMPACT_TARGET_ROWS",
     "EVENT_KINDS",
     "KEEP_MANIFESTS",
+    "Part",
     "SCHEMA_VERSION",
     "TIMING_COLUMNS",
     "ConfigVersion",
@@ -38,5 +40,6 @@ __all__ = [
     "criterion_column",
     "events_schema",
     "individuals_schema",
+    "write_part",
     "write_synthetic_run",
 ]
