@@ -829,7 +829,8 @@ class RunStore:
         """Problems with the committed files (missing, truncated, altered, unreadable) and with the
         manifests (the newest lost or damaged, an older one damaged), each naming its file; empty when
         the run is intact. Reads every committed byte."""
-        return [p for _, _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
+        return ([p for _, _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
+                + ([] if self._stale else views.view_problems(self._fs, self._m)))
 
     def _manifest_problems(self) -> list[str]:
         out = [self._stale] if self._stale else []
@@ -855,6 +856,11 @@ class RunStore:
         cache: dict[tuple[str, str], str | None] = {}
         bad = self._bad_entries(self._m, cache)
         problems = [p for _, _, p in bad] + self._manifest_problems()
+        view = [] if self._stale else views.view_problems(self._fs, self._m)
+        if view and not problems:   # only the glob view: published again, no commit needed
+            views.rebuild_view(self._fs, self._m)
+            self.last_repair = f"rebuilt the glob view of commit {self.version}"
+            return view
         if not problems:
             self.last_repair = ""
             return []
@@ -1039,7 +1045,7 @@ class RunStore:
             folders.add(e["path"].rsplit("/", 1)[0])
         if self._fs.local_root is not None:  # a view's links are not the run's files: never collected
             folders = {f for f in folders if not os.path.islink(self._fs._local(f))}
-        deleted += clear_stale_parts(self, TMP_STALE_SECONDS)
+        deleted += clear_stale_parts(self, TMP_STALE_SECONDS) + views.clear_stale_links(self._fs)
         for folder in [*sorted(folders), MANIFEST_DIR]:
             for name in self._fs.listdir(folder):
                 rel = f"{folder}/{name}"

@@ -65,7 +65,7 @@ def current_view(rfs: RunFS) -> int | None:
         target = os.readlink(os.path.join(rfs.local_root, CURRENT))
     except OSError:
         return None
-    name = target.rstrip("/").rsplit("/", 1)[-1]
+    name = target.rstrip("/").rsplit("/", 1)[-1].split(".")[0]   # (a rebuilt view: <commit>.<token>)
     return int(name) if name.isdigit() else None
 
 
@@ -82,17 +82,76 @@ def publish_view(rfs: RunFS, manifest: dict[str, Any]) -> bool:
     if current_view(rfs) != version:
         if os.path.lexists(folder):   # a build a crash cut short: nobody points at it
             shutil.rmtree(folder, ignore_errors=True)
-        for table in TABLES:
-            os.makedirs(os.path.join(folder, table))
-            for entry in manifest.get(table, []):
-                src = os.path.join(root, *entry["path"].split("/"))
-                os.link(src, os.path.join(folder, table, entry["path"].rsplit("/", 1)[-1]))
-            _fsync(os.path.join(folder, table))
-        _fsync(folder)
+        _build(rfs, manifest, folder)
         _ensure_link(root, CURRENT, rel)
     for table in TABLES:
         _ensure_link(root, table, f"{CURRENT}/{table}")
     return True
+
+
+def _target(rfs: RunFS) -> str | None:
+    assert rfs.local_root is not None
+    try:
+        return os.readlink(os.path.join(rfs.local_root, CURRENT)).rstrip("/")
+    except OSError:
+        return None
+
+
+def view_problems(rfs: RunFS, manifest: dict[str, Any]) -> list[str]:
+    """What is wrong with the glob view of ``manifest`` (a layout 2 run on a local filesystem): it
+    shows another commit, or a table's folder does not list exactly its files; empty when right."""
+    if rfs.local_root is None or manifest.get("layout") != LAYOUT:
+        return []
+    version = int(manifest["version"])
+    shown = current_view(rfs)
+    if shown != version:
+        seen = f"commit {shown}" if shown is not None else "no commit"
+        return [f"{rfs.show(CURRENT)}: the glob view shows {seen}, the run is at commit {version} (a crash "
+                "between a commit and its view); repair publishes it"]
+    out = []
+    for table in TABLES:
+        folder = os.path.join(rfs.local_root, table)
+        want = {e["path"].rsplit("/", 1)[-1]: e["path"] for e in manifest.get(table, [])}
+        try:
+            have = {n for n in os.listdir(folder) if not n.startswith(".")}
+        except OSError:
+            have = set()
+        wrong = sorted(set(want) ^ have)
+        wrong += sorted(n for n in set(want) & have if not _same(os.path.join(folder, n),
+                                                                 os.path.join(rfs.local_root, want[n])))
+        if wrong or not os.path.islink(folder):
+            what = f"{wrong[0]!r} is not commit {version}'s" if wrong else "is not a link to the view"
+            out.append(f"{rfs.show(table)}/: the glob view is altered ({what}); repair rebuilds it")
+    return out
+
+
+def rebuild_view(rfs: RunFS, manifest: dict[str, Any]) -> None:
+    """Publish ``manifest``'s view anew (the current one was altered), under a fresh folder name."""
+    assert rfs.local_root is not None
+    rel = f"{view_rel(int(manifest['version']))}.{secrets.token_hex(4)}"
+    folder = os.path.join(rfs.local_root, *rel.split("/"))
+    _build(rfs, manifest, folder)
+    _ensure_link(rfs.local_root, CURRENT, rel)
+    for table in TABLES:
+        _ensure_link(rfs.local_root, table, f"{CURRENT}/{table}")
+
+
+def _same(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _build(rfs: RunFS, manifest: dict[str, Any], folder: str) -> None:
+    assert rfs.local_root is not None
+    for table in TABLES:
+        os.makedirs(os.path.join(folder, table))
+        for entry in manifest.get(table, []):
+            src = os.path.join(rfs.local_root, *entry["path"].split("/"))
+            os.link(src, os.path.join(folder, table, entry["path"].rsplit("/", 1)[-1]))
+        _fsync(os.path.join(folder, table))
+    _fsync(folder)
 
 
 def prune_views(rfs: RunFS, oldest_kept: int) -> None:
@@ -102,11 +161,46 @@ def prune_views(rfs: RunFS, oldest_kept: int) -> None:
     current = current_view(rfs)
     base = os.path.join(rfs.local_root, VIEWS)
     for name in rfs.listdir(VIEWS):
-        number = int(name) if name.isdigit() else -1
-        if number == current:
+        number = int(name.split(".")[0]) if name.split(".")[0].isdigit() else -1
+        if number == current and os.path.join(VIEWS, name) == _target(rfs):
             continue
         if number < oldest_kept:   # older than every kept manifest, or not a view's name at all
             shutil.rmtree(os.path.join(base, name), ignore_errors=True)
+
+
+def clear_stale_links(rfs: RunFS) -> int:
+    """Remove the temporary symlinks (and moved-aside folders) a crash left at the run's root while
+    switching a view: those whose writer process is gone. How many."""
+    import re
+
+    if rfs.local_root is None:
+        return 0
+    removed = 0
+    for name in os.listdir(rfs.local_root):
+        names = "|".join((CURRENT, *TABLES))
+        match = re.match(rf"^{re.escape(TMP_PREFIX)}(?:{names})-(\d+)-[0-9a-f]{{8}}", name)
+        if not match or _alive(int(match.group(1))):
+            continue
+        path = os.path.join(rfs.local_root, name)
+        if os.path.isdir(path) and not os.path.islink(path):
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+        removed += 1
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
 
 
 def _fsync(path: str) -> None:

@@ -148,11 +148,13 @@ def test_a_crash_after_the_upgrades_commit_reads_the_same_rows_either_way(
     RunStore.open(run).upgrade()   # the commit point passed; its view did not
     monkeypatch.undo()
     store = RunStore.open(run)
-    assert store.manifest_layout == 2 and store.verify() == []
+    assert store.manifest_layout == 2
+    assert [p for p in store.verify() if "glob view shows no commit" in p] == store.verify()
     assert not os.path.islink(run / "individuals")        # the old folder, still exactly the run
     assert _glob_ids(run) == want == _query_ids(run)
     assert not store.upgrade()                             # the next writer finishes the view
     assert os.path.islink(run / "individuals") and _glob_ids(run) == want == _query_ids(run)
+    assert RunStore.open(run).verify() == []
 
 
 def test_an_upgraded_old_run_takes_new_commits(tmp_path: Path) -> None:
@@ -163,3 +165,25 @@ def test_an_upgraded_old_run_takes_new_commits(tmp_path: Path) -> None:
     assert RunStore.open(run).verify() == [] and _glob_ids(run) == _query_ids(run)
     assert sorted(p.name for p in (run / "events").glob("*.parquet")) == sorted(
         Path(e["path"]).name for e in RunStore.open(run).manifest["events"])
+
+
+def test_an_altered_or_lagging_view_is_named_and_repair_rebuilds_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from genr8_dist.store import views
+
+    run = tmp_path / "run"
+    write_synthetic_run(run, 2, 6, 6, 3, generations_per_commit=1)
+    victim = sorted((run / "individuals").glob("*.parquet"))[0]
+    victim.unlink()                                  # the glob would now miss rows
+    store = RunStore.open(run)
+    assert [p for p in store.verify() if victim.name in p and "glob view is altered" in p]
+    assert store.repair() and "rebuilt the glob view" in store.last_repair
+    assert RunStore.open(run).verify() == [] and _glob_ids(run) == _query_ids(run)
+    monkeypatch.setattr(views, "publish_view", lambda rfs, m: (_ for _ in ()).throw(OSError("killed")))
+    store.record_event("resume", generation=6)      # committed; killed before its view
+    monkeypatch.undo()
+    problems = RunStore.open(run).verify()
+    assert len(problems) == 1 and "the glob view shows commit" in problems[0]
+    assert RunStore.open(run).repair() == problems
+    assert RunStore.open(run).verify() == [] and _glob_ids(run) == _query_ids(run)
+    assert views.current_view(RunStore.open(run)._fs) == RunStore.open(run).version
