@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import os
 import secrets
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
@@ -45,15 +46,18 @@ class Part:
         return f"{STAGING}/{self.name}"
 
 
-def write_part(store: RunStore, table: pa.Table, *, stem: str = "part") -> Part:
-    """Write ``table`` (rows of ``store.schema``: one or more islands' consecutive generations, each id
-    once) as a part of ``store``'s run and return its descriptor for ``RunStore.commit_parts``. Safe
-    from any process: the name holds a random token, and nothing is committed until the run's writer
-    commits it."""
+def write_part(store: RunStore | str | os.PathLike[str], table: pa.Table, *, stem: str = "part") -> Part:
+    """Write ``table`` (rows of the run's schema: one or more islands' consecutive generations, each id
+    once) as a part of the run (an open store, or the run directory's path or URI) and return its
+    descriptor for ``RunStore.commit_parts``. Safe from any process: the name holds a random token,
+    and nothing is committed until the run's writer commits it."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from genr8_dist.store.runstore import COMPRESSION, ROW_GROUP_ROWS
+    from genr8_dist.store.runstore import COMPRESSION, ROW_GROUP_ROWS, RunStore
+
+    if not isinstance(store, RunStore):
+        store = RunStore.open(store)
 
     if not stem.replace("-", "").replace("_", "").isalnum():
         raise StoreError(f"write_part: stem {stem!r} must be letters, digits, '-' or '_'")
@@ -139,8 +143,6 @@ def take_parts(store: RunStore, parts: list[Part], version: int) -> list[dict[st
         store._pending.append(rel)
         try:
             if rfs.local_root is not None:
-                import os
-
                 os.rename(rfs._local(part.staged), rfs._local(rel))
             else:
                 rfs.fs.move(rfs.full(part.staged), rfs.full(rel))

@@ -104,7 +104,10 @@ def view_problems(rfs: RunFS, manifest: dict[str, Any]) -> list[str]:
         return []
     version = int(manifest["version"])
     shown = current_view(rfs)
-    if shown != version:
+    copied = os.path.isdir(os.path.join(rfs.local_root, CURRENT)) and shown is None   # cp -r: no links
+    if shown is not None and shown > version:
+        return []   # the view of a newer commit: this is an older snapshot, not a problem
+    if shown != version and not copied:
         seen = f"commit {shown}" if shown is not None else "no commit"
         return [f"{rfs.show(CURRENT)}: the glob view shows {seen}, the run is at commit {version} (a crash "
                 "between a commit and its view); repair publishes it"]
@@ -119,9 +122,9 @@ def view_problems(rfs: RunFS, manifest: dict[str, Any]) -> list[str]:
         wrong = sorted(set(want) ^ have)
         wrong += sorted(n for n in set(want) & have if not _same(os.path.join(folder, n),
                                                                  os.path.join(rfs.local_root, want[n])))
-        if wrong or not os.path.islink(folder):
-            what = f"{wrong[0]!r} is not commit {version}'s" if wrong else "is not a link to the view"
-            out.append(f"{rfs.show(table)}/: the glob view is altered ({what}); repair rebuilds it")
+        if wrong:   # (a copy of the run made with cp -r holds copies, not links: as right)
+            out.append(f"{rfs.show(table)}/: the glob view is altered ({wrong[0]!r} is not commit "
+                       f"{version}'s); repair rebuilds it")
     return out
 
 
@@ -137,8 +140,9 @@ def rebuild_view(rfs: RunFS, manifest: dict[str, Any]) -> None:
 
 
 def _same(a: str, b: str) -> bool:
+    """Whether ``a`` is the file ``b`` (a link to it, or a copy of its size)."""
     try:
-        return os.path.samefile(a, b)
+        return os.path.samefile(a, b) or os.path.getsize(a) == os.path.getsize(b)
     except OSError:
         return False
 
