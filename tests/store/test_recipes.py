@@ -6,6 +6,7 @@ run resumed after a SIGKILL; and as of a generation (time travel)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -212,3 +213,74 @@ def test_query_as_of_reads_events_and_configurations_by_then(tmp_path: Path) -> 
     configs = history.query(run, "select count(*) n from configs", as_of=AS_OF).to_pylist()
     assert configs == [{"n": 1}]
     assert history.query(run, "select count(*) n from configs").to_pylist() == [{"n": 2}]
+
+
+TINY = """\
+universe = "default"
+seed = 7
+
+[genome]
+length = 30
+max_depth = 4
+
+[ea]
+population = 6
+generations = 10
+tournament = 2
+elites = 1
+
+[environment]
+steps = 2
+
+[islands]
+count = 3
+migration_interval = 2
+migrants = 1
+"""
+
+
+@pytest.fixture(scope="module")
+def real_run_killed_and_resumed(tmp_path_factory: pytest.TempPathFactory, ray_local: Any) -> Path:
+    """A real `genr8 run` (Ray islands, grown surfaces), SIGKILLed after generation 3, then resumed."""
+    import io
+
+    from genr8_dist.distributed.session import RunOptions, resume_run
+
+    tmp = tmp_path_factory.mktemp("real")
+    (tmp / "tiny.toml").write_text(TINY)
+    run_dir = tmp / "run"
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0", PYTHONPATH=str(ROOT))
+    env.pop("RAY_ADDRESS", None)
+    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(tmp / "tiny.toml"),
+                             "--run-dir", str(run_dir), "--cpus", "2"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, env=env, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 240
+        while time.monotonic() < deadline:
+            try:
+                done = RunStore.open(run_dir).committed_generations()
+            except Exception:  # not created yet
+                done = {}
+            if len(done) == 3 and min(done.values()) >= 3:
+                break
+            assert proc.poll() is None, "the run ended early"
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)   # its local Ray, by the group's id
+        proc.wait(timeout=30)
+    summary = resume_run(str(run_dir), RunOptions(quiet=True), out=io.StringIO())
+    assert summary.status == "complete"
+    return run_dir
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("recipe", PLAIN + AS_OF_RECIPES)
+def test_every_engine_reads_a_real_run_resumed_after_a_sigkill(real_run_killed_and_resumed: Path,
+                                                               recipe: str) -> None:
+    run = real_run_killed_and_resumed
+    as_of = AS_OF if recipe.endswith("-as-of") else None
+    same_as_query(run, run_recipe(recipe, run, as_of), as_of=as_of)
+    assert RunStore.open(run).verify() == []
