@@ -444,7 +444,8 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     out = out if out is not None else sys.stdout
     config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
-    consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    consent_for_new_run(config.universe_source, trust_flag=options.trust_hooks,
+                        command=f"run {config_path} --run-dir {run_dir}")
     if config.universe_source.code_digest:  # consented now: read again, so its phenotype sets the criteria
         config = load_config(config_path)
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
@@ -521,6 +522,10 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                                    command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
+            if store.set_aside:
+                from genr8_dist.store.foreign import describe
+
+                print(describe(store.set_aside, run_dir), file=out, flush=True)
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={

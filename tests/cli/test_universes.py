@@ -169,3 +169,9 @@ def test_map_and_invert_refuse_nesting_too_deep_in_one_line(tmp_path, capsys, le
     assert status == 2 and out == ""
     assert err == f"genr8: error: {text}: line 2, column 816: brackets nest deeper than 100 levels (the " \
                   "limit of a rewrite system, docs/hemls.md)\n"
+
+
+def test_a_genome_with_a_newline_is_echoed_on_one_line(capsys):
+    status, out, err = run(capsys, "map", "--genome", "1,x\ny")
+    assert status == 2 and out == ""
+    assert err == "genr8: error: codon 1 is 'x\\ny': codons are non-negative integers\n"

@@ -136,8 +136,12 @@ def test_a_local_ray_that_times_out_is_one_line_and_leaves_the_run_unlocked(resu
     assert store.running() is None
     assert store.committed_generations() == {0: 1}
     capsys.readouterr()
+    (resumable_run / "configs" / "notes.txt").write_text("a user's file")
     assert main(["resume", str(resumable_run), "--quiet"]) == 0   # not refused "running already"
     assert RunStore.open(resumable_run).committed_generations() == {0: 2}
+    out = capsys.readouterr().out
+    assert f"{resumable_run}: set aside 1 file(s) the run did not write (configs/notes.txt) in " in out
+    assert (resumable_run / "_foreign" / "configs" / "notes.txt").read_text() == "a user's file"
 
 
 @pytest.mark.slow
