@@ -296,6 +296,7 @@ def load_named_universe(name: str | os.PathLike[str], *, trust_flag: bool, comma
     plugin, entry point) is the user's own choice."""
     source, origin = find_source(name)
     if origin == "path":
+        source.check_hook_names()   # read, not run: a misspelt hook is named before consent is asked
         consent_for_new_run(source, trust_flag=trust_flag, command=command)
     else:
         consent(source.code_digest)

@@ -298,6 +298,18 @@ def _run_until_it_starts(n: int, argv: list[str]) -> Outcome | None:
     return None
 
 
+def _answered(argv: list[str], rc: int | None, out: str) -> bool:
+    """A non-zero exit that is the command's documented answer: ``map --json`` of an invalid genome
+    (exit 1, the JSON says ``"valid": false`` and why)."""
+    if argv[:1] != ["map"] or "--json" not in argv or rc != 1:
+        return False
+    try:
+        answer = json.loads(out)
+    except json.JSONDecodeError:
+        return False
+    return isinstance(answer, dict) and answer.get("valid") is False and bool(answer.get("reason"))
+
+
 def run_one(n: int, argv: list[str], run: Path) -> Outcome:
     """Run ``genr8 argv`` in this process and judge how it ended."""
     from genr8_dist.cli import main
@@ -340,7 +352,7 @@ def run_one(n: int, argv: list[str], run: Path) -> Outcome:
         signal.signal(signal.SIGPROF, old_prof)
     seconds = time.monotonic() - start
     message = err.getvalue().strip()
-    if rc != 0 and not message:
+    if rc != 0 and not message and not _answered(argv, rc, out.getvalue()):
         return Outcome(n, argv, "silent", rc, out.getvalue()[-200:], seconds)
     if reader and _tree(run) != before:
         return Outcome(n, argv, "reader-wrote", rc, message[-200:], seconds)
