@@ -96,6 +96,10 @@ def _repair(args: argparse.Namespace) -> int:
     print(f"repaired: {store.last_repair}")
     if args.upgrade and store.upgrade():
         print(f"{args.run_dir}: upgraded to layout 2 (commit {store.version})")
+    if store.set_aside:
+        from genr8_dist.store.foreign import describe
+
+        print(describe(store.set_aside, args.run_dir))
     print(f"{args.run_dir}: now at commit {store.version}; islands committed up to "
           + ", ".join(f"{i}: {g}" for i, g in store.committed_generations().items()))
     return 0
@@ -133,6 +137,10 @@ def _edit(args: argparse.Namespace) -> int:
           f"{result.effective_generation} (the run now ends at generation {result.last_generation})")
     for line in what:
         print(f"  {line}")
+    if result.set_aside:
+        from genr8_dist.store.foreign import describe
+
+        print(describe(result.set_aside, args.run_dir))
     print(f"go on with: genr8 resume {args.run_dir}")
     return 0
 

@@ -509,8 +509,10 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT, as_of: int 
         timer.start()
         try:
             relation = con.sql(sql)
-            if relation is None:
-                return pa.table({})
+            if relation is None:   # nothing but ';' or comments, or a statement that yields no table
+                shown = " ".join(str(sql).split())[:60]
+                raise HistoryError(f"query: {shown!r} is no statement that answers with rows; write a "
+                                   "SELECT over individuals, events or configs")
             return relation.to_arrow_table()
         except duckdb.InterruptException:
             raise HistoryError(f"query: stopped after {timeout:g} s, the statement timeout "

@@ -49,6 +49,8 @@ from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import SCHEMA_2_NAMES, Individual
 from genr8_dist.store import views
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
+from genr8_dist.store.audit import below_gap, describe_missing, head_damaged, missing_manifests
+from genr8_dist.store.foreign import is_store_name, set_aside
 from genr8_dist.store.pending import (
     LOCK_NAME,
     QUEUE_DIR,
@@ -296,6 +298,7 @@ class RunStore:
         self._pending: list[str] = []                  # files written by the commit being made
         self._stale = stale                            # the newest manifest is lost or damaged
         self.last_repair = ""                          # what the last repair() dropped, in one line
+        self.set_aside: list[tuple[str, str]] = []     # users' files moved by collect_garbage (foreign.py)
 
     # --- building ----------------------------------------------------------------------------
     @classmethod
@@ -834,10 +837,12 @@ class RunStore:
 
     def _manifest_problems(self) -> list[str]:
         out = [self._stale] if self._stale else []
-        head = _read_head(self._fs)
-        if head is None and self._fs.kind(HEAD) == "file":
+        if head_damaged(self._fs, HEAD):   # unreadable, or truncated to what still reads as a number
             out.append(f"{self._fs.show(HEAD)}: damaged (it should hold the newest commit's number)")
-        for version in _list_manifests(self._fs):
+        listed = _list_manifests(self._fs)
+        out += describe_missing(missing_manifests(listed, self.version),
+                                lambda v: self._fs.show(_manifest_rel(v)))
+        for version in listed:
             if version >= self.version:
                 continue  # a newer one torn or altered is the stale newest manifest, above
             rel = _manifest_rel(version)
@@ -1040,6 +1045,9 @@ class RunStore:
             for _, e in file_entries(m):
                 referenced.add(e["path"])
                 folders.add(e["path"].rsplit("/", 1)[0])
+        for version in below_gap(_list_manifests(self._fs), self.version):   # older than a missing one
+            self._fs.delete(_manifest_rel(version))
+            deleted += 1
         for _, e in file_entries(self._m):
             referenced.add(e["path"])
             folders.add(e["path"].rsplit("/", 1)[0])
@@ -1055,8 +1063,33 @@ class RunStore:
                         deleted += 1
                 elif (folder != MANIFEST_DIR and rel not in referenced and rel not in self._pending
                       and self._fs.kind(rel) == "file"):
+                    if is_store_name(name):
+                        self._fs.delete(rel)
+                        deleted += 1
+                    else:   # a user's file: moved aside, never deleted
+                        self.set_aside.append((rel, set_aside(self._fs, rel)))
+        deleted += self._collect_in_views(referenced)
+        return deleted
+
+    def _collect_in_views(self, referenced: set[str]) -> int:
+        """Files dropped into the published view (``individuals/``, ``events/``: links to the commit's
+        files) that are not the commit's: the store's own names deleted, a user's moved aside."""
+        deleted = 0
+        if self._fs.local_root is None:
+            return deleted
+        for table in views.TABLES:
+            if not os.path.islink(self._fs._local(table)):
+                continue
+            for name in self._fs.listdir(table):
+                rel = f"{table}/{name}"
+                if (f"{views.FILES}/{rel}" in referenced or name.startswith(TMP_PREFIX)
+                        or self._fs.kind(rel) != "file"):
+                    continue
+                if is_store_name(name):
                     self._fs.delete(rel)
                     deleted += 1
+                else:
+                    self.set_aside.append((rel, set_aside(self._fs, rel)))
         return deleted
 
     def _stale_tmp(self, rel: str, name: str) -> bool:

@@ -669,3 +669,60 @@ def test_a_full_disk_names_the_file_and_leaves_the_run_whole(
     assert RunStore.open(store.path).verify() == []
     assert RunStore.open(store.path).committed_generations() == {0: 1, 1: 1}
     assert not [p for p in Path(store.path).rglob("*") if p.name.startswith((".tmp-", "part-0000000003"))]
+
+
+def test_garbage_collection_sets_users_files_aside_and_deletes_only_its_own(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    root = Path(store.path)
+    (root / "configs" / "notes.txt").write_text("my notes")
+    (root / "individuals" / "mine.parquet").write_bytes(b"a user's table")
+    orphan = root / "individuals" / "part-0000000009-0123456789abcdef.parquet"
+    orphan.write_bytes(b"a crashed writer's part")
+    reopened = RunStore.open(store.path)
+    assert reopened.collect_garbage() == 1          # the orphan, the store's own name
+    assert not orphan.exists()
+    assert sorted(reopened.set_aside) == [("configs/notes.txt", "_foreign/configs/notes.txt"),
+                                          ("individuals/mine.parquet", "_foreign/individuals/mine.parquet")]
+    assert (root / "_foreign" / "configs" / "notes.txt").read_text() == "my notes"
+    assert (root / "_foreign" / "individuals" / "mine.parquet").read_bytes() == b"a user's table"
+    assert not (root / "configs" / "notes.txt").exists()
+    (root / "configs" / "notes.txt").write_text("again")        # a second one keeps the first
+    again = RunStore.open(store.path)
+    again.collect_garbage()
+    assert again.set_aside == [("configs/notes.txt", "_foreign/configs/notes.txt.1")]
+    assert again.verify() == [] and again.individuals().num_rows == 20
+    from genr8_dist.store.foreign import describe
+
+    assert describe(again.set_aside, "runs/r") == ("runs/r: set aside 1 file(s) the run did not write "
+                                                   "(configs/notes.txt) in runs/r/_foreign/")
+
+
+def test_verify_reports_a_deleted_older_manifest_and_repair_mends_it(store: RunStore) -> None:
+    for g in range(4):
+        store.commit(epoch(range(g, g + 1)))
+    root = Path(store.path) / "_manifest"
+    newest = RunStore.open(store.path).version
+    (root / f"{newest - 2:010d}.json").unlink()
+    reopened = RunStore.open(store.path)
+    assert reopened.version == newest
+    assert reopened.verify() == [f"{reopened._fs.show(f'_manifest/{newest - 2:010d}.json')}: an older "
+                                 "manifest is missing (deleted by hand?); repair drops the snapshots older "
+                                 "than it"]
+    rows = reopened.individuals().num_rows
+    reopened.repair()
+    assert reopened.verify() == [] and reopened.individuals().num_rows == rows
+
+
+@pytest.mark.parametrize("head", [b"", b"1", b"12", b"x\n"])
+def test_verify_reports_a_truncated_head_even_when_it_still_reads_as_a_number(store: RunStore, head) -> None:
+    for g in range(3):
+        store.commit(epoch(range(g, g + 1)))
+    path = Path(store.path) / "_manifest" / "HEAD"
+    assert path.read_bytes() == f"{store.version}\n".encode()
+    path.write_bytes(head)
+    reopened = RunStore.open(store.path)
+    problems = reopened.verify()
+    assert any(p.endswith("_manifest/HEAD: damaged (it should hold the newest commit's number)")
+               for p in problems), problems
+    reopened.repair()
+    assert reopened.verify() == []
