@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
     from genr8_dist.store import RunStore
+    from genr8_dist.store.pending import RunLock
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
@@ -269,16 +270,38 @@ def _creation_config(store: RunStore) -> RunConfig:
     return store.config(first)
 
 
+def _refuse_running(where: str, holder: dict[str, Any] | None) -> RunError:
+    holder = holder or {}
+    return RunError(f"{where}: the run is running already (pid {holder.get('pid', '?')} on "
+                    f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+
+
+def _lock_new_run(run_dir: str) -> RunLock:
+    """The lock of the run about to be created in ``run_dir``, taken before anything is written there,
+    so that of two drivers starting the same run at once the second is refused and writes nothing."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.pending import RunLock, lock_holder
+
+    rfs = resolve(run_dir)
+    if rfs.local_root is not None:
+        rfs.makedirs()
+    lock = RunLock(rfs, "run")
+    if not lock.acquire():
+        raise _refuse_running(rfs.show(), lock_holder(rfs))
+    return lock
+
+
 @contextmanager
-def hold_run_lock(store: RunStore) -> Iterator[None]:
+def hold_run_lock(store: RunStore, lock: RunLock | None = None) -> Iterator[None]:
     """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
     then queue their interventions for the coordinator instead of writing. Refuses a run that another
-    process is running."""
-    lock = store.lock("run")
-    if not lock.acquire():
-        holder = store.running() or {}
-        raise RunError(f"{store.path}: the run is running already (pid {holder.get('pid', '?')} on "
-                       f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+    process is running. ``lock``: the run's lock, already taken (``_lock_new_run``)."""
+    if lock is not None:
+        store.writer_lock = lock
+    else:
+        lock = store.lock("run")
+        if not lock.acquire():
+            raise _refuse_running(store.path, store.running())
     try:
         yield
     finally:
@@ -384,8 +407,10 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
+            lock = _lock_new_run(run_dir)
+            stack.callback(lock.release)
             store = RunStore.create(run_dir, config.to_toml())
-            stack.enter_context(hold_run_lock(store))
+            stack.enter_context(hold_run_lock(store, lock))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
                 "address": options.address or "local"})
