@@ -208,6 +208,23 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         ray.shutdown()
 
 
+def joined_address(requested: str | None) -> str:
+    """The cluster the connected Ray belongs to, as the run's ``start``/``resume`` event records it:
+    ``"local"`` for a Ray this command started itself, else the GCS address actually joined (what
+    ``auto``, ``RAY_ADDRESS`` from ``ray job submit``, or ``--address`` led to), from Ray's runtime
+    context; the requested address when Ray does not say (a ``ray://`` client)."""
+    given = requested or os.environ.get("RAY_ADDRESS") or None
+    if given is None:
+        return "local"
+    import ray
+
+    try:
+        gcs = ray.get_runtime_context().gcs_address
+    except Exception:  # a client connection or an older Ray: no runtime context address
+        gcs = None
+    return str(gcs) if gcs else given
+
+
 def _local_path(run_dir: str) -> Path | None:
     return None if "://" in str(run_dir) else Path(run_dir)
 
@@ -413,7 +430,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
             stack.enter_context(hold_run_lock(store, lock))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
-                "address": options.address or "local"})
+                "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"run {run_dir}: {config.islands.count} island(s) x {config.ea.population} "
                       f"individuals, generations 0..{config.ea.generations}, on {hosts.size} Ray "
@@ -476,7 +493,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
                 "committed": {str(i): int(committed.get(i, -1)) for i in range(n)},
-                "hosts": hosts.size, "address": options.address or "local"})
+                "hosts": hosts.size, "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"resuming {run_dir} after generation {low} on {hosts.size} Ray host(s)",
                       file=out, flush=True)
