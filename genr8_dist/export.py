@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.files import replacing
+from genr8_dist.files import is_stream, replacing
 
 if TYPE_CHECKING:
     from genr8_dist.environment import Environment
@@ -186,7 +186,7 @@ def save_png(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
     path = Path(path)
     plt = _pyplot()
     try:
-        if path.suffix.lower() != ".png":
+        if path.suffix.lower() != ".png" and not is_stream(path):
             raise ConfigError(f"{path}: a preview is a .png file")
         with _atomic(path) as tmp:
             fig.savefig(tmp, format="png", dpi=dpi, bbox_inches="tight", pad_inches=0.15,

@@ -158,6 +158,16 @@ def _print(text: str) -> None:
     sys.stdout.write(text + "\n")
 
 
+def _sayer(*paths: Any) -> Any:
+    """``_print``, or its standard-error twin when one of ``paths`` is standard output (``-``,
+    ``/dev/stdout``): the data alone goes there, as a Unix tool's does."""
+    from genr8_dist.files import is_stdout
+
+    if any(p is not None and is_stdout(p) for p in paths):
+        return lambda text: print(text, file=sys.stderr)
+    return _print
+
+
 def _history(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
@@ -167,7 +177,7 @@ def _history(args: argparse.Namespace) -> int:
     table = history.per_generation(store, island=args.island)
     if args.csv:
         history.write_table(table, args.csv)
-        _print(f"wrote {table.num_rows} rows to {args.csv}")
+        _sayer(args.csv)(f"wrote {table.num_rows} rows to {args.csv}")
     else:
         crits = [c[len("closest_"):] for c in table.column_names if c.startswith("closest_")]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
@@ -237,7 +247,9 @@ def _show(args: argparse.Namespace) -> int:
     from genr8_dist.history import _regrow as regrow
     from genr8_dist.store.schema import criterion_of
 
-    if args.png and not str(args.png).lower().endswith(".png"):
+    say = _sayer(*args.output, args.png, args.grammar, args.genome)
+
+    if args.png and args.png != "-" and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
     if args.output:  # refuse a bad name before anything is grown or written
         phenotype = regrow.phenotype_of_run(args.run, args.id)
@@ -246,35 +258,35 @@ def _show(args: argparse.Namespace) -> int:
     result = regrow.regrow(args.run, args.id)
     row = result.row
     crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
-    _print(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
+    say(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
            f"{row['origin']}, configuration version {row['config_version']}")
     if row["valid"]:
-        _print(f"fitness {_text.format_value(row['fitness'])}  " + "  ".join(
+        say(f"fitness {_text.format_value(row['fitness'])}  " + "  ".join(
             f"{k} {_text.format_value(v)}" for k, v in crits.items()))
     else:
-        _print(f"invalid at {row['stage']}: {row['error']}")
-    _print("rewrite system:")
+        say(f"invalid at {row['stage']}: {row['error']}")
+    say("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
-        _print(f"    {statement}")
+        say(f"    {statement}")
     if row["text"] and result.text_matches is False:
-        _print("note: the genome no longer maps to this rewrite system with this universe; the "
+        say("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
     if result.developed is not None:
-        _print(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
+        say(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
                f"derivation steps; digest {result.digest} matches the recorded one")
     for path in args.output:
         regrow.export(result, path)
-        _print(f"wrote {path}")
+        say(f"wrote {path}")
     if args.png:
         regrow.picture(result, args.png)
-        _print(f"wrote {args.png}")
+        say(f"wrote {args.png}")
     if args.grammar:
         regrow.save_text(row["text"] or "", args.grammar, what="rewrite system", id=row["id"])
-        _print(f"wrote {args.grammar}")
+        say(f"wrote {args.grammar}")
     if args.genome:
         regrow.save_text(" ".join(str(c) for c in row["genome"]) + "\n", args.genome, what="genome",
                          id=row["id"])
-        _print(f"wrote {args.genome}")
+        say(f"wrote {args.genome}")
     return 0
 
 
@@ -292,7 +304,7 @@ def _query(args: argparse.Namespace) -> int:
     table = history.query(args.run, args.sql, timeout=timeout, as_of=args.as_of)
     if target:
         history.write_table(table, target, format="csv" if args.csv else "parquet")
-        _print(f"wrote {table.num_rows} rows to {target}")
+        _sayer(target)(f"wrote {table.num_rows} rows to {target}")
         return 0
     if table.num_columns == 0:
         _print("(no result)")
@@ -316,7 +328,7 @@ def _gallery(args: argparse.Namespace) -> int:
         info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
                                     island=args.island, per_island=args.per_island,
                                     distinct=not args.duplicates)
-    _print(f"wrote {args.output}: {info}")
+    _sayer(args.output)(f"wrote {args.output}: {info}")
     return 0
 
 
@@ -324,5 +336,5 @@ def _report(args: argparse.Namespace) -> int:
     from genr8_dist.history import report
 
     report.write_report(args.run, args.output, k=args.k, gallery_k=args.gallery)
-    _print(f"wrote {args.output}")
+    _sayer(args.output)(f"wrote {args.output}")
     return 0

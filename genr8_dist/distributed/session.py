@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
     from genr8_dist.store import RunStore
+    from genr8_dist.store.pending import RunLock
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
@@ -272,6 +273,23 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         ray.shutdown()
 
 
+def joined_address(requested: str | None) -> str:
+    """The cluster the connected Ray belongs to, as the run's ``start``/``resume`` event records it:
+    ``"local"`` for a Ray this command started itself, else the GCS address actually joined (what
+    ``auto``, ``RAY_ADDRESS`` from ``ray job submit``, or ``--address`` led to), from Ray's runtime
+    context; the requested address when Ray does not say (a ``ray://`` client)."""
+    given = requested or os.environ.get("RAY_ADDRESS") or None
+    if given is None:
+        return "local"
+    import ray
+
+    try:
+        gcs = ray.get_runtime_context().gcs_address
+    except Exception:  # a client connection or an older Ray: no runtime context address
+        gcs = None
+    return str(gcs) if gcs else given
+
+
 def _local_path(run_dir: str) -> Path | None:
     return None if "://" in str(run_dir) else Path(run_dir)
 
@@ -340,18 +358,41 @@ def _refuse_if_running(store: RunStore, holder: dict[str, Any] | None = None) ->
         holder = store.running()
         if holder is None or holder.get("role") != "run":
             return
-    raise RunError(f"{store.path}: the run is running already (pid {holder.get('pid', '?')} on "
-                   f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+    raise _refuse_running(store.path, holder)
+
+
+def _refuse_running(where: str, holder: dict[str, Any] | None) -> RunError:
+    holder = holder or {}
+    return RunError(f"{where}: the run is running already (pid {holder.get('pid', '?')} on "
+                    f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+
+
+def _lock_new_run(run_dir: str) -> RunLock:
+    """The lock of the run about to be created in ``run_dir``, taken before anything is written there,
+    so that of two drivers starting the same run at once the second is refused and writes nothing."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.pending import RunLock, lock_holder
+
+    rfs = resolve(run_dir)
+    if rfs.local_root is not None:
+        rfs.makedirs()
+    lock = RunLock(rfs, "run")
+    if not lock.acquire():
+        raise _refuse_running(rfs.show(), lock_holder(rfs))
+    return lock
 
 
 @contextmanager
-def hold_run_lock(store: RunStore) -> Iterator[None]:
+def hold_run_lock(store: RunStore, lock: RunLock | None = None) -> Iterator[None]:
     """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
     then queue their interventions for the coordinator instead of writing. Refuses a run that another
-    process is running."""
-    lock = store.lock("run")
-    if not lock.acquire():
-        _refuse_if_running(store, store.running() or {})
+    process is running. ``lock``: the run's lock, already taken (``_lock_new_run``)."""
+    if lock is not None:
+        store.writer_lock = lock
+    else:
+        lock = store.lock("run")
+        if not lock.acquire():
+            raise _refuse_running(store.path, store.running())
     try:
         yield
     finally:
@@ -458,11 +499,13 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
+            lock = _lock_new_run(run_dir)
+            stack.callback(lock.release)
             store = RunStore.create(run_dir, config.to_toml())
-            stack.enter_context(hold_run_lock(store))
+            stack.enter_context(hold_run_lock(store, lock))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
-                "address": options.address or "local"})
+                "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"run {run_dir}: {config.islands.count} island(s) x {config.ea.population} "
                       f"individuals, generations 0..{config.ea.generations}, on {hosts.size} Ray "
@@ -532,7 +575,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
                 "committed": {str(i): int(committed.get(i, -1)) for i in range(n)},
-                "hosts": hosts.size, "address": options.address or "local"})
+                "hosts": hosts.size, "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"resuming {run_dir} after generation {low} on {hosts.size} Ray host(s)",
                       file=out, flush=True)

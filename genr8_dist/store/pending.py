@@ -26,10 +26,13 @@ import socket
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store._fs import RunFS
+
+if TYPE_CHECKING:
+    from genr8_dist.store.lease import Lease
 
 __all__ = ["LOCK_NAME", "QUEUE_DIR", "Queued", "RunLock", "enqueue", "lock_holder", "queued"]
 
@@ -52,7 +55,8 @@ class RunLock:
     """The run directory's lock for ``role`` (``"run"`` or ``"edit"``); see the module docstring.
 
     ``acquire()`` returns False when a running run holds it (a role ``edit`` holder is waited for, up
-    to ``wait`` seconds). On a run directory that is not on a local disk there is no lock: ``acquire``
+    to ``wait`` seconds). On S3 the lock is a lease object of the same name, taken and renewed with
+    conditional writes (``store/lease.py``). On other object stores there is no lock: ``acquire``
     returns True and the single-writer rule is the user's."""
 
     def __init__(self, rfs: RunFS, role: str, *, wait: float = 10.0) -> None:
@@ -60,18 +64,24 @@ class RunLock:
         self.role = role
         self.wait = wait
         self._fd: int | None = None
+        self._lease: Lease | None = None
 
     @property
     def held(self) -> bool:
-        return self._fd is not None
+        return self._fd is not None or (self._lease is not None and self._lease.held)
+
+    def check(self) -> None:
+        """Before a commit: ``StoreError`` when this holder's lease was lost (``Lease.check``)."""
+        if self._lease is not None:
+            self._lease.check()
 
     def acquire(self) -> bool:
         import fcntl
 
-        if self._fd is not None:
+        if self._fd is not None or self._lease is not None:
             return True
         if self._rfs.local_root is None:
-            return True
+            return self._acquire_lease()
         path = os.path.join(self._rfs.local_root, LOCK_NAME)
         deadline = time.monotonic() + self.wait
         while True:
@@ -96,7 +106,31 @@ class RunLock:
             self._fd = fd
             return True
 
+    def _acquire_lease(self) -> bool:
+        from genr8_dist.store.lease import Lease
+
+        objects = self._rfs.objects()
+        if objects is None:
+            return True
+        deadline = time.monotonic() + self.wait
+        while True:
+            lease = Lease(objects, LOCK_NAME, self.role)
+            holder = lease.acquire()
+            if holder is None:
+                self._lease = lease
+                return True
+            if holder.get("role") == "run":
+                return False
+            if time.monotonic() > deadline:
+                raise StoreError(f"{self._rfs.show()}: another command holds the run's lease (pid "
+                                 f"{holder.get('pid')} on {holder.get('host')}); try again when it has "
+                                 "finished")
+            time.sleep(0.2)
+
     def release(self) -> None:
+        if self._lease is not None:
+            lease, self._lease = self._lease, None
+            lease.release()
         if self._fd is None:
             return
         fd, self._fd = self._fd, None
@@ -116,7 +150,10 @@ def lock_holder(rfs: RunFS) -> dict[str, Any] | None:
     import fcntl
 
     if rfs.local_root is None:
-        return None
+        from genr8_dist.store.lease import lease_holder
+
+        objects = rfs.objects()
+        return None if objects is None else lease_holder(objects, LOCK_NAME)
     path = os.path.join(rfs.local_root, LOCK_NAME)
     try:
         fd = os.open(path, os.O_RDONLY)

@@ -299,6 +299,7 @@ class RunStore:
         self._stale = stale                            # the newest manifest is lost or damaged
         self.last_repair = ""                          # what the last repair() dropped, in one line
         self.set_aside: list[tuple[str, str]] = []     # users' files moved by collect_garbage (foreign.py)
+        self.writer_lock: RunLock | None = None        # checked before each manifest (a lease on S3)
 
     # --- building ----------------------------------------------------------------------------
     @classmethod
@@ -635,8 +636,10 @@ class RunStore:
 
     # --- the run's lock and its queue of pending interventions (store/pending.py) ------------
     def lock(self, role: str, *, wait: float = 10.0) -> RunLock:
-        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit)."""
-        return RunLock(self._fs, role, wait=wait)
+        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit); this
+        store's commits check it first (on S3, that its lease is still theirs)."""
+        self.writer_lock = RunLock(self._fs, role, wait=wait)
+        return self.writer_lock
 
     def running(self) -> dict[str, Any] | None:
         """Who runs the run now (role, pid, host, since), or None when no process holds its lock."""
@@ -1147,6 +1150,8 @@ class RunStore:
     def _publish(self, manifest: dict[str, Any], version: int) -> None:
         manifest["version"] = version
         manifest["written"] = _now().isoformat()
+        if self.writer_lock is not None:
+            self.writer_lock.check()
         try:
             self._fs.write_exclusive(_manifest_rel(version), _encode_manifest(manifest))
         except FileExistsError:
