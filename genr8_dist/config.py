@@ -8,7 +8,7 @@
     [genome]                      # length, codon_max, max_depth, max_wraps
     [ea]                          # population, generations, tournament, elites, crossover_rate,
                                   # mutation_rate, init, founder_retries, unique_retries, unique_redraws,
-                                  # within_used
+                                  # within_used, variation
     [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
     [environment]                 # inline (genr8_dist.environment's format), or
     # environment = "env.toml"    # a path, resolved relative to this file
@@ -40,6 +40,7 @@ __all__ = [
     "INITS",
     "SEARCH_MODES",
     "TOPOLOGIES",
+    "VARIATIONS",
     "EASettings",
     "GenomeSettings",
     "IslandSettings",
@@ -50,6 +51,7 @@ __all__ = [
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
 INITS: tuple[str, ...] = ("random", "ramped")
+VARIATIONS: tuple[str, ...] = ("auto", "ge")   # genr8_dist.evolution.variation
 SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
 EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
@@ -122,6 +124,7 @@ class EASettings:
     unique_retries: int = 10     # re-variations of an offspring that repeats a parent or a sibling
     unique_redraws: int = 3      # newcomers drawn for an offspring still wasted after those
     within_used: bool = False    # crossover and mutation only within the codons the mapper read
+    variation: str = "auto"      # "auto": the universe's own operators where its hooks declare them; "ge"
 
     def __post_init__(self) -> None:
         _set(self, "population", _int(self.population, "ea.population", 2, 1_000_000))
@@ -135,6 +138,7 @@ class EASettings:
         _set(self, "unique_retries", _int(self.unique_retries, "ea.unique_retries", 0, 1000))
         _set(self, "unique_redraws", _int(self.unique_redraws, "ea.unique_redraws", 0, 1000))
         _set(self, "within_used", _bool(self.within_used, "ea.within_used"))
+        _set(self, "variation", _choice(self.variation, "ea.variation", VARIATIONS))
 
 
 @dataclass(frozen=True, slots=True)
