@@ -346,19 +346,30 @@ class Direct:
 # The generative encoding.
 
 
+def _two(values: list, pad: Any) -> list:
+    """``values`` as the paper's two parameters: a third and later dropped, a missing one ``pad``."""
+    return (values + [pad, pad])[:2]
+
+
 class _Rules:
     """A mutable P0L-system: axiom ``[name, [a, b]]``, steps, productions ``name -> [[param, limit,
-    items], ...]`` in P0..P19 order (a production with no pair is left out of the text)."""
+    items], ...]`` in P0..P19 order (a production with no pair is left out of the text). Every
+    production has the paper's two parameters: a text written with one (section 2.2's example) is
+    read with a second that nothing uses, every call and the axiom given a 0 for it."""
 
     def __init__(self, system: voxels.System) -> None:
         (head,) = system.axiom
-        self.axiom = [head[1], [float(v) for v in head[2]]]
+        self.axiom = [head[1], _two([float(v) for v in head[2]], 0.0)]
         self.iterations = system.iterations
         self.productions: dict[str, list[list]] = {f"P{k}": [] for k in range(PRODUCTIONS)}
-        self.params: dict[str, tuple[str, ...]] = {}
         for name, production in system.productions.items():
-            self.productions[name] = [[i, float(limit), _thaw(items)] for i, limit, items in production.pairs]
-            self.params[name] = production.params
+            pairs = [[i, float(limit), _thaw(items)] for i, limit, items in production.pairs]
+            for _, _, items in pairs:
+                for lst in _lists(items):
+                    for item in lst:
+                        if item[0] == "call":
+                            item[2] = _two(list(item[2]), ("k", 0.0))
+            self.productions[name] = pairs
 
     def used(self) -> list[str]:
         """The productions the axiom reaches through calls (in P0..P19 order)."""
@@ -373,7 +384,7 @@ class _Rules:
         return [name for name in self.productions if name in seen and self.productions[name]]
 
     def text(self) -> str:
-        productions = {name: voxels.Production(name, self.params.get(name, ("n0", "n1")),
+        productions = {name: voxels.Production(name, ("n0", "n1"),
                                                tuple((i, limit, _freeze(items)) for i, limit, items in pairs))
                        for name, pairs in self.productions.items() if pairs}
         axiom = (("call", self.axiom[0], tuple(self.axiom[1])),)

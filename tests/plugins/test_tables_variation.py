@@ -161,3 +161,14 @@ def test_the_top_layers_filled_share():
     lattice[0:40:4, 3, 0:40] = True        # ten bars across a 37 x 40 hull
     assert V.top_filled_share(lattice) == pytest.approx(400 / (37 * 40))
     assert V.top_filled_share(np.zeros_like(solid)) == 0.0
+
+
+def test_the_operators_read_section_2_2s_one_parameter_example_as_the_same_table():
+    example = ("P0(4) iterations 4\nP0(n0): n0>1.0 -> [P1(n0*1.5)] ^(1) f(3) v(1) P0(n0-1)\n"
+               "P1(n0): n0>1.0 -> {[f(n0)] <(1)}(4)\n")
+    two = VAR._Rules(V.parse(example)).text()
+    assert two.startswith("P0(4,0) iterations 4\nP0(n0,n1): n0>1 -> [P1(n0*1.5,0)]")
+    assert V.develop(two).digest() == V.develop(example).digest()
+    rng = np.random.default_rng(8)
+    for _ in range(40):   # every child reads and develops
+        V.develop(VAR.GENERATIVE.recombine(rng, VAR.GENERATIVE.mutate(rng, example), example))
