@@ -62,7 +62,7 @@ def test_the_same_seed_gives_the_same_generations_and_a_step_recomputes_one(hist
 
 
 def test_half_of_the_offspring_are_recombined_and_half_mutated():
-    island = Island(_config(population=40), 0)
+    island = Island(_config(population=30), 0)
     founders = island.initial()
     kinds = [b.origin for g in (1, 2, 3) for b in island.breed(g, founders) if b.origin != "elite"]
     crossed = sum(k.startswith("crossover") for k in kinds)
