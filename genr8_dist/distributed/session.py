@@ -447,6 +447,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                                    command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
+            if store.upgrade():  # a run of layout 1: its folders become exact for any Parquet reader
+                print(f"{run_dir}: upgraded to layout 2 (docs/run-store.md)", file=out, flush=True)
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
