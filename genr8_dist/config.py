@@ -35,6 +35,7 @@ __all__ = [
     "INITS",
     "SEARCH_MODES",
     "TOPOLOGIES",
+    "VARIATIONS",
     "EASettings",
     "GenomeSettings",
     "IslandSettings",
@@ -46,6 +47,7 @@ __all__ = [
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
 INITS: tuple[str, ...] = ("random", "ramped")
+VARIATIONS: tuple[str, ...] = ("auto", "ge")   # genr8_dist.evolution.variation
 SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
 EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
@@ -170,6 +172,17 @@ class EASettings:
             "crossover cuts and mutation flips only within the codons the mapper read (PonyGE2's "
             "*within used*)"
         ))
+    variation: str = setting(
+        "auto", (
+            "`\"auto\"`: a universe whose `hooks.py` declares its own genome and operators "
+            "(`VARIATION`: the tables universes, Hornby & Pollack's structural mutation and "
+            "recombination) evolves with them, its genome the text's characters; every other "
+            "universe, and any under `\"ge\"`, with GE's (int genomes, one-point crossover, "
+            "int-flip). Under a universe's variation each offspring is one child, recombined with "
+            "probability `crossover_rate` (the paper: 0.5), else mutated; `mutation_rate`, "
+            "`genome.*`, `init` and `within_used` play no part (docs/phenotypes.md)"
+        ),
+        choices=VARIATIONS)
 
     def __post_init__(self) -> None:
         check_settings(self, "ea")

@@ -256,13 +256,14 @@ def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], Ed
     systems = [*edit.inject_systems, *((f"text {name}", _read_text(name)) for name in edit.inject_text)]
     if systems:
         from genr8_dist.evolution.evaluate import universe_for
+        from genr8_dist.evolution.variation import genome_of
         from genr8_dist.grammar.discovery import consent_for_stored
 
         consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks,
                            command=f"edit {store.path}")
         universe = universe_for(config)
         for label, text in systems:
-            genome = universe.invert(text, max_depth=config.genome.max_depth)
+            genome = genome_of(config, universe, text)   # GE's inversion, or a text genome
             injected.append({"island": edit.island or 0, "genome": [int(c) for c in genome],
                              "copy_of": None, "source": label})
     for ref in edit.inject_from:

@@ -21,7 +21,9 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
-   With ``ea.within_used`` the cut and the flips fall within the codons the mapper read.
+   With ``ea.within_used`` the cut and the flips fall within the codons the mapper read. A universe
+   that brings its own operators (``evolution.variation``: ``hooks.VARIATION``, ``ea.variation``)
+   breeds by them instead (``_vary``): one child per recombination or mutation of texts.
 
 No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
@@ -86,6 +88,7 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
+from genr8_dist.evolution.variation import Variation, genome_of, map_genome, text_genome, variation_for
 from genr8_dist.rng import stream
 
 if TYPE_CHECKING:
@@ -203,6 +206,8 @@ class Island:
         self._founder_draws: dict[str, list[int]] = {"plain": [0, 0], "bushy": [0, 0]}
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
+        # The universe's own operators (``evolution.variation``), or None: GE's.
+        self.variation: Variation | None = variation_for(config, self.evaluator.universe)
 
     # -- random streams -----------------------------------------------------------------------
 
@@ -214,6 +219,8 @@ class Island:
         """``count`` founder genomes drawn from ``rng`` (``ea.init``); ``first``: the position of the
         first in the ramp of depth limits."""
         g = self.config.genome
+        if self.variation is not None:
+            return [text_genome(self.variation.founder(rng)) for _ in range(count)]
         if self.config.ea.init == "ramped":
             from genr8_dist.grammar.derivations import ramped_genomes
 
@@ -223,8 +230,7 @@ class Island:
 
     def _mapped(self, genome: Genome) -> tuple[str | None, int]:
         """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
-        g = self.config.genome
-        result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
+        result = map_genome(self.config, self.evaluator.universe, genome)
         return result.text, result.codons_used
 
     @property
@@ -262,7 +268,10 @@ class Island:
 
     def _revary(self, rng, genome: Genome, codons: int) -> Genome:
         """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
-        a copy because its read codons are: flipping an unread one would change nothing)."""
+        a copy because its read codons are: flipping an unread one would change nothing); under a
+        universe's variation, its mutation of the text."""
+        if self.variation is not None:
+            return text_genome(self.variation.mutate(rng, "".join(map(chr, genome))))
         return int_flip_mutation(rng, genome, self.config.ea.mutation_rate, self.config.genome.codon_max,
                                  at_least_one=True, within=codons if codons > 0 else None)[0]
 
@@ -355,8 +364,7 @@ class Island:
         if isinstance(item, Individual):
             return tuple(item.genome), (item.id,)
         if isinstance(item, str):
-            genome = self.evaluator.universe.invert(item, max_depth=self.config.genome.max_depth)
-            return tuple(int(c) for c in genome), ()
+            return genome_of(self.config, self.evaluator.universe, item), ()
         return tuple(int(c) for c in item), ()
 
     def breed(self, generation: int, previous: Sequence[Individual] = (),
@@ -416,6 +424,8 @@ class Island:
         unique = ea.unique_retries > 0
         texts = {self._screen(b.evaluation.text)[1] for b in births
                  if b.evaluation is not None and b.evaluation.text is not None} if unique else set()
+        if self.variation is not None:
+            return self._vary(generation, births, size, pool, parent_ids, pick)
         while len(births) < size:
             a = pick(select_rng)
             b = pick(select_rng, first=False)
@@ -488,6 +498,53 @@ class Island:
             genome = tuple(int(c) for c in self._screened(rest, keys))
             keys.add(self._screen(self._mapped(genome)[0])[1])
             births.append(Birth(genome, "random"))
+        return births
+
+    def _vary(self, generation: int, births: list[Birth], size: int, pool: Sequence[Individual],
+              parent_ids: Sequence[str], pick: Callable[..., int]) -> list[Birth]:
+        """The offspring of ``generation`` by the universe's own operators (``evolution.variation``):
+        each one child, the recombination of two tournament winners with probability
+        ``ea.crossover_rate`` (origin ``crossover``), else the mutation of one (``mutation``). A child
+        whose text repeats a parent's or an earlier member's is mutated again, up to
+        ``ea.unique_retries`` times (origin ``crossover+mutation`` for a recombined one); a parent
+        whose text the operators cannot read gives a newcomer (origin ``random``)."""
+        ea, variation = self.config.ea, self.variation
+        assert variation is not None
+        select_rng = self.rng(generation, "selection")
+        vary_rng = self.rng(generation, "variation")
+        revary_rng = self.rng(generation, "revary")
+        unique = ea.unique_retries > 0
+        texts = {b.evaluation.text for b in births if b.evaluation is not None}
+        while len(births) < size:
+            a = pick(select_rng)
+            picked: tuple[int, ...] = (a,)
+            crossed = bool(vary_rng.random() < ea.crossover_rate)
+            if crossed:
+                b = pick(select_rng, first=False)
+                tries = 0
+                while unique and tries < _MATE_RETRIES and (b == a or pool[b].text == pool[a].text):
+                    b = pick(select_rng, first=False)
+                    tries += 1
+                self.stats.mates_redrawn += tries
+                picked = (a, b)
+            origin = "crossover" if crossed else "mutation"
+            try:
+                text = (variation.recombine(vary_rng, str(pool[a].text), str(pool[picked[-1]].text))
+                        if crossed else variation.mutate(vary_rng, str(pool[a].text)))
+            except Exception:   # a parent the operators cannot read (hand-written, say): a newcomer
+                text, origin, picked = variation.founder(vary_rng), "random", ()
+            avoid: set[str] = set()
+            for i in picked:
+                avoid |= _keys(pool[i])
+            for _ in range(ea.unique_retries if unique else 0):
+                if text not in avoid and text not in texts:
+                    break
+                self.stats.revaried_text += 1
+                text = variation.mutate(revary_rng, text)
+                origin = "crossover+mutation" if origin == "crossover" else origin
+            texts.add(text)
+            births.append(Birth(text_genome(text), origin, tuple(parent_ids[i] for i in picked), None,
+                                frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -643,7 +700,8 @@ class Island:
                 tally[kind][1] += 1
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
-            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) else "bushy"
+            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) \
+                or self.variation is not None else "bushy"
             if kind == "plain":
                 genome = tuple(self._screened(partial(self._founder, rng, index)))
             else:   # plain draws keep failing: bushy trees over the labels a derivation starts with

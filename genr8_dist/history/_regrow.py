@@ -60,6 +60,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     has none.
     """
     from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.evolution.variation import map_genome
     from genr8_dist.grammar.trust import may_run
     from genr8_dist.history._tables import individual
 
@@ -71,8 +72,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     phenotype = phenotype_for(store, config)
     if may_run(config.universe_source.code_digest):  # consented by phenotype_for: installed or trusted
         universe = universe_for(config)
-        mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
-                              max_wraps=config.genome.max_wraps)
+        mapped = map_genome(config, universe, row["genome"])
         text_matches = bool(mapped.valid) and mapped.text == text
     if text is None or row["phenotype_digest"] is None:
         return Regrown(row, config, phenotype, None, 0, None, text_matches)
