@@ -68,9 +68,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
-    p.add_argument("--distinct", action="store_true",
-                   help="one row per form (copies, elites and mirror images of one design are one form), "
-                        "with how many individuals share it")
+    rows = p.add_mutually_exclusive_group()
+    rows.add_argument("--distinct", action="store_true",
+                      help="one row per form, the default: copies, elites and mirror images of one design "
+                           "are one form, listed by its best with how many individuals share it")
+    rows.add_argument("--all", action="store_true",
+                      help="every individual, a form's copies included (elites rank twice)")
     p.add_argument("--pareto", action="store_true",
                    help="list the non-dominated designs over the Pareto objectives instead")
     p.set_defaults(handler=_top)
@@ -80,7 +83,8 @@ def register(subparsers: Any) -> None:
         description="Every ancestor of an individual, how each was made (crossover, mutation, elite, "
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3), or "
+                                            "'best': the run's best valid individual")
     p.add_argument("--depth", type=int32, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
@@ -93,7 +97,8 @@ def register(subparsers: Any) -> None:
                     "under, check its phenotype (a surface, a table...) against the recorded digest and "
                     "sizes, and export it.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index, or 'best': the "
+                                            "run's best valid individual")
     p.add_argument("-o", "--output", action="append", default=[], metavar="OUT",
                    help="export it in a format of its phenotype (a surface: .obj .ply .stl .glb through "
                         "trimesh or .3dm for Rhino; a table: .obj .ply .stl .glb); repeatable")
@@ -155,6 +160,19 @@ def _print(text: str) -> None:
     sys.stdout.write(text + "\n")
 
 
+def _individual_id(run: str, ident: str) -> str:
+    """``ident``, with ``best`` standing for the run's best valid individual (so a command written
+    before the run is known, as in the README, names an individual every run has)."""
+    if ident.strip().lower() != "best":
+        return ident
+    from genr8_dist import history
+
+    table = history.top(run, 1)
+    if table.num_rows == 0:
+        raise history.HistoryError(f"{run}: has no valid individual yet; name one as ISLAND-GENERATION-INDEX")
+    return str(table["id"][0].as_py())
+
+
 def _history(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
@@ -194,9 +212,9 @@ def _top(args: argparse.Namespace) -> int:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
-                        criterion=args.criterion, systems=args.systems, distinct=args.distinct)
+                        criterion=args.criterion, systems=args.systems, distinct=not args.all)
     columns = ["rank", *_text.shown_columns(table.column_names)]
-    if args.distinct:
+    if not args.all:
         columns.append("copies")
     if args.criterion:
         columns.insert(columns.index("fitness") + 1, "deviation")
@@ -219,6 +237,7 @@ def _lineage(args: argparse.Namespace) -> int:
     from genr8_dist.history import _text
 
     store = history.open_run(args.run)
+    args.id = _individual_id(args.run, args.id)
     table = history.lineage(store, args.id, depth=args.depth)
     _print(_text.lineage_text(table, args.id, per_generation=None if args.all else 12))
     if args.png:
@@ -236,6 +255,7 @@ def _show(args: argparse.Namespace) -> int:
 
     if args.png and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
+    args.id = _individual_id(args.run, args.id)
     if args.output:  # refuse a bad name before anything is grown or written
         phenotype = regrow.phenotype_of_run(args.run, args.id)
         for path in args.output:

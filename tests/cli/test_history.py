@@ -84,7 +84,7 @@ def test_history_csv_and_png(capsys, run_dir, rows, tmp_path):
 
 
 def test_top_prints_the_k_best_in_order(capsys, run_dir, rows):
-    code, out, _ = _run(capsys, "top", run_dir, "-k", 10)
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 10, "--all")
     assert code == 0
     lines = out.strip().splitlines()
     assert len(lines) == 11
@@ -95,8 +95,22 @@ def test_top_prints_the_k_best_in_order(capsys, run_dir, rows):
     assert [line.split()[4] for line in lines[1:]] == [f"{f:.5g}" for f in expected["fitness"].to_pylist()]
 
 
+def test_top_lists_distinct_forms_by_default(capsys, run_dir):
+    from genr8_dist import history
+
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 10)
+    assert code == 0
+    lines = out.strip().splitlines()
+    assert lines[0].split()[-1] == "copies"
+    distinct = history.top(str(run_dir), 10, distinct=True)
+    assert [line.split()[1] for line in lines[1:]] == distinct["id"].to_pylist()
+    assert len(set(distinct["id"].to_pylist())) == len(distinct)
+    assert sum(int(line.split()[-1]) for line in lines[1:]) >= len(lines) - 1
+
+
 def test_top_with_systems_of_the_last_generation(capsys, run_dir, rows):
-    code, out, _ = _run(capsys, "top", run_dir, "-k", 3, "--generation", -1, "--island", 0, "--systems")
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 3, "--generation", -1, "--island", 0, "--systems",
+                        "--all")
     assert code == 0
     last = rows.filter(pc.and_(rows["valid"], pc.and_(
         pc.equal(rows["generation"], history_runs.GENERATIONS - 1), pc.equal(rows["island"], 0))))
