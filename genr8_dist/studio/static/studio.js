@@ -53,9 +53,12 @@ function showState(s) {
   $("run-id").textContent = s.run_id;
   const pill = $("status"); pill.textContent = s.status; pill.className = "pill " + s.status;
   const g = Math.max(s.generation, 0);
-  $("gen-label").innerHTML = `generation <b>${s.generation}</b> of ${s.last_generation}` +
-    ` · ${s.islands.length} island${s.islands.length > 1 ? "s" : ""} × ${s.population}`;
-  $("gen-bar").style.width = `${Math.min(100, 100 * (s.generation + 1) / (s.last_generation + 1))}%`;
+  const done = s.completed ?? s.generation, founders = s.islands.filter((i) => (i.completed ?? i.generation) >= 0).length;
+  const where = done < 0 ? `evaluating the founders · <b>${founders}</b> of ${s.islands.length} islands done` :
+    `generation <b>${done}</b> of ${s.last_generation}` +
+    (done > s.generation ? ` <span class="live" title="completed by every island; committed up to ${s.generation}">· committed ${s.generation < 0 ? "none yet" : "to " + s.generation}</span>` : "");
+  $("gen-label").innerHTML = where + ` · ${s.islands.length} island${s.islands.length > 1 ? "s" : ""} × ${s.population}`;
+  $("gen-bar").style.width = `${Math.min(100, 100 * (Math.max(done, 0) + (done < 0 ? founders / s.islands.length : 1)) / (s.last_generation + 1))}%`;
   $("rate").textContent = s.individuals_per_second ? s.individuals_per_second.toFixed(1) : "–";
   $("left").textContent = s.status === "complete" ? "done" : fmtTime(s.seconds_left);
   const bests = s.islands.map((i) => i.best).filter((b) => b !== null);
@@ -64,7 +67,7 @@ function showState(s) {
   pause.disabled = !(s.status === "running" || s.status === "paused");
   pause.textContent = s.status === "paused" ? "Continue" : "Pause";
   $("islands").innerHTML = s.islands.map((i) =>
-    `<div class="chip"><i style="background:${islandColour(i.island)}"></i>i${i.island} · g${i.generation} · ${fmt(i.best, 3)}</div>`).join("");
+    `<div class="chip${(i.completed ?? i.generation) > i.generation ? " live" : ""}" title="${(i.completed ?? i.generation) > i.generation ? "completed, not yet committed" : "committed"}"><i style="background:${islandColour(i.island)}"></i>i${i.island} · g${Math.max(i.completed ?? i.generation, i.generation)}${(i.completed ?? i.generation) > i.generation ? "*" : ""} · ${fmt(i.best, 3)}</div>`).join("");
   const filter = $("island-filter");
   if (filter.options.length !== s.islands.length + 1) {
     filter.innerHTML = `<option value="">all</option>` + s.islands.map((i) => `<option value="${i.island}">${i.island}</option>`).join("");
@@ -417,8 +420,10 @@ async function drawArchive(g) {
 async function loadGeneration(g) {
   const data = await getJSON(`/api/generation?g=${g}`);
   ui.generation = data; ui.viewGen = data.generation;
-  $("gen-view").textContent = `generation ${data.generation}`;
+  $("gen-view").innerHTML = `generation ${data.generation}` + (data.durable === false ?
+    ` <span class="live" title="what the islands have completed; shown before its commit">· ${data.islands.length} island${data.islands.length === 1 ? "" : "s"}, not yet committed</span>` : "");
   document.body.dataset.generation = String(data.generation);
+  document.body.dataset.durable = String(data.durable !== false);
   const island = $("island-filter").value;
   const rows = data.individuals.filter((r) => island === "" || String(r.island) === island);
   $("gen-list").innerHTML = rows.slice(0, 80).map((r) =>
@@ -464,8 +469,8 @@ async function loadKinds(g, island) {
 $("kinds-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-prev").onclick = () => { $("follow").checked = ui.follow = false; if (ui.viewGen > 0) loadGeneration(ui.viewGen - 1); };
-$("gen-next").onclick = () => { if (ui.state && ui.viewGen < ui.state.generation) loadGeneration(ui.viewGen + 1); };
-$("follow").onchange = (e) => { ui.follow = e.target.checked; if (ui.follow && ui.state) loadGeneration(ui.state.generation); };
+$("gen-next").onclick = () => { if (ui.state && ui.viewGen < Math.max(ui.state.generation, ui.state.completed ?? -1)) loadGeneration(ui.viewGen + 1); };
+$("follow").onchange = (e) => { ui.follow = e.target.checked; if (ui.follow && ui.state) loadGeneration(Math.max(ui.state.completed ?? ui.state.generation, ui.state.generation)); };
 $("count").onchange = () => loadGeneration(ui.viewGen);
 $("island-filter").onchange = () => loadGeneration(ui.viewGen);
 $("show-env").onchange = () => loadGeneration(ui.viewGen);
@@ -485,7 +490,8 @@ async function select(id) {
   $("d-fitness").textContent = fmt(d.fitness, 4);
   const parents = d.parents.length ? ` of ${d.parents.join(" × ")}` : "";
   $("d-origin").textContent = `island ${d.island} · generation ${d.generation} · ${d.origin}${parents} · config v${d.config_version}` +
-    (d.hand_fitness.length ? ` · hand fitness ${d.hand_fitness.map((h) => fmt(h.fitness, 3)).join(", ")}` : "");
+    (d.hand_fitness.length ? ` · hand fitness ${d.hand_fitness.map((h) => fmt(h.fitness, 3)).join(", ")}` : "") +
+    (d.durable === false ? " · not yet committed" : "");
   $("hand-value").value = d.fitness !== null ? Number(d.fitness).toPrecision(4) : "";
   const maxDev = Math.max(1e-9, ...d.criteria.map((c) => c.weight && c.value !== null && c.target !== null ? c.weight * Math.abs(c.value - c.target) : 0));
   $("d-criteria").innerHTML = `<tr><th>criterion</th><th style="text-align:right">value</th><th style="text-align:right">target</th><th style="text-align:right">weight</th><th></th></tr>` +
@@ -554,12 +560,19 @@ async function poll() {
     const s = await getJSON("/api/state");
     ui.state = s;
     showState(s);
-    if (s.version !== ui.version) {
+    // the newest generation every island completed (before its commit), else the founders so far
+    const target = (s.completed ?? s.generation) >= 0 ? (s.completed ?? s.generation) : ((s.live && s.live.generations.includes(0)) ? 0 : -1);
+    const reached = (g) => s.islands.filter((i) => Math.max(i.completed ?? -1, i.generation) >= g).length;
+    const stale = ui.generation && ui.generation.durable === false &&
+      (s.version !== ui.version || (ui.generation.islands || []).length < reached(ui.viewGen));
+    if (target >= 0 && (ui.viewGen < 0 || (ui.follow && target !== ui.viewGen))) loadGeneration(target);
+    else if (stale) loadGeneration(ui.viewGen);
+    const liveCurves = (s.completed ?? -1) > (curves ? curves.last : -1);
+    if (s.version !== ui.version || liveCurves) {
       ui.version = s.version;
       // the generation's designs first (a few files), the curves apart (the whole run, once)
-      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) loadGeneration(s.generation);
       const asked = s.version;
-      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last) { curves = c; drawCurves(); } })
+      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last || c.live < curves.live) { curves = c; drawCurves(); } })
         .catch(() => { if (ui.version === asked) ui.version = -1; });   // asked again at the next poll
     }
   } catch (e) {
