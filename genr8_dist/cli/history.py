@@ -144,6 +144,24 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=_gallery)
 
     p = subparsers.add_parser(
+        "export", help="regrow many designs and export each: the Pareto front, a cluster, or ids",
+        description="Regrow every chosen design (checked bit-identical, as `genr8 show`) and write it in "
+                    "each chosen format into DIR, as DIR/ID.FORMAT.")
+    _run_arg(p)
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--front", action="store_true",
+                       help="the run's Pareto front (its non-dominated distinct designs, as top --pareto)")
+    which.add_argument("--cluster", type=int32, metavar="K",
+                       help="every distinct design of kind of form K (1: the largest cluster) of the run's "
+                            "--clusters N (as gallery --clusters)")
+    which.add_argument("--ids", nargs="+", metavar="ID", help="these individuals ('best' for the best)")
+    p.add_argument("--clusters", type=int32, default=12, metavar="N", help="kinds of form (default 12)")
+    p.add_argument("--format", action="append", metavar="EXT",
+                   help="obj, ply, stl, glb or 3dm (a surface), repeatable (default: obj)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write into")
+    p.set_defaults(handler=_export)
+
+    p = subparsers.add_parser(
         "report", help="one self-contained HTML page: curves, gallery, top individuals, interventions",
         description="Write one HTML file with the fitness curves, a gallery of the best designs, the "
                     "top individuals with their rewrite systems and criteria, and the interventions. "
@@ -334,6 +352,44 @@ def _gallery(args: argparse.Namespace) -> int:
                                     island=args.island, per_island=args.per_island,
                                     distinct=not args.duplicates)
     _print(f"wrote {args.output}: {info}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from genr8_dist import history
+    from genr8_dist.history import _regrow as regrow
+
+    if args.front:
+        ids = history.pareto_front(args.run)["id"].to_pylist()
+    elif args.cluster is not None:
+        kinds = history.clusters(args.run, args.clusters)
+        if not 1 <= args.cluster <= kinds.num_rows:
+            raise history.HistoryError(f"--cluster {args.cluster}: the run's {kinds.num_rows} kinds of form "
+                                       f"are 1..{kinds.num_rows}")
+        ids = kinds["member_ids"][args.cluster - 1].as_py()
+    else:
+        ids = list(dict.fromkeys(_individual_id(args.run, i) for i in args.ids))
+    out = Path(args.output)
+    inside = history.run_directory_holding(out)
+    if inside is not None:
+        raise history.HistoryError(f"{out}: is inside the run directory {inside}; choose a folder outside it")
+    formats = [f.lower().lstrip(".") for f in (args.format or ["obj"])]
+    if not ids:
+        raise history.HistoryError(f"{args.run}: no design to export")
+    phenotype = regrow.phenotype_of_run(args.run, ids[0])
+    paths = {i: [out / f"{i}.{f}" for f in formats] for i in ids}
+    for path in paths[ids[0]]:   # a bad format is refused before anything is grown or written
+        regrow.check_export_path(path, phenotype)
+    out.mkdir(parents=True, exist_ok=True)
+    for ident in ids:
+        result = regrow.regrow(args.run, ident)
+        for path in paths[ident]:
+            regrow.export(result, path)
+    more = f" and {len(ids) - 12} more" if len(ids) > 12 else ""
+    _print(f"wrote {len(ids)} design{'s' if len(ids) != 1 else ''} x {', '.join(formats)} to {out}: "
+           + " ".join(ids[:12]) + more)
     return 0
 
 
