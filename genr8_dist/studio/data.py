@@ -322,10 +322,10 @@ class RunView:
         # one read of the files holding generation g (only they are checked against their sha256)
         table = store.dataset((g, g)).to_table(columns=columns, filter=pc.field("generation") == g)
         front = self._pareto(table, store.criteria)
-        table = table.drop_columns(crits)
         rows = table.to_pylist()
         for r, on in zip(rows, front, strict=True):
             r["pareto"] = bool(on)
+            r["criteria"] = {c: _finite(r.pop(criterion_column(c))) for c in store.criteria}
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
                                  r["island"], r["index"]))
         for r in rows:
@@ -362,8 +362,7 @@ class RunView:
         front = self._pareto(table, store.criteria) if rows else []
         for r, on in zip(rows, front, strict=True):
             r["pareto"] = bool(on)
-            for c in crits:
-                r.pop(c, None)
+            r["criteria"] = {c: r.pop(criterion_column(c), None) for c in store.criteria}
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if r["fitness"] is not None else math.inf,
                                  r["island"], r["index"]))
         return {"generation": g, "newest": newest, "individuals": rows, "durable": False,

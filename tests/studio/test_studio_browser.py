@@ -8,6 +8,7 @@ temporary folder)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -226,6 +227,7 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
     generation is shown as durable."""
     pytest.importorskip("selenium")
     pytest.importorskip("PIL")
+    from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
     from genr8_dist.store import RunStore
@@ -274,6 +276,31 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
         first.click()
         _wait("the design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
         assert "not yet committed" in driver.find_element(By.ID, "d-origin").text
+
+        # parallel coordinates: a line per valid design; a brush along the fitness axis keeps the
+        # designs in its range, in the list and in 3D
+        driver.find_element(By.ID, "follow").click()          # hold this generation while brushing
+        _wait("every island's part of it", lambda: "2 islands" in driver.find_element(By.ID, "gen-view").text
+              or data("durable") == "true", 120)
+        time.sleep(1.5)
+        lines_drawn = driver.find_elements(By.CSS_SELECTOR, "#pc path.design")
+        valid = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
+        assert len(lines_drawn) == len(valid) >= 4
+        axis = driver.find_element(By.CSS_SELECTOR, '#pc g[data-axis="fitness"] rect.hit')
+        height = axis.size["height"]
+        ActionChains(driver).move_to_element_with_offset(axis, 0, int(height * 0.5) - 6).click_and_hold() \
+            .move_by_offset(0, -int(height * 0.35)).pause(0.2).release().perform()
+        _wait("the brush to apply", lambda: 0 < int(data("brushed") or 0) < len(valid), 20)
+        brushed = int(data("brushed"))
+        _wait("the brushed designs in 3D", lambda: 1 <= int(data("surfaces") or 0) <= brushed, 60)
+        listed = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
+        assert len(listed) == brushed
+        assert len(driver.find_elements(By.CSS_SELECTOR, "#pc path.design.out")) == len(valid) - brushed
+        time.sleep(1.0)
+        driver.save_screenshot(str(shots / "studio-parallel-coordinates.png"))
+        driver.find_element(By.ID, "pc-clear").click()
+        _wait("the brush cleared", lambda: int(data("brushed") or 0) == len(valid), 20)
+        driver.find_element(By.ID, "follow").click()
         shown = [int(data("generation"))]
         _wait("a later generation, still before the commit", lambda: shown.append(int(data("generation")))
               or shown[-1] > shown[0] or RunStore.open(live).committed_generations(), 240)
@@ -285,8 +312,13 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
     finally:
         if driver is not None:
             driver.quit()
+        for _ in range(3):   # the first stops the run, the next closes the studio
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.wait(30)
         if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
+            proc.kill()
         rc = proc.wait(60)
     assert rc == 0, "".join(lines[-20:])
     assert not (live / "live").exists() and not (live / "_running.lock").exists()

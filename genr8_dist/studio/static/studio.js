@@ -82,9 +82,9 @@ function showState(s) {
 const escapeHTML = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
 
 // ------------------------------------------------------------------------------------------- charts
-const SVG = "http://www.w3.org/2000/svg";
+const SVGNS = "http://www.w3.org/2000/svg";
 function el(name, attrs, parent) {
-  const e = document.createElementNS(SVG, name);
+  const e = document.createElementNS(SVGNS, name);
   for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
   if (parent) parent.appendChild(e);
   return e;
@@ -426,15 +426,17 @@ async function loadGeneration(g) {
   document.body.dataset.durable = String(data.durable !== false);
   const island = $("island-filter").value;
   const rows = data.individuals.filter((r) => island === "" || String(r.island) === island);
-  $("gen-list").innerHTML = rows.slice(0, 80).map((r) =>
+  $("gen-list").innerHTML = rows.filter((r) => !ui.brushes.size || brushed(r)).slice(0, 80).map((r) =>
     `<div data-id="${r.id}" class="${r.valid ? "" : "invalid"}${r.id === ui.selected ? " selected" : ""}">` +
     `<b><i style="color:${islandColour(r.island)}">■</i> ${r.id}${r.pareto ? ' <em title="on the Pareto front">◆</em>' : ""}</b>` +
     `<span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
   const version = rows.length ? rows[0].config_version : null;
   if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
+  ui.pcRows = rows; drawPC();
+  const pool = ui.brushes.size ? rows.filter(brushed) : rows;   // a brush on the criteria chooses the designs
   const choice = $("count").value;
-  let shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) :
-    rows.filter((r) => r.valid).slice(0, choice === "kinds" ? 12 : Number(choice));
+  let shown = choice === "pareto" ? pool.filter((r) => r.pareto).slice(0, 36) :
+    pool.filter((r) => r.valid).slice(0, choice === "kinds" ? 12 : Number(choice));
   ui.kinds = null;
   if (choice === "kinds") {
     const kinds = await loadKinds(data.generation, island);
@@ -477,9 +479,92 @@ $("show-env").onchange = () => loadGeneration(ui.viewGen);
 $("focus").onclick = () => { const d = ui.designs.get(ui.selected); if (d) { d.holder.updateMatrixWorld(true); frame(new THREE.Box3().setFromObject(d.object)); } };
 $("overview").onclick = frameAll;
 
+// ------------------------------------------------------------------------- parallel coordinates
+// Wallacei's view: every valid design of the generation as a line across its fitness and weighted
+// criteria (raw values; the target marked on each axis). Dragging along an axis brushes a range; the
+// designs inside every brush are the ones listed and shown in 3D. Click a line to select its design.
+ui.brushes = new Map();
+function pcAxes() {
+  const crits = (ui.state ? ui.state.criteria : []).filter((c) => c.weight);
+  return [{ key: "fitness", label: "fitness", get: (r) => r.fitness, target: null },
+    ...crits.map((c) => ({ key: c.name, label: c.name.replace("_", " "), get: (r) => (r.criteria || {})[c.name] ?? null, target: c.target }))];
+}
+function brushed(r) {
+  for (const [key, [lo, hi]] of ui.brushes) {
+    const axis = (ui.pcAxes || pcAxes()).find((a) => a.key === key);
+    const v = axis ? axis.get(r) : null;
+    if (v === null || v === undefined || !Number.isFinite(v) || v < lo || v > hi) return false;
+  }
+  return true;
+}
+function drawPC() {
+  const svg = $("pc"), panel = $("pc-panel");
+  panel.classList.toggle("hidden", !$("show-pc").checked);
+  svg.innerHTML = "";
+  const rows = (ui.pcRows || []).filter((r) => r.valid);
+  const W = svg.clientWidth || 800, H = svg.clientHeight || 196, top = 22, bottom = H - 16;
+  const axes = pcAxes(); ui.pcAxes = axes;
+  const xs = axes.map((_, i) => 60 + i * (W - 120) / Math.max(1, axes.length - 1));
+  const scales = axes.map((a) => {
+    const vs = rows.map(a.get).filter((v) => v !== null && Number.isFinite(v));
+    if (a.target !== null && a.target !== undefined) vs.push(a.target);
+    let lo = Math.min(...vs), hi = Math.max(...vs);
+    if (!vs.length) { lo = 0; hi = 1; }
+    if (hi - lo < 1e-12) { lo -= 0.5; hi += 0.5; }
+    return { lo, hi, y: (v) => bottom - (v - lo) / (hi - lo) * (bottom - top), v: (y) => lo + (bottom - y) / (bottom - top) * (hi - lo) };
+  });
+  let inside = 0;
+  const lines = el("g", {}, svg);
+  rows.forEach((r, rank) => {
+    const pts = axes.map((a, i) => { const v = a.get(r); return v === null || !Number.isFinite(v) ? null : [xs[i], scales[i].y(v)]; });
+    const d = pts.map((p, i) => p ? `${i && pts[i - 1] ? "L" : "M"}${p[0].toFixed(1)},${p[1].toFixed(1)}` : "").join("");
+    const ok = !ui.brushes.size || brushed(r);
+    inside += ok ? 1 : 0;
+    const path = el("path", { d, class: `design${ok ? "" : " out"}${r.id === ui.selected ? " selected" : ""}`,
+      stroke: rankColour(rows.length > 1 ? rank / (rows.length - 1) : 0).getStyle(), "data-id": r.id }, lines);
+    el("title", {}, path).textContent = `${r.id} · fitness ${fmt(r.fitness, 4)}`;
+    path.addEventListener("click", () => select(r.id));
+  });
+  axes.forEach((a, i) => {
+    const g = el("g", { class: "axis", "data-axis": a.key }, svg), sc = scales[i], x = xs[i];
+    el("line", { x1: x, x2: x, y1: top, y2: bottom }, g);
+    el("text", { x, y: 12, "text-anchor": "middle" }, g).textContent = a.label;
+    el("text", { x: x + 4, y: top + 4, class: "tick" }, g).textContent = fmt(sc.hi, 3);
+    el("text", { x: x + 4, y: bottom, class: "tick" }, g).textContent = fmt(sc.lo, 3);
+    if (a.target !== null && a.target !== undefined) {
+      const ty = sc.y(a.target);
+      el("line", { x1: x - 7, x2: x + 7, y1: ty, y2: ty, class: "target" }, g);
+    }
+    const b = ui.brushes.get(a.key);
+    if (b) el("rect", { x: x - 8, width: 16, y: sc.y(b[1]), height: Math.max(2, sc.y(b[0]) - sc.y(b[1])), class: "brush" }, g);
+    const hit = el("rect", { x: x - 14, width: 28, y: top - 4, height: bottom - top + 8, class: "hit" }, g);
+    hit.addEventListener("mousedown", (ev) => {
+      ev.preventDefault();
+      const box = svg.getBoundingClientRect(), y0 = ev.clientY - box.top;
+      let moved = false;
+      const move = (e) => {
+        const y1 = Math.max(top, Math.min(bottom, e.clientY - box.top)); moved = true;
+        ui.brushes.set(a.key, [Math.min(sc.v(y0), sc.v(y1)), Math.max(sc.v(y0), sc.v(y1))]); drawPC();
+      };
+      const up = () => {
+        window.removeEventListener("mousemove", move); window.removeEventListener("mouseup", up);
+        if (!moved) ui.brushes.delete(a.key);   // a click on an axis clears its brush
+        loadGeneration(ui.viewGen);
+      };
+      window.addEventListener("mousemove", move); window.addEventListener("mouseup", up);
+    });
+  });
+  $("pc-count").textContent = ui.brushes.size ? `${inside} of ${rows.length} designs brushed` : `${rows.length} designs`;
+  document.body.dataset.brushed = String(ui.brushes.size ? inside : rows.length);
+}
+$("show-pc").onchange = drawPC;
+$("pc-clear").onclick = () => { ui.brushes.clear(); loadGeneration(ui.viewGen); };
+window.addEventListener("resize", drawPC);
+
 // ------------------------------------------------------------------------------------------ design
 async function select(id) {
   ui.selected = id;
+  document.querySelectorAll("#pc path.design").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   document.querySelectorAll("#gen-list [data-id], #kinds-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   highlight();
   let d;
