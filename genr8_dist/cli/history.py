@@ -68,9 +68,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
-    p.add_argument("--distinct", action="store_true",
-                   help="one row per form (copies, elites and mirror images of one design are one form), "
-                        "with how many individuals share it")
+    rows = p.add_mutually_exclusive_group()
+    rows.add_argument("--distinct", action="store_true",
+                      help="one row per form, the default: copies, elites and mirror images of one design "
+                           "are one form, listed by its best with how many individuals share it")
+    rows.add_argument("--all", action="store_true",
+                      help="every individual, a form's copies included (elites rank twice)")
     p.add_argument("--pareto", action="store_true",
                    help="list the non-dominated designs over the Pareto objectives instead")
     p.set_defaults(handler=_top)
@@ -80,7 +83,8 @@ def register(subparsers: Any) -> None:
         description="Every ancestor of an individual, how each was made (crossover, mutation, elite, "
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3), or "
+                                            "'best': the run's best valid individual")
     p.add_argument("--depth", type=int32, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
@@ -93,7 +97,8 @@ def register(subparsers: Any) -> None:
                     "under, check its phenotype (a surface, a table...) against the recorded digest and "
                     "sizes, and export it.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index, or 'best': the "
+                                            "run's best valid individual")
     p.add_argument("-o", "--output", action="append", default=[], metavar="OUT",
                    help="export it in a format of its phenotype (a surface: .obj .ply .stl .glb through "
                         "trimesh or .3dm for Rhino; a table: .obj .ply .stl .glb); repeatable")
@@ -142,6 +147,24 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=_gallery)
 
     p = subparsers.add_parser(
+        "export", help="regrow many designs and export each: the Pareto front, a cluster, or ids",
+        description="Regrow every chosen design (checked bit-identical, as `genr8 show`) and write it in "
+                    "each chosen format into DIR, as DIR/ID.FORMAT.")
+    _run_arg(p)
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--front", action="store_true",
+                       help="the run's Pareto front (its non-dominated distinct designs, as top --pareto)")
+    which.add_argument("--cluster", type=int32, metavar="K",
+                       help="every distinct design of kind of form K (1: the largest cluster) of the run's "
+                            "--clusters N (as gallery --clusters)")
+    which.add_argument("--ids", nargs="+", metavar="ID", help="these individuals ('best' for the best)")
+    p.add_argument("--clusters", type=int32, default=12, metavar="N", help="kinds of form (default 12)")
+    p.add_argument("--format", action="append", metavar="EXT",
+                   help="obj, ply, stl, glb or 3dm (a surface), repeatable (default: obj)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write into")
+    p.set_defaults(handler=_export)
+
+    p = subparsers.add_parser(
         "report", help="one self-contained HTML page: curves, gallery, top individuals, interventions",
         description="Write one HTML file with the fitness curves, a gallery of the best designs, the "
                     "top individuals with their rewrite systems and criteria, and the interventions. "
@@ -166,6 +189,19 @@ def _sayer(*paths: Any) -> Any:
     if any(p is not None and is_stdout(p) for p in paths):
         return lambda text: print(text, file=sys.stderr)
     return _print
+
+
+def _individual_id(run: str, ident: str) -> str:
+    """``ident``, with ``best`` standing for the run's best valid individual (so a command written
+    before the run is known, as in the README, names an individual every run has)."""
+    if ident.strip().lower() != "best":
+        return ident
+    from genr8_dist import history
+
+    table = history.top(run, 1)
+    if table.num_rows == 0:
+        raise history.HistoryError(f"{run}: has no valid individual yet; name one as ISLAND-GENERATION-INDEX")
+    return str(table["id"][0].as_py())
 
 
 def _history(args: argparse.Namespace) -> int:
@@ -207,9 +243,9 @@ def _top(args: argparse.Namespace) -> int:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
-                        criterion=args.criterion, systems=args.systems, distinct=args.distinct)
+                        criterion=args.criterion, systems=args.systems, distinct=not args.all)
     columns = ["rank", *_text.shown_columns(table.column_names)]
-    if args.distinct:
+    if not args.all:
         columns.append("copies")
     if args.criterion:
         columns.insert(columns.index("fitness") + 1, "deviation")
@@ -232,6 +268,7 @@ def _lineage(args: argparse.Namespace) -> int:
     from genr8_dist.history import _text
 
     store = history.open_run(args.run)
+    args.id = _individual_id(args.run, args.id)
     table = history.lineage(store, args.id, depth=args.depth)
     _print(_text.lineage_text(table, args.id, per_generation=None if args.all else 12))
     if args.png:
@@ -251,6 +288,7 @@ def _show(args: argparse.Namespace) -> int:
 
     if args.png and args.png != "-" and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
+    args.id = _individual_id(args.run, args.id)
     if args.output:  # refuse a bad name before anything is grown or written
         phenotype = regrow.phenotype_of_run(args.run, args.id)
         for path in args.output:
@@ -329,6 +367,44 @@ def _gallery(args: argparse.Namespace) -> int:
                                     island=args.island, per_island=args.per_island,
                                     distinct=not args.duplicates)
     _sayer(args.output)(f"wrote {args.output}: {info}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from genr8_dist import history
+    from genr8_dist.history import _regrow as regrow
+
+    if args.front:
+        ids = history.pareto_front(args.run)["id"].to_pylist()
+    elif args.cluster is not None:
+        kinds = history.clusters(args.run, args.clusters)
+        if not 1 <= args.cluster <= kinds.num_rows:
+            raise history.HistoryError(f"--cluster {args.cluster}: the run's {kinds.num_rows} kinds of form "
+                                       f"are 1..{kinds.num_rows}")
+        ids = kinds["member_ids"][args.cluster - 1].as_py()
+    else:
+        ids = list(dict.fromkeys(_individual_id(args.run, i) for i in args.ids))
+    out = Path(args.output)
+    inside = history.run_directory_holding(out)
+    if inside is not None:
+        raise history.HistoryError(f"{out}: is inside the run directory {inside}; choose a folder outside it")
+    formats = [f.lower().lstrip(".") for f in (args.format or ["obj"])]
+    if not ids:
+        raise history.HistoryError(f"{args.run}: no design to export")
+    phenotype = regrow.phenotype_of_run(args.run, ids[0])
+    paths = {i: [out / f"{i}.{f}" for f in formats] for i in ids}
+    for path in paths[ids[0]]:   # a bad format is refused before anything is grown or written
+        regrow.check_export_path(path, phenotype)
+    out.mkdir(parents=True, exist_ok=True)
+    for ident in ids:
+        result = regrow.regrow(args.run, ident)
+        for path in paths[ident]:
+            regrow.export(result, path)
+    more = f" and {len(ids) - 12} more" if len(ids) > 12 else ""
+    _print(f"wrote {len(ids)} design{'s' if len(ids) != 1 else ''} x {', '.join(formats)} to {out}: "
+           + " ".join(ids[:12]) + more)
     return 0
 
 

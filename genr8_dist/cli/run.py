@@ -129,7 +129,8 @@ def _edit(args: argparse.Namespace) -> int:
              f"of island {h['island']}" for h in result.hand_fitness]
     if result.queued:
         print(f"{args.run_dir}: the run is running; the edit is queued ({result.queued}) and takes effect "
-              f"at its next epoch (generation {result.effective_generation} or later)")
+              f"at the first generation the run has not started (generation {result.effective_generation} "
+              "or later)")
         for line in what:
             print(f"  {line}")
         return 0
@@ -188,7 +189,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Record a new configuration version of the run in DIR, in force from the "
                     "generation after the last committed one, and individuals to inject there. "
                     "Then `genr8 resume DIR`. On a run that is running, the edit is queued and the run "
-                    "takes it at its next epoch, without stopping.")
+                    "takes it at the first generation it has not started, without stopping.")
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change a configuration value (TOML syntax), e.g. fitness.size.weight=2, "

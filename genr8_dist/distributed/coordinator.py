@@ -23,10 +23,12 @@ evaluates a share of that generation's genomes (``actors.IslandHost``), which ch
 is done, never what it computes.
 
 Interventions queued while the run runs (``genr8 edit`` on a running run, the studio) are taken
-before each epoch and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
+before each epoch and, as each generation completes, inside one (in force from the first generation no
+island has started), and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
 ``pause`` holds the run between epochs, with Ray up, until a ``continue``.
 
-Hooks (``on_generation``, ``on_commit``) let a caller watch the run (tests use them to inject faults).
+Hooks (``on_generation``, ``on_commit``, ``on_island``: one island's generation, before its commit) let
+a caller watch the run (tests use them to inject faults; the studio's live view, ``store/live.py``).
 """
 
 from __future__ import annotations
@@ -151,6 +153,7 @@ class Coordinator:
         stop: StopRequest | None = None,
         on_generation: Callable[[Coordinator, int], None] | None = None,
         on_commit: Callable[[Coordinator, Mapping[int, int]], None] | None = None,
+        on_island: Callable[[Coordinator, int, int, list[Individual]], None] | None = None,
         poll_seconds: float = 0.2,
     ) -> None:
         self.store = store
@@ -158,6 +161,7 @@ class Coordinator:
         self.stop = stop if stop is not None else StopRequest()
         self.on_generation = on_generation
         self.on_commit = on_commit
+        self.on_island = on_island
         self.poll_seconds = poll_seconds
         self._created = time.perf_counter()
         self.summary = RunSummary(hosts=hosts.size)
@@ -177,6 +181,7 @@ class Coordinator:
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
         self._hand = self._load_hand(history)
+        self._now: Epoch | None = None   # the epoch under way
 
     # -- reading the store ----------------------------------------------------------------------
 
@@ -240,13 +245,14 @@ class Coordinator:
                     (marked, float(item["fitness"])))
         return out
 
-    def _take_interventions(self) -> None:
+    def _take_interventions(self, during: int | None = None) -> None:
         """Record the interventions queued while the run runs (``intervene.take_queued``) and take
-        them into account from the next generation: new configuration versions, injections, hand
-        fitness, a longer run; ``pause`` and ``continue`` set ``paused``."""
+        them into account from the next generation (``during``: from that one, inside an epoch): new
+        configuration versions, injections, hand fitness, a longer run; ``pause`` and ``continue`` set
+        ``paused``."""
         from genr8_dist.distributed.intervene import take_queued
 
-        taken = self._timed_store(take_queued, self.store)
+        taken = self._timed_store(take_queued, self.store, during=during)
         if not taken:
             return
         for kind, outcome in taken:
@@ -345,7 +351,28 @@ class Coordinator:
         return Event(kind=kind, generation=max(0, generation), island=island, detail=detail)
 
     def _epoch(self, committed: dict[int, int], end: int) -> dict[int, int]:
-        return Epoch(self, committed, end).run()
+        self._now = Epoch(self, committed, end)
+        try:
+            return self._now.run()
+        finally:
+            self._now = None
+
+    def _island_done(self, island: int, generation: int, population: list[Individual]) -> None:
+        """One island completed one generation (not committed yet): take the edits queued meanwhile;
+        ``on_island`` sees it (the studio's live view, ``store/live.py``)."""
+        if self.on_island is not None:
+            self.on_island(self, island, generation, population)
+        self._take_during_epoch()
+
+    def _take_during_epoch(self) -> None:
+        """The edits queued meanwhile, in force from the first generation of the epoch under way that
+        no island has started (``intervene.take_queued``'s ``during``)."""
+        epoch = self._now
+        if epoch is None or not self._timed_store(self.store.queued):
+            return
+        first = max([*epoch.cursor.values(), *(g for _, g in epoch.pending.values())]) + 1
+        if first <= epoch.end:
+            self._take_interventions(during=first)
 
     @staticmethod
     def _settle(offers: Sequence[Any]) -> None:
@@ -482,6 +509,7 @@ class Epoch:
         generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
+        self.run_._island_done(island, g, population)
         if g < self.end:
             self.submit(island)
         low = min(self.cursor.values())

@@ -417,14 +417,25 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
     stop = stop if stop is not None else StopRequest()
+    live = store.live()
+
+    def island_done(coordinator: Coordinator, island: int, generation: int, population: Any) -> None:
+        live.write(island, generation, population)   # the studio's live view
+
+    def committed(coordinator: Coordinator, after: Any) -> None:
+        live.drop_committed(after)
+        if on_commit is not None:
+            on_commit(coordinator, after)
+
     try:
-        coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=on_commit,
-                                  progress=None)
+        coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
+                                  on_island=island_done, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
         with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):
             return coordinator.run()
     finally:
+        live.clear()
         if own_hosts:
             hosts.shutdown()
 

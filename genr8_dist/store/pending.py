@@ -4,15 +4,18 @@
 runs the evolution (``genr8 run``/``resume``, role ``run``) and, for the moment it writes, by
 ``genr8 edit`` (role ``edit``). The kernel drops it when its holder dies, so a killed driver never
 leaves a run looking busy. The file says who holds it (role, pid, host, since) for messages; whether
-it is held is what the kernel answers, never what the file says.
+it is held is what the kernel answers, never what the file says. Its holder removes the file when it
+lets go (the run finished, failed or was interrupted), so only a killed holder leaves one behind; a
+process that locked a file removed meanwhile sees it is no longer the one at the path and tries again.
 
 **The queue** (``queue/NNNNNNNNNN.json``) holds interventions asked for while the run is running (by
 ``genr8 edit`` or the studio). A request is written under the next free number with an exclusive link,
 so two writers never overwrite each other: the loser of a race takes the next number. The coordinator,
-the run's only writer, takes the requests in number order at its next epoch, records each as ``edit``
-records an edit (a configuration version and an ``intervention`` event naming the request's ``id``),
-then deletes the file; a request whose ``id`` is already recorded (a crash between the two) is only
-deleted. Requests are plain JSON data; nothing in them is code.
+the run's only writer, takes the requests in number order (as generations complete,
+``intervene.take_queued``), records each as ``edit`` records an edit (a configuration version and
+an ``intervention`` event naming the request's ``id``), then deletes the file; a request whose ``id``
+is already recorded (a crash between the two) is only deleted. Requests are plain JSON data; nothing
+in them is code.
 """
 
 from __future__ import annotations
@@ -99,6 +102,13 @@ class RunLock:
                                      "try again when it has finished") from None
                 time.sleep(0.05)
                 continue
+            try:
+                current = os.stat(path).st_ino
+            except FileNotFoundError:
+                current = None
+            if current != os.fstat(fd).st_ino:   # its holder removed it as we locked it: lock the new one
+                os.close(fd)
+                continue
             info = {"role": self.role, "pid": os.getpid(), "host": socket.gethostname(),
                     "since": datetime.now(UTC).isoformat()}
             os.ftruncate(fd, 0)
@@ -136,6 +146,9 @@ class RunLock:
         fd, self._fd = self._fd, None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
+        if self._rfs.local_root is not None:   # removed while still held: no holder can meet a stale one
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(self._rfs.local_root, LOCK_NAME))
         os.close(fd)   # closing the descriptor drops the flock
 
     def __enter__(self) -> RunLock:

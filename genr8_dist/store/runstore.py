@@ -51,6 +51,7 @@ from genr8_dist.store import views
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
 from genr8_dist.store.audit import below_gap, describe_missing, head_damaged, missing_manifests
 from genr8_dist.store.foreign import is_store_name, set_aside
+from genr8_dist.store.live import LIVE_DIR
 from genr8_dist.store.pending import (
     LOCK_NAME,
     QUEUE_DIR,
@@ -339,7 +340,7 @@ class RunStore:
                     "choose a new directory, or resume that run"
                 )
             if state == "foreign":
-                foreign = [n for n in rfs.listdir() if n not in _NAMES | {LOCK_NAME, QUEUE_DIR}]
+                foreign = [n for n in rfs.listdir() if n not in _NAMES | {LOCK_NAME, QUEUE_DIR, LIVE_DIR}]
                 raise StoreError(
                     f"{rfs.show()}: exists and is not empty (holds {foreign[0]!r}); "
                     "a new run needs a new or empty directory"
@@ -648,6 +649,12 @@ class RunStore:
     def enqueue(self, request: dict[str, Any]) -> Queued:
         """Queue an intervention for the running run's next epoch (plain JSON data)."""
         return enqueue(self._fs, request)
+
+    def live(self) -> Any:
+        """The live view of the running run (``store/live.py``): what it has completed, not committed."""
+        from genr8_dist.store import live
+
+        return live.LiveView(self._fs)
 
     def queued(self) -> list[Queued]:
         """The pending interventions, in the order the coordinator takes them."""
@@ -1420,7 +1427,7 @@ def half_created(rfs: RunFS) -> str:
     manifest, _ = _load_state(rfs)
     if manifest is not None:
         return "run"
-    if [n for n in names if n not in _NAMES | {LOCK_NAME, QUEUE_DIR}]:
+    if [n for n in names if n not in _NAMES | {LOCK_NAME, QUEUE_DIR, LIVE_DIR}]:
         return "foreign"
     data = [n for f in _DATA for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
     return "damaged" if data else "half-created"

@@ -54,7 +54,7 @@ def _run(n_islands: int = 2, interval: int = 10):
         _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
         _pending_events=[], _event=Coordinator._event,
         progress=SimpleNamespace(message=messages.append),
-        _show=lambda g, results: shown.append(g))
+        _show=lambda g, results: shown.append(g), _island_done=lambda island, g, population: None)
     return run, shown, messages
 
 
