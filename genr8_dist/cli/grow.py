@@ -131,9 +131,8 @@ def _cap_message(capped: str, env: Any) -> str:
 
 
 def _handle(args: argparse.Namespace) -> int:
-    from genr8_dist.hemls import grow, load_system
-
     from genr8_dist.export import check_smooth
+    from genr8_dist.hemls import grow, load_system
     from genr8_dist.hemls.meshing import check_meshing
 
     check_smooth(args.smooth)
