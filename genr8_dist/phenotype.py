@@ -12,6 +12,9 @@ the report only ever talk to a phenotype through this interface:
                                            ``size_<name>`` columns beside the criteria
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
 ``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
+``screen(text, config) -> (bool, str)``    (optional) what the text shows before development:
+                                           trivial for sure, and a key equal for texts that
+                                           develop alike (default: never trivial, the text)
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
@@ -108,6 +111,13 @@ class Phenotype(ABC):
         place in generation 0 (sensible initialisation redraws it); by default never."""
         return False
 
+    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+        """What ``text`` shows before it is developed: whether its development is sure to be
+        ``trivial`` (an island then draws or varies it again without developing it), and a key
+        equal for two texts only when they develop into one phenotype (a copy, known without
+        developing it); by default never trivial, and the text itself."""
+        return False, text
+
     def describe(self, developed: Developed) -> str:
         """One line saying what was developed (``genr8 show``): its counts, else its kind."""
         parts = [f"{n} {k}" for k, n in developed.counts.items()]
@@ -185,6 +195,15 @@ class SurfacePhenotype(Phenotype):
     def trivial(self, evaluation: Any) -> bool:
         """At most one region: the axiom polygon as it was, or grown without a subdivision."""
         return evaluation.sizes.get("regions", 0) <= 1
+
+    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+        """Trivial when no rule that can fire draws a branch (no region can ever split: one region
+        whatever the environment); the key is the text without the rules that can never fire
+        (``genr8_dist.hemls.splitting.screen``)."""
+        from genr8_dist.hemls.splitting import screen
+
+        env = getattr(config, "environment", None)
+        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0))
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):

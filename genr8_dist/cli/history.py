@@ -117,6 +117,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--max-rows", type=_count, default=100, help="rows printed at most (default 100)")
     p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
                    help="interrupt a statement running longer (default 60)")
+    p.add_argument("--as-of", type=_count, default=None, metavar="G",
+                   help="read the run as of generation G: its individuals up to G, the events at them, "
+                        "the configurations in force by G (time travel)")
     p.set_defaults(handler=_query)
 
     p = subparsers.add_parser(
@@ -292,7 +295,7 @@ def _query(args: argparse.Namespace) -> int:
         if inside is not None:
             raise history.HistoryError(f"{target}: is inside the run directory {inside}; query never "
                                        "writes into a run: choose a path outside it")
-    table = history.query(args.run, args.sql, timeout=timeout)
+    table = history.query(args.run, args.sql, timeout=timeout, as_of=args.as_of)
     if target:
         history.write_table(table, target, format="csv" if args.csv else "parquet")
         _print(f"wrote {table.num_rows} rows to {target}")

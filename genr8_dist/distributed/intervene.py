@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -101,6 +101,7 @@ class EditResult:
     last_generation: int = 0
     hand_fitness: list[dict[str, Any]] = field(default_factory=list)
     queued: str | None = None
+    set_aside: list[tuple[str, str]] = field(default_factory=list)   # users' files moved (store/foreign.py)
 
 
 def _read_text(name: str) -> str:
@@ -130,6 +131,14 @@ def parse_assignment(text: str) -> tuple[tuple[str, ...], Any]:
 
 
 def _assign(table: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
+    old: Any = table
+    for part in path:
+        old = old.get(part) if isinstance(old, dict) else None
+    if isinstance(old, dict) and not isinstance(value, dict):   # `--set ea=1`: a table's name, not a key
+        keys = ", ".join(sorted(old)[:6]) + (", ..." if len(old) > 6 else "")
+        key = ".".join(path)
+        raise ConfigError(f"--set {key}={value!r}: '{key}' is a table of settings ({keys}), not a key; "
+                          f"set one of them, e.g. --set {key}.{sorted(old)[0] if old else 'KEY'}=VALUE")
     at = table
     for depth, part in enumerate(path[:-1]):
         nxt = at.get(part)
@@ -172,7 +181,8 @@ def apply_edit(run_dir: str, edit: Edit, *, source: str = "edit") -> EditResult:
                           result.last_generation, result.hand_fitness, queued=item.name)
     with lock:
         store.refresh()
-        return record_edit(store, edit, source=source)
+        result = record_edit(store, edit, source=source)
+    return replace(result, set_aside=list(store.set_aside))
 
 
 def record_edit(store: RunStore, edit: Edit, *, source: str = "edit",

@@ -38,6 +38,13 @@ trees (``grammar.derivations``); past the first half of a founder's redraws they
 (every repetition at least a few rounds, no edge label born) while those have given live founders at
 least as often as plain draws in this generation 0, so a universe whose random genomes seldom
 subdivide (``gecco``) still starts alive.
+No growth is spent where the text already shows the waste (the phenotype's ``screen``; surfaces:
+``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
+a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
+repeats a parent's or an earlier member's, is drawn or varied again from its text alone
+(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
+too, from its first parent (its own variation broke what made the parent split its regions, so
+its neighbourhood is mostly trivial), as is one whose growth was capped.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
@@ -63,8 +70,9 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Container, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
@@ -106,6 +114,8 @@ class IslandStats:
     revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
     redrawn: int = 0            # offspring replaced by a newcomer after every re-variation failed
     unresolved: int = 0         # offspring or founders still repeating after every retry
+    revaried_trivial: int = 0   # offspring varied again because their surface was trivial (one region)
+    screened: int = 0           # drawn or varied again from the text alone, never developed
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,10 +128,12 @@ class Birth:
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
     avoid: frozenset[str] = frozenset()   # the parents' texts and phenotype digests (copies to avoid)
+    source: tuple[tuple[int, ...], int] | None = None   # the first parent's genome and codons read
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
+_SCREENS = 20   # genomes drawn or varied again, from their text alone, before one is grown
 
 
 def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
@@ -153,6 +165,20 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
     if ind.valid and ind.phenotype_digest is not None:
         keys.add(ind.phenotype_digest)
     return keys
+
+
+class _Draws:
+    """``first``, then what ``more`` draws: a founder as drawn, then its redraws."""
+
+    def __init__(self, first: Genome, more: Callable[[], Genome]) -> None:
+        self.first: Genome | None = first
+        self.more = more
+
+    def __call__(self) -> Genome:
+        if self.first is not None:
+            first, self.first = self.first, None
+            return first
+        return self.more()
 
 
 class Island:
@@ -200,6 +226,39 @@ class Island:
         g = self.config.genome
         result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
         return result.text, result.codons_used
+
+    @property
+    def _varies_trivial(self) -> bool:
+        """Whether a trivial offspring is varied again: in ``weighted`` mode, where it only costs
+        the fitness it lacks; a Pareto front or a MAP-Elites archive may want its extremes (one
+        region is the most symmetric surface, the emptiest cell)."""
+        return self.config.search.mode == "weighted"
+
+    def _founder(self, rng, index: int) -> Genome:
+        """One founder genome drawn from ``rng`` at position ``index`` of generation 0."""
+        return self._founders(rng, 1, first=index)[0]
+
+    def _screen(self, text: str | None) -> tuple[bool, str | None]:
+        """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
+        wasted for sure (no text, or trivial as the phenotype's ``screen`` says) and its key (equal
+        keys, equal phenotypes: a copy known without growing it)."""
+        if text is None:
+            return True, None
+        screen = getattr(self.phenotype, "screen", None)
+        return screen(text, self.config) if screen is not None else (False, text)
+
+    def _screened(self, draw: Callable[[], Genome], avoid: Container[str | None] = ()) -> Genome:
+        """A genome from ``draw`` (called again while the last one's text is wasted for sure or its
+        key is in ``avoid``, at most ``_SCREENS`` times: mapping and reading a text costs no growth),
+        the last one drawn if all were."""
+        genome = draw()
+        for _ in range(_SCREENS):
+            wasted, key = self._screen(self._mapped(genome)[0])
+            if not wasted and key not in avoid:
+                break
+            self.stats.screened += 1
+            genome = draw()
+        return genome
 
     def _revary(self, rng, genome: Genome, codons: int) -> Genome:
         """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
@@ -265,6 +324,8 @@ class Island:
             revaried_invalid=counted.revaried_invalid,
             redrawn=counted.redrawn,
             unresolved=counted.unresolved,
+            revaried_trivial=counted.revaried_trivial,
+            screened=counted.screened,
         )
         for hook in self.hooks:
             hook(population)
@@ -310,8 +371,7 @@ class Island:
         ea = self.config.ea
         g = self.config.genome
         if generation == 0:
-            return [Birth(genome, "random") for genome in self._founders(self.rng(0, "genomes"),
-                                                                         ea.population)]
+            return self._founder_births(ea.population)
         if not previous:
             raise ValueError(f"generation {generation} needs a non-empty previous generation")
         if len(migrants) + len(injected) > ea.population:
@@ -354,7 +414,8 @@ class Island:
         mutate_rng = self.rng(generation, "mutation")
         revary_rng = self.rng(generation, "revary")
         unique = ea.unique_retries > 0
-        texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
+        texts = {self._screen(b.evaluation.text)[1] for b in births
+                 if b.evaluation is not None and b.evaluation.text is not None} if unique else set()
         while len(births) < size:
             a = pick(select_rng)
             b = pick(select_rng, first=False)
@@ -386,21 +447,47 @@ class Island:
                 if unique:
                     for i in picked:
                         avoid |= _keys(pool[i])
+                        if pool[i].text is not None:
+                            avoid.add(str(self._screen(pool[i].text)[1]))
                     text, read = self._mapped(genome)
+                    trivial, key = self._screen(text)
+                    trivial = trivial and (text is None or self._varies_trivial)
                     for _ in range(ea.unique_retries):
-                        if text is not None and text not in avoid and text not in texts:
+                        if not trivial and key not in avoid and key not in texts:
                             break
                         if text is None:
                             self.stats.revaried_invalid += 1
+                        elif trivial:
+                            self.stats.screened += 1
                         else:
                             self.stats.revaried_text += 1
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
+                        trivial, key = self._screen(text)
+                        trivial = trivial and (text is None or self._varies_trivial)
                         if origin == "crossover":
                             origin = "crossover+mutation"
-                    texts.add(text)
+                    texts.add(key)
+                first = pool[picked[0]]
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid)))
+                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid),
+                                    (tuple(first.genome), first.codons_used) if first.valid else None))
+        return births
+
+    def _founder_births(self, count: int) -> list[Birth]:
+        """Generation 0's genomes: ``count`` founders (``ea.init``); with ``ea.founder_retries``,
+        one whose text shows it trivial or a copy of an earlier founder (``_screen``) is drawn again
+        from its text alone (``founders``' own stream ``screen``), never grown."""
+        drawn = self._founders(self.rng(0, "genomes"), count)
+        if self.config.ea.founder_retries <= 0:
+            return [Birth(tuple(genome), "random") for genome in drawn]
+        births: list[Birth] = []
+        keys: set[str | None] = set()
+        for index, first in enumerate(drawn):
+            rest = _Draws(first, partial(self._founder, self.rng(0, "screen", index), index))
+            genome = tuple(int(c) for c in self._screened(rest, keys))
+            keys.add(self._screen(self._mapped(genome)[0])[1])
+            births.append(Birth(genome, "random"))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -558,13 +645,14 @@ class Island:
             rng = rng or self.rng(0, "founders", index)
             kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) else "bushy"
             if kind == "plain":
-                genome = tuple(self._founders(rng, 1, first=index)[0])
+                genome = tuple(self._screened(partial(self._founder, rng, index)))
             else:   # plain draws keep failing: bushy trees over the labels a derivation starts with
                 from genr8_dist.grammar.derivations import bushy_genome
 
                 g = self.config.genome
-                genome = bushy_genome(self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
-                                      max_depth=g.max_depth)
+                genome = tuple(self._screened(partial(
+                    bushy_genome, self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
+                    max_depth=g.max_depth)))
             evaluation = self.evaluator.preview(genome)
             self.stats.founders_redrawn += 1
         evaluation = self.evaluator.measure(genome, evaluation)
@@ -582,20 +670,34 @@ class Island:
         newcomer (origin ``random``, no parents) up to ``ea.unique_redraws`` times."""
         genome, origin = birth.genome, birth.origin
 
+        phenotype = self.phenotype
+
+        def trivial(ev: Evaluation) -> bool:
+            measured = not isinstance(ev, Preview) or phenotype.trivial_from_sizes
+            return self._varies_trivial and ev.valid and measured and is_trivial(ev, phenotype)
+
         def wasted(ev: Evaluation) -> bool:
-            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid
+            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid \
+                or trivial(ev)
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
             evaluation = self._settled(genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
-            if evaluation.valid:
+            if trivial(evaluation):
+                self.stats.revaried_trivial += 1
+            elif evaluation.valid:
                 self.stats.revaried_phenotype += 1
             else:
                 self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
-            genome = self._revary(rng, genome, evaluation.codons_used)
+            base, codons = genome, evaluation.codons_used
+            if (trivial(evaluation) or not evaluation.valid) and birth.source is not None:
+                # the variation broke what made the parent grow (it no longer splits a region, or
+                # its growth ran away): vary the parent anew rather than the broken child
+                base, codons = birth.source
+            genome = self._screened(partial(self._revary, rng, base, codons), birth.avoid)
             evaluation = self.evaluator.preview(genome)
             if origin == "crossover":
                 origin = "crossover+mutation"
@@ -605,7 +707,7 @@ class Island:
         fresh = None
         for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
             fresh = fresh or self.rng(generation, "redraw", index)
-            genome = tuple(self._founders(fresh, 1, first=index)[0])
+            genome = tuple(self._screened(partial(self._founder, fresh, index)))
             evaluation = self._settled(genome, self.evaluator.preview(genome), wasted)
             origin = "random"
             self.stats.redrawn += 1

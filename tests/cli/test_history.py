@@ -173,6 +173,9 @@ def test_query_prints_and_writes(capsys, run_dir, rows, tmp_path):
     ("top", "{run}", "--generation", "-51"),
     ("history", "{run}", "--csv", "{tmp}/no/such/folder/h.csv"),
     ("query", "{run}", "   "),
+    ("query", "{run}", ";"),
+    ("query", "{run}", "-- nothing"),
+    ("query", "{run}", "/* a comment */ ;;"),
 ])
 def test_bad_input_is_one_line_and_exit_2(capsys, run_dir, tmp_path, argv):
     from genr8_dist.store import RunStore
