@@ -156,6 +156,7 @@ class SurfacePhenotype(Phenotype):
     trivial_from_sizes = True
     # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
     export_formats = ("obj", "ply", "stl", "glb", "3dm")
+    smooths = True      # export takes smooth=N (Loop subdivision steps: genr8 show --smooth)
 
     def parse(self, text: str) -> Any:
         """Read a derived text (a rewrite system); raises for a text no individual could grow from.
@@ -175,6 +176,8 @@ class SurfacePhenotype(Phenotype):
             raise
         result = grow(system, config.environment)
         surface = result.surface
+        if hasattr(surface, "with_meshing"):     # the run's meshing (a stored run keeps its own)
+            surface = surface.with_meshing(getattr(config, "meshing", surface.meshing))
         steps = result.steps
         capped = result.capped
         n_regions = getattr(surface, "n_regions", None)
@@ -210,14 +213,16 @@ class SurfacePhenotype(Phenotype):
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)
 
-    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
-        """The surface as a triangle mesh (.obj .ply .stl .glb, every vertex in order) or as a Rhino
-        .3dm file (the mesh, named ``name``, and the scaffold's edges as lines)."""
+    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "",
+               smooth: int = 0) -> Path:
+        """The surface as a triangle mesh by its run's meshing (.obj .ply .stl .glb: every vertex in
+        order, then the points meshing added) or as a Rhino .3dm file (the mesh, named ``name``, the
+        scaffold's edges as lines and its lines as NURBS curves); ``smooth`` subdivision steps."""
         from genr8_dist.export import export_3dm, export_mesh
 
         if Path(path).suffix.lower() == ".3dm":
-            return export_3dm(developed.value, path, name=name or "genr8 surface")
-        return export_mesh(developed.value, path)
+            return export_3dm(developed.value, path, name=name or "genr8 surface", smooth=smooth)
+        return export_mesh(developed.value, path, smooth=smooth)
 
     def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
         """The shaded surface in the run's environment (boundaries, attractors, repellers, gravity)."""

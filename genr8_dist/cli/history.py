@@ -103,6 +103,8 @@ def register(subparsers: Any) -> None:
                    help="export it in a format of its phenotype (a surface: .obj .ply .stl .glb through "
                         "trimesh or .3dm for Rhino; a table: .obj .ply .stl .glb); repeatable")
     p.add_argument("--png", metavar="OUT.png", help="a picture of it (its phenotype's preview)")
+    p.add_argument("--smooth", type=int, default=0, metavar="N",
+                   help="Loop subdivision steps applied to a surface's -o mesh (0-4; each x4 the triangles)")
     p.add_argument("--grammar", metavar="OUT.txt", help="save its rewrite system")
     p.add_argument("--genome", metavar="OUT.txt", help="save its genome (codons, one line)")
     p.set_defaults(handler=_show)
@@ -289,6 +291,10 @@ def _show(args: argparse.Namespace) -> int:
     if args.png and args.png != "-" and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
     args.id = _individual_id(args.run, args.id)
+    if args.smooth:
+        from genr8_dist.export import check_smooth
+
+        check_smooth(args.smooth)
     if args.output:  # refuse a bad name before anything is grown or written
         phenotype = regrow.phenotype_of_run(args.run, args.id)
         for path in args.output:
@@ -313,7 +319,7 @@ def _show(args: argparse.Namespace) -> int:
         say(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
                f"derivation steps; digest {result.digest} matches the recorded one")
     for path in args.output:
-        regrow.export(result, path)
+        regrow.export(result, path, smooth=args.smooth)
         say(f"wrote {path}")
     if args.png:
         regrow.picture(result, args.png)

@@ -131,13 +131,18 @@ def _outside_runs(path: Path) -> Path:
     return path
 
 
-def export(result: Regrown, path: str | os.PathLike) -> Path:
+def export(result: Regrown, path: str | os.PathLike, *, smooth: int = 0) -> Path:
     """Write the regrown phenotype to ``path`` through its phenotype's ``export`` (the suffix picks the
     format; a surface: .obj .ply .stl .glb through trimesh, .3dm through rhino3dm), named after the
-    individual where the format keeps names. The file is written atomically."""
+    individual where the format keeps names; ``smooth`` subdivision steps (a surface's meshes). The
+    file is written atomically."""
     path = check_export_path(path, result.phenotype)
     developed = _need_developed(result, "export")
-    return result.phenotype.export(developed, path, result.config, name=result.row["id"])
+    if not smooth:
+        return result.phenotype.export(developed, path, result.config, name=result.row["id"])
+    if not getattr(result.phenotype, "smooths", False):
+        raise HistoryError(f"--smooth: phenotype {result.phenotype.name} has no smoothed export")
+    return result.phenotype.export(developed, path, result.config, name=result.row["id"], smooth=smooth)
 
 
 def picture(result: Regrown, path: str | os.PathLike) -> Path:

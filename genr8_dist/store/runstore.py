@@ -238,6 +238,17 @@ def _phenotype_columns(config_toml: str) -> tuple[tuple[str, ...], tuple[str, ..
     return tuple(config.fitness.names), tuple(run_phenotype(config.universe_source).sizes)
 
 
+def _config_meshing(config_toml: str) -> int:
+    """The meshing a new run of ``config_toml`` records: the one it names, else the current one."""
+    from genr8_dist.hemls.meshing import MESHING, check_meshing
+
+    try:
+        named = tomllib.loads(config_toml).get("meshing")
+    except tomllib.TOMLDecodeError:
+        return MESHING
+    return MESHING if named is None else check_meshing(named, "configuration version 1: meshing")
+
+
 class RenamedDataset:
     """The individuals files of a run of schema 1 or 2 read as a dataset whose columns carry their
     current names (``SCHEMA_2_NAMES``: ``surface_digest`` is ``phenotype_digest``, ``n_regions`` is
@@ -366,6 +377,7 @@ class RunStore:
                 f"run_id {run_id!r} is not allowed: use 1-128 letters, digits, '.', '_' or '-', "
                 "starting with a letter or digit"
             )
+        meshing = _config_meshing(config_toml)
         if criteria is None or sizes is None:
             own_criteria, own_sizes = _phenotype_columns(config_toml)
             criteria = own_criteria if criteria is None else criteria
@@ -383,6 +395,7 @@ class RunStore:
             "criteria": names,
             "sizes": sized,
             "columns": columns,
+            "meshing": meshing,
             "created": created,
             "version": 0,
             "configs": [],
@@ -459,6 +472,13 @@ class RunStore:
         if "sizes" in self._m:
             return tuple(self._m["sizes"])
         return tuple(sizes_of(self.reading_schema.names))
+
+    @property
+    def meshing(self) -> int:
+        """The meshing version (``hemls.meshing``) this run was created with: what its configurations
+        use unless they name one. 1 for a run created before meshing was recorded (it keeps cutting
+        its surfaces, and measuring its ``slivers``, as it did)."""
+        return int(self._m.get("meshing", 1))
 
     @property
     def schema_version(self) -> int:
@@ -789,7 +809,8 @@ class RunStore:
             from genr8_dist.config import RunConfig
 
             source = f"{self.path} configuration v{cv.version}"
-            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria)
+            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria,
+                                         meshing=self.meshing)
             self._parsed[key] = parsed
         return parsed
 

@@ -520,7 +520,8 @@ class RunView:
         if not row["text"] or row.get("phenotype_digest") is None:
             raise StoreError(f"{id} has no surface: it failed before growing one")
         config = self.config(int(row["config_version"]))
-        return grow(parse(row["text"]), config.environment).surface, config
+        surface = grow(parse(row["text"]), config.environment).surface
+        return surface.with_meshing(config.meshing), config
 
     def surface_glb(self, id: str) -> bytes:
         """``id``'s surface as GLB: its regions (decimated past ``MAX_FACES`` triangles) and its map's
@@ -638,8 +639,13 @@ def _glb(surface: Any) -> bytes:
     import numpy as np
     import trimesh
 
-    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    from genr8_dist.scaffold import scaffold_curves
+
+    mesh_ = surface.mesh()          # the run's meshing; its meshing-1 triangles when it is too large
+    vertices, faces = np.asarray(mesh_.points, dtype=np.float64), np.asarray(mesh_.triangles, dtype=np.int64)
+    if len(faces) > MAX_FACES:
+        vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+        faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
     edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
     scene = trimesh.Scene()
     if len(faces):
@@ -647,10 +653,13 @@ def _glb(surface: Any) -> bytes:
         if len(faces) > MAX_FACES:
             mesh = _decimate(mesh, MAX_FACES)
         scene.add_geometry(mesh, geom_name="surface")
-    if len(edges):
-        if len(edges) > MAX_EDGES:
-            edges = edges[:: math.ceil(len(edges) / MAX_EDGES)]
-        path = trimesh.load_path(vertices[edges])
+    if len(edges):      # the scaffold's lines as B-spline curves (genr8_dist.scaffold), sampled
+        per_span = max(1, min(8, MAX_EDGES // len(edges)))
+        curves = scaffold_curves(surface, per_span)
+        segments = np.concatenate([np.stack([c[:-1], c[1:]], 1) for c in curves if len(c) > 1])
+        if len(segments) > MAX_EDGES:
+            segments = segments[:: math.ceil(len(segments) / MAX_EDGES)]
+        path = trimesh.load_path(segments)
         scene.add_geometry(path, geom_name="edges")
     return scene.export(file_type="glb")
 
