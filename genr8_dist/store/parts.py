@@ -46,18 +46,15 @@ class Part:
         return f"{STAGING}/{self.name}"
 
 
-def write_part(store: RunStore | str | os.PathLike[str], table: pa.Table, *, stem: str = "part") -> Part:
+def write_part(store: RunStore, table: pa.Table, *, stem: str = "part") -> Part:
     """Write ``table`` (rows of the run's schema: one or more islands' consecutive generations, each id
-    once) as a part of the run (an open store, or the run directory's path or URI) and return its
+    once) as a part of the run (an open store: ``RunStore.open(path)`` in another process) and return its
     descriptor for ``RunStore.commit_parts``. Safe from any process: the name holds a random token,
     and nothing is committed until the run's writer commits it."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from genr8_dist.store.runstore import COMPRESSION, ROW_GROUP_ROWS, RunStore
-
-    if not isinstance(store, RunStore):
-        store = RunStore.open(store)
+    from genr8_dist.store.schema import COMPRESSION, ROW_GROUP_ROWS
 
     if not stem.replace("-", "").replace("_", "").isalnum():
         raise StoreError(f"write_part: stem {stem!r} must be letters, digits, '-' or '_'")

@@ -63,6 +63,8 @@ from genr8_dist.store.pending import (
     queued,
 )
 from genr8_dist.store.schema import (
+    COMPRESSION,
+    ROW_GROUP_ROWS,
     SCHEMA_VERSION,
     Event,
     events_schema,
@@ -99,8 +101,6 @@ MANIFEST_DIR = "_manifest"
 KEEP_MANIFESTS = 16          # manifests kept for concurrent readers and for repair()
 COMPACT_TARGET_ROWS = 100_000  # compact() merges small files into files of about this many rows
 COMPACT_EVERY = 32           # commit() compacts when this many small individuals files have built up
-ROW_GROUP_ROWS = 32_768      # Parquet row group size: statistics let readers skip row groups
-COMPRESSION = "snappy"       # twice as fast to write as zstd here, files about 12% larger
 HEAD = f"{MANIFEST_DIR}/HEAD"   # the newest commit's number, written after its manifest is linked
 TMP_STALE_SECONDS = 3600     # a temporary file this old is a crash's leftover, whoever wrote it
 _MANIFEST_NAME = re.compile(r"^(\d{10})\.json$")

@@ -47,7 +47,7 @@ from genr8_dist.store.synthetic import _text_pool, synthetic_epoch
 store = RunStore.open(sys.argv[1])
 island = int(sys.argv[2])
 table = synthetic_epoch(store, 3, 1, 2, 3, 2, 6, (16, 64), _text_pool(3))
-part = write_part(sys.argv[1], table.filter(pc.equal(table["island"], island)), stem=f"part-island{island}")
+part = write_part(store, table.filter(pc.equal(table["island"], island)), stem=f"part-island{island}")
 print(json.dumps({"name": part.name, "sha256": part.sha256, "rows": part.rows, "bytes": part.bytes,
                   "islands": part.islands}))
 """
