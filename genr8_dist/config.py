@@ -137,26 +137,32 @@ class EASettings:
     founder_retries: int = setting(
         20, (
             "a founder that is trivial (invalid, or a surface of at most one region: the axiom "
-            "polygon left as it was) or whose surface repeats an earlier founder's is drawn "
-            "again, up to this many times (0: never): the first half of them (rounded up) as "
-            "`init` says; each later one as a *bushy* derivation tree (every repetition at least "
-            "0-8 rounds, drawn uniformly, and no edge label born: fewer labels and more branches "
-            "make joins likely) unless plain draws have given this generation 0 live founders "
-            "more often so far (Laplace's rule), so a universe whose random genomes seldom "
-            "subdivide starts alive too (`gecco`: 0.98 of 200 founders trivial without them, 0.04"
-            " with them, 13.6 redraws per founder; `bench/search.py`) and one where bushy trees "
-            "fail keeps its plain draws"
+            "polygon left as it was) or whose surface repeats an earlier founder's is drawn again"
+            " (one whose text already shows it, with no rule that can fire drawing a branch or "
+            "with another founder's effective text, is drawn again before it is grown, up to 20 "
+            "times a draw: `IslandStats.screened`, no evaluation spent), up to this many times "
+            "(0: never): the first half of them (rounded up) as `init` says; each later one as a "
+            "*bushy* derivation tree (every repetition at least 0-8 rounds, drawn uniformly, and "
+            "no edge label born: fewer labels and more branches make joins likely) unless plain "
+            "draws have given this generation 0 live founders more often so far (Laplace's rule),"
+            " so a universe whose random genomes seldom subdivide starts alive too (`gecco`: 0.98"
+            " of 200 founders trivial without them, 0.04 with them, 13.6 redraws per founder; "
+            "`bench/search.py`) and one where bushy trees fail keeps its plain draws"
         ),
         minimum=0, maximum=1000)
     unique_retries: int = setting(
         10, (
             "an offspring whose rewrite system or surface repeats a parent's or an earlier "
             "member's of its generation, or that is invalid (maps to no rewrite system, or its "
-            "growth is capped), is mutated again (at least one codon the mapper read), up to this"
-            " many times, so no evaluation is spent on a copy or a failure that a small change "
-            "avoids (one still invalid after every retry is kept: failures are data); the second "
-            "parent is drawn again (up to 5 times) while it is the first one or has its text (0: "
-            "neither)"
+            "growth is capped) or trivial (a surface of one region; in `weighted` mode only: a "
+            "Pareto front or a MAP-Elites archive may want it), is mutated again (at least one "
+            "codon the mapper read; a trivial or capped child's first parent is mutated anew "
+            "instead, since its own variation broke what made the parent grow; a text that shows "
+            "before growth that it is trivial or a copy, by its effective text, is varied again "
+            "without being grown), up to this many times, so no evaluation is spent on a copy or "
+            "a failure that a small change avoids (one still invalid after every retry is kept: "
+            "failures are data); the second parent is drawn again (up to 5 times) while it is the"
+            " first one or has its text (0: neither)"
         ),
         minimum=0, maximum=1000)
     unique_redraws: int = setting(
