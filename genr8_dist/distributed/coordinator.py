@@ -173,7 +173,11 @@ class Coordinator:
         self.paused = False
         self._migrated = {e.generation for e in history if e.kind == "migration"}
         self._completed = any(e.kind == "complete" and e.generation == self.last for e in history)
-        self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
+        # generation -> island -> (the (k, mode) they were chosen for, emigrant candidates): what the
+        # next migration needs, from the hosts' answers; only the newest committed generation is kept
+        self._candidates: dict[int, dict[int, tuple[Any, tuple[Individual, ...]]]] = {}
+        self._compact_every = store.compact_every
+        store.compact_every = None   # hosts write parts meanwhile: compaction (and its sweep) at the end
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
         self._hand = self._load_hand(history)
@@ -270,10 +274,20 @@ class Coordinator:
             self._hand = self._load_hand(history)
 
     def _population(self, island: int, generation: int) -> list[Individual]:
-        held = self._populations.get(generation, {}).get(island)
-        if held is not None:
-            return held
         return list(self._timed_store(self.store.load_generation, island, generation))
+
+    def _emigrant_pool(self, island: int, generation: int, spec: tuple[int, str]) -> list[Individual]:
+        """What ``island``'s emigrants after ``generation`` are chosen from: the candidates its host
+        returned when they were chosen for ``spec`` (``(k, mode)``), else the stored generation."""
+        held = self._candidates.get(generation, {}).get(island)
+        if held is not None and held[0] == spec:
+            return list(held[1])
+        return self._population(island, generation)
+
+    @staticmethod
+    def emigrant_spec(config: RunConfig) -> tuple[int, str]:
+        """``(k, mode)``: how many emigrants leave each island and how they are chosen."""
+        return int(config.islands.migrants), str(config.islands.emigrants)
 
     # -- the run ----------------------------------------------------------------------------------
 
@@ -301,7 +315,10 @@ class Coordinator:
                 committed = self._epoch(committed, end)
         finally:
             self.summary.committed = committed
+            self.store.compact_every = self._compact_every
             self._close_books()
+        if self._compact_every and self.store._small_files() >= self._compact_every:
+            self._timed_store(self.store.compact)   # the hosts are idle now
         low = min(committed.values())
         if low >= self.last:
             self.summary.status = "complete"
@@ -324,7 +341,8 @@ class Coordinator:
 
     def _migrants(self, generation: int, config: RunConfig) -> dict[int, list[Individual]]:
         """The migrants that move after ``generation`` (from its committed populations)."""
-        populations = {i: self._population(i, generation) for i in range(self.n_islands)}
+        spec = self.emigrant_spec(config)
+        populations = {i: self._emigrant_pool(i, generation, spec) for i in range(self.n_islands)}
         islands = config.islands
         plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
                               generation, islands.emigrants)
@@ -359,38 +377,55 @@ class Coordinator:
             with contextlib.suppress(ray.exceptions.RayError):
                 ray.get(ref)
 
-    def _show(self, generation: int, results: Mapping[int, Mapping[int, list[Individual]]]) -> None:
+    def _show(self, generation: int, results: Mapping[int, Mapping[int, Any]]) -> None:
+        """Every island has completed ``generation``: the progress line, then ``on_generation``."""
         populations = {i: r[generation] for i, r in results.items() if generation in r}
         self.summary.generations += 1
         self.progress.generation(generation, populations, remaining=self.last - generation)
         if self.on_generation is not None:
             self.on_generation(self, generation)
 
-    def _commit(self, committed: dict[int, int],
-                results: Mapping[int, Mapping[int, list[Individual]]]) -> dict[int, int]:
-        rows = [ind for i in sorted(results) for g in sorted(results[i]) for ind in results[i][g]]
-        events = list(self._pending_events)
+    def island_generation(self, island: int, generation: int, done: Any) -> None:
+        """One island has completed one generation (``done``: the host's ``Generated``): the place for
+        per-island, per-generation callbacks (before it is committed; ``on_commit`` says when it is)."""
+
+    def _commit(self, committed: dict[int, int], results: Mapping[int, Mapping[int, Any]]) -> dict[int, int]:
+        """Commit the part files the hosts wrote for ``results`` (island -> generation -> ``Generated``)
+        and the pending events, in one manifest; returns the committed generations after it."""
+        parts = []
         after = dict(committed)
-        for i, gens in results.items():
-            if gens:
-                after[i] = max(gens)
+        for i in sorted(results):
+            for g in sorted(results[i]):
+                part = getattr(results[i][g], "part", None)
+                if part is not None and part.first == after[i] + 1:
+                    parts.append(part)
+                    after[i] = part.last
+        events = list(self._pending_events)
         if not self._completed and min(after.values()) >= self.last:   # the run ends with this commit
             events.append(self._event("complete", self.last, None,
                                       {"committed": {str(i): g for i, g in after.items()}}))
             self._completed = True
-        if not rows and not events:
+        if not parts and not events:
             return committed
-        self._timed_store(self.store.commit, rows, events=events)
+        self._timed_store(self.store.commit_parts, parts, events=events)
         self._pending_events.clear()
-        self.summary.individuals += len(rows)
-        # Keep only what the next migration needs in memory: each island's newest generation.
-        self._populations = {}
+        self.summary.individuals += sum(p.rows for p in parts)
+        # Keep only what the next migration needs in memory: the newest generation's candidates.
+        self._candidates = {}
         for i, gens in results.items():
-            if gens:
-                self._populations.setdefault(max(gens), {})[i] = gens[max(gens)]
+            done = gens.get(after[i])
+            if done is not None and after[i] > committed[i] and getattr(done, "emigrants", None) is not None:
+                self._candidates.setdefault(after[i], {})[i] = (done.emigrants_for, done.emigrants)
         if self.on_commit is not None:
             self.on_commit(self, after)
         return after
+
+
+def _with_part(done: Any, part: Any) -> Any:
+    """``done`` (a ``Generated``) with ``part``, the file holding it and the generations before it."""
+    import dataclasses
+
+    return dataclasses.replace(done, part=part)
 
 
 class Epoch:
@@ -430,13 +465,17 @@ class Epoch:
             migrants = self.migrants_after[g - 1][island]
         injected = run._injections.get((g, island), ())
         hand = run._hand.get((g, island), ())
+        emigrants = None
+        if is_migration_generation(g, run.interval) and g < run.last:
+            emigrants = run.emigrant_spec(run.config_for(g + 1)[1])
         host = run.hosts.host_of(island)
         send = (id(host), version) not in run._sent
         run._sent.add((id(host), version))
         helpers = self.free()
         ticket = next(_TICKETS)
         ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                  [run.hosts.handle(n) for n in helpers], ticket, hand)
+                                  [run.hosts.handle(n) for n in helpers], ticket, hand, g == self.end,
+                                  emigrants)
         self.pending[ref] = (island, g)
         self.tickets[ref] = ticket
         self.lent.update(dict.fromkeys(helpers, ref))
@@ -477,11 +516,12 @@ class Epoch:
             if self.cursor[isl] < self.end:
                 self.submit(isl)
 
-    def receive(self, island: int, g: int, population: list[Individual]) -> None:
-        """Generation ``g`` of ``island`` is done: keep it, ask for the next one, and show every
-        generation all islands have now reached."""
+    def receive(self, island: int, g: int, population: Any) -> None:
+        """Generation ``g`` of ``island`` is done (``population``: the host's ``Generated``): keep it,
+        ask for the next one, and show every generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
+        self.run_.island_generation(island, g, population)
         if g < self.end:
             self.submit(island)
         low = min(self.cursor.values())
@@ -524,5 +564,26 @@ class Epoch:
                     self.receive(island, g, population)
         finally:
             run._settle(self.offers)
+            if run.stop:
+                self.flush()
             committed = run._commit(self.committed, self.results)
         return committed
+
+    def flush(self) -> None:
+        """Stopping mid-epoch: each island's host writes the generations it completed since its
+        last part (served beside a generation under way), so that what is complete is committed."""
+        import ray
+
+        asked = {}
+        for island, gens in self.results.items():
+            if gens and getattr(gens[max(gens)], "part", None) is None:
+                host = self.run_.hosts.host_of(island)
+                asked[island] = host.flush.options(concurrency_group=OFFERS).remote(island)
+        for island, ref in asked.items():
+            try:
+                part = ray.get(ref)
+            except ray.exceptions.RayError:   # its host is gone: those generations are recomputed
+                continue
+            if part is not None:   # it may hold a generation completed since (then committed too)
+                newest = max(self.results[island])
+                self.results[island][newest] = _with_part(self.results[island][newest], part)

@@ -80,6 +80,7 @@ if TYPE_CHECKING:
 
     from genr8_dist.config import RunConfig
     from genr8_dist.fitness import FitnessSpec
+    from genr8_dist.store.parts import Part
 
 __all__ = [
     "COMPACT_EVERY",
@@ -520,6 +521,27 @@ class RunStore:
             self.compact()
         return version
 
+    def commit_parts(self, parts: Sequence[Part], events: Sequence[Event] = ()) -> int:
+        """Commit part files the island hosts wrote (``store.parts.write_part``) and ``events``
+        atomically: the manifest alone is written, no row is read. Each island's parts must follow its
+        last committed generation. Returns the commit number."""
+        from genr8_dist.store.parts import check_parts
+
+        events = list(events)
+        if not parts and not events:
+            return self.version
+        with self._transaction():
+            version = self._next_version()
+            manifest = copy.deepcopy(self._m)
+            done = {int(i): g for i, g in manifest["generations"].items()}
+            for entry in check_parts(self, parts, done):
+                entry["commits"] = [version, version]
+                manifest["individuals"].append(entry)
+            self._add_events(manifest, events, version)
+            manifest["generations"] = _generations(manifest["individuals"])
+            self._publish(manifest, version)
+        return version
+
     def write_file(self, stem: str, suffix: str, data: bytes | memoryview) -> dict[str, Any]:
         """Write one data file of the commit being made and return its manifest entry (``path``,
         ``bytes``, ``sha256``); add it to a list in the manifest (``add`` of ``commit``) and readers,
@@ -905,7 +927,8 @@ class RunStore:
         for om in older:
             for e in om.get(kind, []):
                 if (isinstance(e, dict) and e.get("path") != entry["path"] and "commits" in e
-                        and lo <= e["commits"][0] and e["commits"][1] <= hi):
+                        and lo <= e["commits"][0] and e["commits"][1] <= hi
+                        and _within(e.get("islands", {}), entry.get("islands", {}))):
                     candidates.setdefault(e["path"], e)
         chosen, end = [], lo - 1
         for e in sorted(candidates.values(), key=lambda x: (x["commits"][0], -x["commits"][1])):
@@ -1338,6 +1361,12 @@ def _describe(kind: str, entry: dict[str, Any]) -> str:
     if kind == "configs":
         return f"{path} (configuration version {entry['version']})"
     return f"{path} ({kind})"
+
+
+def _within(islands: dict[str, list[int]], outer: dict[str, list[int]]) -> bool:
+    """Whether every island's generations in ``islands`` lie in ``outer``'s (a commit holds one part
+    per island when the hosts write them: a replacement must be of the same islands)."""
+    return all(i in outer and outer[i][0] <= lo and hi <= outer[i][1] for i, (lo, hi) in islands.items())
 
 
 def _islands_of(entry: dict[str, Any]) -> set[int]:
