@@ -2,10 +2,15 @@
 
 An *epoch* takes every island from its last committed generation to the next migration generation
 (a multiple of ``islands.migration_interval``, or the run's last generation). Each island advances one
-generation per actor call, so an interrupt waits for no more than what is already complete. At the end
-of an epoch the coordinator commits all of it at once (one atomic store commit), then computes the
-migrants from each island's committed last generation (``migration.plan_migration``) and sends them
-with the first generation of the next epoch.
+generation per actor call, so an interrupt waits for no more than what is already complete. No row
+comes back to the driver: at the end of an epoch each island's host writes the epoch's rows as a part
+file (``store.parts``) and returns it with the generation's fitness values and emigrant candidates
+(``actors.Generated``); the coordinator commits all parts at once (one manifest: ``commit_parts``), then
+computes the migrants from the candidates of each island's last generation
+(``migration.plan_migration``; the stored generation after a resume or an edit of the migration
+settings) and sends them with the first generation of the next epoch. On a stop, hosts flush what
+they completed, so that it is committed. ``island_generation`` is the place for per-island,
+per-generation callbacks (the studio's stream).
 
 Generation ``g`` uses the configuration version in effect at ``g`` (``store.config_for(g)``), and the
 individuals a user injected for ``g`` (recorded in the ``intervention`` event). Everything an island
