@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import socket
+import threading
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -78,6 +79,7 @@ class IslandHost:
         self._store: Any = None
         self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
         self._written: dict[int, Any] = {}                  # island -> the last part written
+        self._writing = threading.Lock()   # a stopping driver's flush runs beside advance
 
     def ready(self) -> dict[str, Any]:
         """Where this host runs (answers once the actor is scheduled and started)."""
@@ -157,7 +159,8 @@ class IslandHost:
         evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
-        self._unwritten.setdefault(island, []).extend(population)
+        with self._writing:
+            self._unwritten.setdefault(island, []).extend(population)
         candidates = None
         if emigrants is not None:
             from genr8_dist.distributed.migration import select_emigrants
@@ -171,13 +174,14 @@ class IslandHost:
         """Write ``island``'s rows computed since its last part as a new part file of the run and
         return its ``Part``; with none to write, the last part written (the driver may not have
         received it: a generation that ended an epoch as the run was stopped), or ``None``."""
-        rows = self._unwritten.pop(island, None)
-        if not rows:
-            return self._written.get(island)
         from genr8_dist.store.parts import write_part
 
-        part = self._written[island] = write_part(self._store_of(), rows)
-        return part
+        with self._writing:
+            rows = self._unwritten.pop(island, None)
+            if not rows:
+                return self._written.get(island)
+            part = self._written[island] = write_part(self._store_of(), rows)
+            return part
 
     def latest(self, island: int) -> list[Individual]:
         """The newest generation this host computed of ``island`` (tests, and a caller that wants the
