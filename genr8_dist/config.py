@@ -5,21 +5,16 @@
     universe = "default"          # the BNF the genomes are mapped with
     seed = 1                      # the run seed every random draw derives from
 
-    [genome]                      # length, codon_max, max_depth, max_wraps
-    [ea]                          # population, generations, tournament, elites, crossover_rate,
-                                  # mutation_rate, init, founder_retries, unique_retries, unique_redraws,
-                                  # within_used
     [fitness.size]                # target, weight (and scale) per criterion: see genr8_dist.fitness
     [environment]                 # inline (genr8_dist.environment's format), or
     # environment = "env.toml"    # a path, resolved relative to this file
-    [islands]                     # count, migration_interval, migrants, topology, emigrants
-    [search]                      # mode (weighted, pareto, map-elites), objectives, descriptors, ranges,
-                                  # bins, offspring
+{sections}
 
-Every section is a frozen dataclass validated when it is built; a section or key left out takes its
-default; an unknown key, a wrong type, an out-of-range value, an unknown universe or a missing
-environment file is a ``ConfigError`` naming the file and the field. ``docs/run-config.md`` lists every
-field with its default and meaning.
+Every section is a frozen dataclass whose fields are declared once (``fields.setting``: default,
+range or choices, help) and validated when it is built; a section or key left out takes its default;
+an unknown key, a wrong type, an out-of-range value, an unknown universe or a missing environment file
+is a ``ConfigError`` naming the file and the field. ``docs/run-config.md`` lists every field with its
+default and meaning: its tables are ``section_table(name)``'s (a test keeps them equal).
 """
 
 from __future__ import annotations
@@ -31,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import ConfigError, Genr8Error
-from genr8_dist.fields import fail, read_bool, read_choice, read_float, read_int
+from genr8_dist.fields import check_settings, fail, read_float, read_int, read_rate, setting, settings_table
 from genr8_dist.fitness import SURFACE, FitnessSpec
 from genr8_dist.tomlfile import read_toml
 
@@ -46,6 +41,7 @@ __all__ = [
     "RunConfig",
     "SearchSettings",
     "load_config",
+    "section_table",
 ]
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
@@ -58,25 +54,6 @@ EMIGRANTS: tuple[str, ...] = ("best", "novel")
 # configuration's messages name the field alone, the caller adds the file.
 def _fail(path: str, message: str) -> ConfigError:
     return fail("", path, message)
-
-
-def _int(value: Any, path: str, minimum: int | None = None, maximum: int | None = None) -> int:
-    return read_int(value, "", path, minimum=minimum, maximum=maximum)
-
-
-def _rate(value: Any, path: str) -> float:
-    try:
-        return read_float(value, "", path, minimum=0.0, maximum=1.0)
-    except ConfigError:
-        raise _fail(path, f"must be a number in [0, 1], got {value!r}") from None
-
-
-def _choice(value: Any, path: str, allowed: tuple[str, ...]) -> str:
-    return read_choice(value, "", path, allowed)
-
-
-def _bool(value: Any, path: str) -> bool:
-    return read_bool(value, "", path)
 
 
 def _number(value: Any, path: str) -> float:
@@ -94,68 +71,144 @@ def _set(obj: Any, name: str, value: Any) -> None:
 class GenomeSettings:
     """The integer genomes: how many codons, their range, and how the GE mapper may read them."""
 
-    length: int = 100       # codons in a random genome
-    codon_max: int = 255    # codons are drawn from 0..codon_max
-    max_depth: int = 5      # the deepest the derivation tree may grow (DESIGN: default 5)
-    max_wraps: int = 2      # times the mapper may wrap round the genome before it is invalid
+    length: int = setting(
+        100, (
+            "codons in a random genome (generation 0); a derivation tree longer than this "
+            "(`ea.init = \"ramped\"`, a bushy founder redraw) keeps its own length; crossover keeps"
+            " lengths"
+        ),
+        minimum=1, maximum=100_000)
+    codon_max: int = setting(
+        255, "codons are drawn from `0..codon_max` (inclusive), at generation 0 and by mutation",
+        minimum=1, maximum=2**31 - 1)
+    max_depth: int = setting(
+        5, (
+            "the deepest the GE derivation tree may grow; near it, only alternatives that can "
+            "finish are eligible"
+        ),
+        minimum=1, maximum=100)
+    max_wraps: int = setting(
+        2, (
+            "how often the mapper may wrap around the genome; past that the individual is invalid"
+            " (stage `map`)"
+        ),
+        minimum=0, maximum=1000)
 
     def __post_init__(self) -> None:
-        _set(self, "length", _int(self.length, "genome.length", 1, 100_000))
-        _set(self, "codon_max", _int(self.codon_max, "genome.codon_max", 1, 2**31 - 1))
-        _set(self, "max_depth", _int(self.max_depth, "genome.max_depth", 1, 100))
-        _set(self, "max_wraps", _int(self.max_wraps, "genome.max_wraps", 0, 1000))
-
+        check_settings(self, "genome")
 
 @dataclass(frozen=True, slots=True)
 class EASettings:
     """The evolutionary algorithm of one island: generational, tournament selection, elitism,
     one-point crossover and int-flip mutation."""
 
-    population: int = 30        # individuals per island per generation
-    generations: int = 20       # generations a run goes to (generation 0 is the random one)
-    tournament: int = 3         # contestants per tournament
-    elites: int = 1             # best individuals copied unchanged into the next generation
-    crossover_rate: float = 0.9  # probability a pair of parents is crossed over
-    mutation_rate: float = 0.02  # probability each codon of a child is redrawn (int-flip)
-    init: str = "random"         # founders: "random" genomes or "ramped" half-and-half derivations
-    founder_retries: int = 20    # redraws of a founder that is trivial or repeats another's surface
-    unique_retries: int = 10     # re-variations of an offspring that repeats a parent or a sibling
-    unique_redraws: int = 3      # newcomers drawn for an offspring still wasted after those
-    within_used: bool = False    # crossover and mutation only within the codons the mapper read
+    population: int = setting(
+        30, "individuals per island per generation (>= 2)",
+        minimum=2, maximum=1_000_000)
+    generations: int = setting(20, "the run goes from generation 0 (random) to this generation", minimum=0)
+    tournament: int = setting(
+        3, (
+            "contestants per tournament (1..population); the lowest fitness wins, ties to the "
+            "lower index"
+        ),
+        minimum=1, maximum=lambda ea: ea.population)
+    elites: int = setting(
+        1, "best valid individuals copied unchanged into the next generation (0..population-1)",
+        minimum=0, maximum=lambda ea: ea.population - 1)
+    crossover_rate: float = setting(
+        0.9, "probability that a pair of parents is crossed over (one-point)",
+        rate=True)
+    mutation_rate: float = setting(
+        0.02, (
+            "probability that each codon of a child is redrawn (int-flip); a child that was not "
+            "crossed over is always mutated at least once"
+        ),
+        rate=True)
+    init: str = setting(
+        "random", (
+            "founders of generation 0: `\"random\"` genomes, or `\"ramped\"`: ramped half-and-half "
+            "derivation trees of the universe (GE's sensible initialisation: the depth limit "
+            "cycles from shallow to `genome.max_depth`, alternately *grow* and *full*), written "
+            "into genomes codon for codon; works for every universe"
+        ),
+        choices=INITS)
+    founder_retries: int = setting(
+        20, (
+            "a founder that is trivial (invalid, or a surface of at most one region: the axiom "
+            "polygon left as it was) or whose surface repeats an earlier founder's is drawn "
+            "again, up to this many times (0: never): the first half of them (rounded up) as "
+            "`init` says; each later one as a *bushy* derivation tree (every repetition at least "
+            "0-8 rounds, drawn uniformly, and no edge label born: fewer labels and more branches "
+            "make joins likely) unless plain draws have given this generation 0 live founders "
+            "more often so far (Laplace's rule), so a universe whose random genomes seldom "
+            "subdivide starts alive too (`gecco`: 0.98 of 200 founders trivial without them, 0.04"
+            " with them, 13.6 redraws per founder; `bench/search.py`) and one where bushy trees "
+            "fail keeps its plain draws"
+        ),
+        minimum=0, maximum=1000)
+    unique_retries: int = setting(
+        10, (
+            "an offspring whose rewrite system or surface repeats a parent's or an earlier "
+            "member's of its generation, or that is invalid (maps to no rewrite system, or its "
+            "growth is capped), is mutated again (at least one codon the mapper read), up to this"
+            " many times, so no evaluation is spent on a copy or a failure that a small change "
+            "avoids (one still invalid after every retry is kept: failures are data); the second "
+            "parent is drawn again (up to 5 times) while it is the first one or has its text (0: "
+            "neither)"
+        ),
+        minimum=0, maximum=1000)
+    unique_redraws: int = setting(
+        3, (
+            "an offspring still invalid or repeating after `unique_retries` re-variations (its "
+            "whole neighbourhood fails or repeats, as round a bare axiom) is replaced by a "
+            "newcomer drawn as a founder is (origin `random`, no parents), up to this many times "
+            "(0, or `unique_retries = 0`: never); `IslandStats.redrawn` counts them"
+        ),
+        minimum=0, maximum=1000)
+    within_used: bool = setting(
+        False, (
+            "crossover cuts and mutation flips only within the codons the mapper read (PonyGE2's "
+            "*within used*)"
+        ))
 
     def __post_init__(self) -> None:
-        _set(self, "population", _int(self.population, "ea.population", 2, 1_000_000))
-        _set(self, "generations", _int(self.generations, "ea.generations", 0))
-        _set(self, "tournament", _int(self.tournament, "ea.tournament", 1, self.population))
-        _set(self, "elites", _int(self.elites, "ea.elites", 0, self.population - 1))
-        _set(self, "crossover_rate", _rate(self.crossover_rate, "ea.crossover_rate"))
-        _set(self, "mutation_rate", _rate(self.mutation_rate, "ea.mutation_rate"))
-        _set(self, "init", _choice(self.init, "ea.init", INITS))
-        _set(self, "founder_retries", _int(self.founder_retries, "ea.founder_retries", 0, 1000))
-        _set(self, "unique_retries", _int(self.unique_retries, "ea.unique_retries", 0, 1000))
-        _set(self, "unique_redraws", _int(self.unique_redraws, "ea.unique_redraws", 0, 1000))
-        _set(self, "within_used", _bool(self.within_used, "ea.within_used"))
-
+        check_settings(self, "ea")
 
 @dataclass(frozen=True, slots=True)
 class IslandSettings:
     """How many islands, and how individuals migrate between them."""
 
-    count: int = 1               # islands (each one a Ray actor in a distributed run)
-    migration_interval: int = 5  # generations between migrations (an epoch)
-    migrants: int = 2            # individuals each island sends at a migration (its best)
-    topology: str = "ring"       # ring: to the next island; full: to every other; random: to one drawn
-    emigrants: str = "novel"     # best: the fittest leave; novel: the fittest of those unlike the destination
+    count: int = setting(
+        1, "islands, each evolving its own population (one Ray actor each in a distributed run)",
+        minimum=1, maximum=10_000)
+    migration_interval: int = setting(
+        5, (
+            "generations between migrations: after generation g with g % interval == 0 the best "
+            "individuals of g move to the destination's generation g+1"
+        ),
+        minimum=1)
+    migrants: int = setting(
+        2, "individuals each island sends at a migration: its best (must be < `ea.population`)",
+        minimum=0)
+    topology: str = setting(
+        "ring", (
+            "`ring`: island i sends to i+1; `full`: every island sends to every other and each "
+            "keeps the best `migrants` arriving; `random`: a ring through an order of the islands"
+            " drawn afresh at each migration from the run seed"
+        ),
+        choices=TOPOLOGIES)
+    emigrants: str = setting(
+        "novel", (
+            "which individuals leave: `best`, the island's fittest; `novel`, to each destination "
+            "the individuals of the better half of the island whose surface the destination does "
+            "not hold and that lie farthest from every member of the destination (criteria and "
+            "region count, each scaled by its spread), so islands exchange what they lack instead"
+            " of converging on one surface"
+        ),
+        choices=EMIGRANTS)
 
     def __post_init__(self) -> None:
-        _set(self, "count", _int(self.count, "islands.count", 1, 10_000))
-        _set(self, "migration_interval", _int(self.migration_interval, "islands.migration_interval", 1))
-        _set(self, "migrants", _int(self.migrants, "islands.migrants", 0))
-        if not isinstance(self.topology, str) or self.topology not in TOPOLOGIES:
-            allowed = ", ".join(repr(t) for t in TOPOLOGIES)
-            raise _fail("islands.topology", f"must be one of {allowed}, got {self.topology!r}")
-        _set(self, "emigrants", _choice(self.emigrants, "islands.emigrants", EMIGRANTS))
-
+        check_settings(self, "islands")
 
 def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, high: int
            ) -> tuple[str, ...]:
@@ -171,49 +224,118 @@ def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, hig
     return tuple(value)
 
 
+# Readers of the search settings that are more than a number or a choice (``setting(read=...)``).
+def _objectives(value: Any, path: str, search: Any) -> tuple[str, ...]:
+    names = _names(value, path, None, 0, 100)
+    if search.mode == "pareto" and len(names) == 1:
+        raise _fail(path, "a Pareto search needs at least 2 objectives")
+    return names
+
+
+def _descriptors(value: Any, path: str, search: Any) -> tuple[str, ...]:
+    return _names(value, path, None, 1, 3)
+
+
+def _ranges(value: Any, path: str, search: Any) -> tuple[tuple[float, float], ...]:
+    n = len(search.descriptors)
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
+        raise _fail(path, f"must hold one [low, high] per descriptor ({n}), got {value!r}")
+    ranges = []
+    for i, pair in enumerate(value):
+        where = f"{path}[{i}]"
+        if isinstance(pair, str) or not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise _fail(where, f"must be [low, high], got {pair!r}")
+        lo, hi = (_number(v, where) for v in pair)
+        if not lo < hi:
+            raise _fail(where, f"low must be below high, got {[lo, hi]!r}")
+        ranges.append((lo, hi))
+    return tuple(ranges)
+
+
+def _bins(value: Any, path: str, search: Any) -> tuple[int, ...]:
+    n = len(search.descriptors)
+    if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
+        raise _fail(path, f"must hold one count per descriptor ({n}), got {value!r}")
+    return tuple(read_int(b, "", f"{path}[{i}]", minimum=1, maximum=1000) for i, b in enumerate(value))
+
+
+def _offspring(value: Any, path: str, search: Any) -> float:
+    share = read_rate(value, "", path)
+    if share <= 0.0:
+        raise _fail(path, "must be above 0: a generation needs new offspring")
+    return share
+
+
 @dataclass(frozen=True, slots=True)
 class SearchSettings:
     """How an island selects: by the weighted fitness, by Pareto fronts (NSGA-II), or into a
     MAP-Elites archive; see ``genr8_dist.evolution.pareto`` and ``genr8_dist.evolution.archive``."""
 
-    mode: str = "weighted"                 # "weighted", "pareto" or "map-elites"
-    objectives: tuple[str, ...] = ()       # pareto: criteria as separate objectives (empty: weight > 0)
-    descriptors: tuple[str, ...] = ("undulation", "size_regions")   # map-elites: the grid's axes
-    ranges: tuple[tuple[float, float], ...] = ((0.0, 2.0), (1.0, 65.0))
-    bins: tuple[int, ...] = (4, 8)
-    offspring: float = 0.5                 # map-elites: offspring each generation, a share of ea.population
+    mode: str = setting(
+        "weighted", (
+            "`weighted`: tournaments and elites by the fitness (the weighted sum); `pareto`: "
+            "NSGA-II, the weighted deviations of `objectives` as separate objectives (tournaments"
+            " by front, then crowding distance; the elites are the first front: its best "
+            "`ea.elites` by the fitness first, then the least crowded, up to half the "
+            "population); `map-elites`: a MAP-Elites archive over `descriptors` (below)"
+        ),
+        choices=SEARCH_MODES)
+    objectives: tuple[str, ...] = setting(
+        (), (
+            "`pareto`: the criteria whose weighted deviations are the objectives (2 or more); "
+            "empty: every criterion with a weight above 0"
+        ),
+        read=_objectives)
+    descriptors: tuple[str, ...] = setting(
+        ("undulation", "size_regions"), (
+            "`map-elites`: 1 to 3 stored values spanning the archive: a criterion's raw value or "
+            "one of the phenotype's sizes, `size_<name>` (surfaces: `size_vertices`, "
+            "`size_edges`, `size_regions`; the older spellings `n_vertices`, `n_edges`, "
+            "`n_regions` still read)"
+        ),
+        read=_descriptors)
+    ranges: tuple[tuple[float, float], ...] = setting(
+        ((0.0, 2.0), (1.0, 65.0)),
+        "`map-elites`: `[low, high]` per descriptor; values outside go to the edge cells", read=_ranges)
+    bins: tuple[int, ...] = setting((4, 8), "`map-elites`: cells per descriptor", read=_bins)
+    offspring: float = setting(
+        0.5, (
+            "`map-elites`: the offspring bred in each generation besides the archive, as a share "
+            "of `ea.population` (at least this many; more while the archive holds fewer cells "
+            "than the rest of the population). A generation holds the whole archive, so it grows "
+            "beyond `ea.population` once more cells are held than `ea.population` less these "
+            "offspring"
+        ),
+        read=_offspring)
 
     def __post_init__(self) -> None:
-        _set(self, "mode", _choice(self.mode, "search.mode", SEARCH_MODES))
-        _set(self, "objectives", _names(self.objectives, "search.objectives", None, 0, 100))
-        if self.mode == "pareto" and len(self.objectives) == 1:
-            raise _fail("search.objectives", "a Pareto search needs at least 2 objectives")
-        _set(self, "descriptors", _names(self.descriptors, "search.descriptors", None, 1, 3))
-        n = len(self.descriptors)
-        if isinstance(self.ranges, str) or not isinstance(self.ranges, (list, tuple)) \
-                or len(self.ranges) != n:
-            raise _fail("search.ranges",
-                        f"must hold one [low, high] per descriptor ({n}), got {self.ranges!r}")
-        ranges = []
-        for i, pair in enumerate(self.ranges):
-            where = f"search.ranges[{i}]"
-            if isinstance(pair, str) or not isinstance(pair, (list, tuple)) or len(pair) != 2:
-                raise _fail(where, f"must be [low, high], got {pair!r}")
-            lo, hi = (_number(v, where) for v in pair)
-            if not lo < hi:
-                raise _fail(where, f"low must be below high, got {[lo, hi]!r}")
-            ranges.append((lo, hi))
-        _set(self, "ranges", tuple(ranges))
-        if isinstance(self.bins, str) or not isinstance(self.bins, (list, tuple)) or len(self.bins) != n:
-            raise _fail("search.bins", f"must hold one count per descriptor ({n}), got {self.bins!r}")
-        _set(self, "bins", tuple(_int(b, f"search.bins[{i}]", 1, 1000) for i, b in enumerate(self.bins)))
-        _set(self, "offspring", _rate(self.offspring, "search.offspring"))
-        if self.offspring <= 0.0:
-            raise _fail("search.offspring", "must be above 0: a generation needs new offspring")
+        check_settings(self, "search")
 
 
 _SECTIONS: dict[str, type] = {"genome": GenomeSettings, "ea": EASettings, "islands": IslandSettings,
                               "search": SearchSettings}
+
+
+def section_table(name: str) -> str:
+    """The documentation table of the section ``[name]`` (docs/run-config.md), from its declarations."""
+    return settings_table(_SECTIONS[name])
+
+
+def _sections_doc() -> str:
+    """The module docstring's list of each section's keys, from their declarations."""
+    import textwrap
+
+    lines = []
+    for name, cls in _SECTIONS.items():
+        keys = textwrap.wrap(", ".join(f.name for f in fields(cls)), 70)
+        lines.append(f"    {'[' + name + ']':<30}# {keys[0]}")
+        lines.extend(f"    {'':<30}# {more}" for more in keys[1:])
+    return "\n".join(lines)
+
+
+if __doc__ is not None:
+    __doc__ = __doc__.replace("{sections}", _sections_doc())
+
 _TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "search",
              "stored_universe")
 
@@ -334,7 +456,7 @@ class RunConfig:
                 _check_source(source)
             except Genr8Error as exc:
                 raise _fail("stored_universe", str(exc)) from None
-        _set(self, "seed", _int(self.seed, "seed", 0, 2**63 - 1))
+        _set(self, "seed", read_int(self.seed, "", "seed", minimum=0, maximum=2**63 - 1))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
         if self.fitness is None:

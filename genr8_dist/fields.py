@@ -1,24 +1,37 @@
 """Checked readers for configuration values (the one family of field validators: environments, run
 configurations, fitness specifications): every failure names the source (when there is one), the
-field and the value."""
+field and the value.
+
+``setting(default, help, ...)`` declares a field of a configuration section once: its type (the
+default's), default, range or choices and help. ``check_settings`` validates a section from those
+declarations and ``settings_table`` writes its documentation table (docs/run-config.md is checked
+against it by a test), so a new field is one line of its dataclass.
+"""
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from genr8_dist.errors import ConfigError
 
 __all__ = [
+    "Setting",
+    "check_settings",
     "fail",
     "read_bool",
     "read_choice",
     "read_float",
     "read_int",
     "read_optional_bool",
+    "read_rate",
     "read_vec3",
     "reject_unknown",
+    "setting",
+    "settings_table",
 ]
 
 
@@ -125,3 +138,84 @@ def reject_unknown(data: Mapping[str, Any], known: Sequence[str], source: str, w
             allowed = ", ".join(sorted(known))
             field = f"{where}.{key}" if where else str(key)
             raise fail(source, field, f"unknown field (known fields: {allowed})")
+
+
+def read_rate(value: Any, source: str, field: str) -> float:
+    """``value`` as a probability: a number in [0, 1]."""
+    try:
+        return read_float(value, source, field, minimum=0.0, maximum=1.0)
+    except ConfigError:
+        raise fail(source, field, f"must be a number in [0, 1], got {value!r}") from None
+
+
+#: A bound of a setting: a number, or a function of the section read so far (fields are read in
+#: declaration order, so a bound may name an earlier field: ``maximum=lambda ea: ea.population``).
+Bound = int | float | Callable[[Any], int | float] | None
+
+
+@dataclasses.dataclass(frozen=True)
+class Setting:
+    """How one declared field is read and documented: its help (the docs' meaning column), its bounds
+    or choices, whether it is a probability, or a reader of its own ``read(value, path, section)``."""
+
+    help: str
+    minimum: Bound = None
+    maximum: Bound = None
+    choices: tuple[str, ...] | None = None
+    rate: bool = False
+    read: Callable[[Any, str, Any], Any] | None = None
+
+
+def setting(default: Any, help: str, *, minimum: Bound = None, maximum: Bound = None,
+            choices: Sequence[str] | None = None, rate: bool = False,
+            read: Callable[[Any, str, Any], Any] | None = None) -> Any:
+    """A dataclass field declared once: default, bounds or choices, help (see the module docstring)."""
+    info = Setting(help, minimum, maximum, None if choices is None else tuple(choices), rate, read)
+    return dataclasses.field(default=default, metadata={"setting": info})
+
+
+def _bound(bound: Bound, section: Any) -> Any:
+    return bound(section) if callable(bound) else bound
+
+
+def _read_setting(info: Setting, default: Any, value: Any, path: str, section: Any) -> Any:
+    if info.read is not None:
+        return info.read(value, path, section)
+    if info.choices is not None:
+        return read_choice(value, "", path, info.choices)
+    if isinstance(default, bool):
+        return read_bool(value, "", path)
+    if isinstance(default, int):
+        return read_int(value, "", path, minimum=_bound(info.minimum, section),
+                        maximum=_bound(info.maximum, section))
+    if info.rate:
+        return read_rate(value, "", path)
+    return read_float(value, "", path, minimum=_bound(info.minimum, section),
+                      maximum=_bound(info.maximum, section))
+
+
+def check_settings(section: Any, name: str) -> None:
+    """Validate the declared fields of the frozen dataclass ``section`` (the table ``[name]``) in
+    declaration order, storing each normalised value; errors name ``name.field``."""
+    for f in dataclasses.fields(section):
+        info = f.metadata.get("setting")
+        if info is not None:
+            value = _read_setting(info, f.default, getattr(section, f.name), f"{name}.{f.name}", section)
+            object.__setattr__(section, f.name, value)
+
+
+def _toml(value: Any) -> str:
+    """``value`` as TOML writes it (the docs' default column)."""
+    if isinstance(value, tuple):
+        value = json.loads(json.dumps(value))
+    return json.dumps(value)
+
+
+def settings_table(cls: type) -> str:
+    """The Markdown table (key, default, meaning) of the declared fields of ``cls``."""
+    rows = ["| key | default | meaning |", "| --- | --- | --- |"]
+    for f in dataclasses.fields(cls):
+        info = f.metadata.get("setting")
+        if info is not None:
+            rows.append(f"| `{f.name}` | `{_toml(f.default)}` | {info.help} |")
+    return "\n".join(rows)

@@ -1,4 +1,5 @@
-"""The fitness of a grown surface: six criteria, each with a target and a weight (thesis 4.3.1, journal 5.3).
+"""The fitness of a grown surface: eight criteria, each with a target and a weight: the thesis's six
+(4.3.1, journal 5.3) and two of genr8_dist's, ``cells`` and ``slivers``.
 
 A *criterion* is a raw measurement of the surface (its size, how smooth it is, ...). The designer sets a
 *target* and a *weight* for each one; the fitness is the weighted sum of the deviations from the targets,

@@ -220,3 +220,26 @@ def test_search_settings_round_trip_through_toml():
                                   "ea": {"init": "ramped", "within_used": True},
                                   "islands": {"emigrants": "best"}})
     assert RunConfig.from_dict(tomllib.loads(config.to_toml())) == config
+
+
+@pytest.mark.parametrize("name", ["genome", "ea", "islands", "search"])
+def test_the_docs_tables_are_the_declared_settings(name):
+    """docs/run-config.md's table of each section is ``section_table``'s, drawn from the fields'
+    declarations: a field added to a section and not to the docs fails here."""
+    from genr8_dist.config import section_table
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "run-config.md").read_text(encoding="utf-8")
+    after = doc.split(f"section_table('{name}')", 1)[1].split("-->\n", 1)[1]
+    assert after.startswith(section_table(name) + "\n\n")
+
+
+def test_a_declared_bound_may_name_an_earlier_field():
+    from genr8_dist.config import EASettings
+
+    assert EASettings(population=4, tournament=4, elites=3).tournament == 4
+    with pytest.raises(ConfigError, match=r"field 'ea.tournament': must be <= 4, got 5"):
+        EASettings(population=4, tournament=5)
+    with pytest.raises(ConfigError, match=r"field 'ea.elites': must be <= 3, got 4"):
+        EASettings(population=4, elites=4)
+    with pytest.raises(ConfigError, match=r"field 'ea.mutation_rate': must be a number in \[0, 1\]"):
+        EASettings(mutation_rate=1.5)

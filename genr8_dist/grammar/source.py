@@ -276,7 +276,7 @@ def load_modules(source: UniverseSource) -> dict[str, ModuleType]:
         for name in source.modules:
             try:
                 loaded[name] = importlib.import_module(f"{package}.{name}")
-            except BaseException as exc:  # a plugin's own bug (SystemExit too): one line, its file
+            except (Exception, SystemExit) as exc:  # a plugin's own bug: one line, its file
                 for key in [k for k in sys.modules if k == package or k.startswith(package + ".")]:
                     sys.modules.pop(key, None)
                 line = getattr(exc, "lineno", None) or _line_in(exc, source.where(f"{name}.py"))

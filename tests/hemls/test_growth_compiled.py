@@ -99,14 +99,14 @@ def test_random_systems_of_every_universe(env):
 
 
 def test_kernels_load_after_some_reference_growth_or_as_asked(monkeypatch):
-    monkeypatch.setattr(module, "_reference_work", 0)
+    monkeypatch.setattr(module.KERNELS, "reference_work", 0)
     monkeypatch.delenv("GENR8_COMPILED", raising=False)
     assert module._kernels() is None   # a short run does not load numba
     grow(load_system("four_sided_tiles"), Environment(max_work=0), steps=6)
-    assert module._reference_work > 5000
-    monkeypatch.setattr(module, "_reference_work", module._LOAD_AFTER)
+    assert module.KERNELS.reference_work > 5000
+    monkeypatch.setattr(module.KERNELS, "reference_work", module.KERNELS.load_after)
     assert module._kernels() is module._load_kernels() is not None
-    monkeypatch.setattr(module, "_reference_work", 0)
+    monkeypatch.setattr(module.KERNELS, "reference_work", 0)
     monkeypatch.setenv("GENR8_COMPILED", "1")
     assert module._kernels() is not None
     monkeypatch.setenv("GENR8_COMPILED", "0")
