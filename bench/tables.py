@@ -1,30 +1,38 @@
-"""Hornby & Pollack's comparison (GECCO 2001, section 3), scaled to minutes: does the generative
-encoding (the ``tables`` universe: P0L-systems with block replication) reach fitter tables sooner
-than the direct one (``tables_direct``: one command string, no replication, no productions)?
+"""Hornby & Pollack's comparison (GECCO 2001, section 3): does the generative encoding (the ``tables``
+universe: P0L-systems of 20 productions with block replication) evolve fitter tables, sooner, than
+the direct one (``tables_direct``: one string of up to 20,000 build commands, no replication, no
+productions)?
 
-Both encodings run the same EA, the one every genr8 island runs (generational, tournament selection,
-one-point crossover, int-flip mutation) with the paper's elitism of 2, the same genome length, the
-same population and generations, over the same seeds; the only difference is the universe. The
-paper ran 100 individuals for 1,000 generations over 100 trials on a 40^3 grid; the defaults here
-(30 individuals, 40 generations, 10 seeds) fit a small shared machine.
+Both encodings evolve as the paper's did: their own genomes and the paper's operators (the plugins'
+``hooks.VARIATION``: random systems or strings, structural mutation and recombination, half and
+half), elitism 2, tournaments of 3, the same population, generations and seeds; the only difference
+is the encoding. The paper ran 100 individuals for 1,000 generations, 100 trials per encoding
+(``--paper``, for a cluster or a lent machine); the default fits a small shared machine.
 
-Prints, per encoding and for every few generations, the median and quartiles of the best fitness
-(the paper's height x surface x stability / excess, maximised) over the seeds; the final best
-tables' voxel counts and reuse (commands run per token of the text: the paper's "compression
-factor"); a Mann-Whitney U test on the final best fitness; and a one-line verdict on the paper's
-claim.
+Reported per encoding, over the seeds (median [quartiles]): the best fitness (height x surface x
+stability / excess, maximised) every few generations; generation 0's and the final best, and the
+improvement evolution made (final / generation 0, per seed); the final best tables' voxels, the
+filled share of their top layer (its voxels / the area of its convex hull: 1 is a solid top, a
+lattice of bars is far below), commands run, the paper's compression (commands run / specification
+length, counted as the paper counts table 4.d: a production head 1, a condition 2, each command,
+call, bracket or block in a successor 1 each per symbol: 45x there) and the repetition of the
+command string the turtle ran (its length / its zlib-compressed length); a Mann-Whitney U test on
+the final best fitness; and a plain verdict on the paper's claim. ``--json FILE`` writes it all.
 
-    python bench/tables.py                      # 10 seeds, 30 x 40 (about 5 minutes on 2 cores)
-    python bench/tables.py --seeds 20 --generations 60 --population 50 --workers 4
+    python bench/tables.py                      # 10 seeds, 20 x 45 (about 5 minutes on 2 cores)
+    python bench/tables.py --seeds 20 --population 50 --generations 100 --workers 4
+    python bench/tables.py --paper --workers 64 # 100 trials of 100 x 1,000 per encoding
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import multiprocessing
 import statistics
 import sys
 import time
+import zlib
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -32,36 +40,76 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 ENCODINGS = ("tables", "tables_direct")
 
 
-def one_run(job: tuple[str, int, int, int, int]) -> dict:
+def specification_length(text: str) -> int:
+    """The paper's specification length (table 4.d, 123 for its table): over the productions the axiom
+    reaches, 1 per production head, 2 per condition, and in every successor 1 per command or call and
+    2 per bracket or block (its two symbols); a direct string: 1 per command, 2 per bracket pair."""
+    from genr8_dist.grammar import load_universe
+
+    hooks = load_universe("tables").hooks
+    system = hooks.voxels.parse(text)
+
+    def size(items) -> int:
+        n = 0
+        for item in items:
+            if item[0] == "[":
+                n += 2 + size(item[1])
+            elif item[0] == "{":
+                n += 2 + size(item[2])
+            else:
+                n += 1
+        return n
+
+    if not system.productions:
+        return size(system.axiom)
+    rules = hooks.variation._Rules(system)
+    total = 0
+    for name in rules.used():
+        production = system.productions[name]
+        total += 1 + sum(2 + size(items) for _, _, items in production.pairs)
+    return max(1, total)
+
+
+def regularity(text: str) -> dict:
+    """The best table's measures besides its fitness: voxels, the top layer's filled share, commands
+    run, the paper's compression (commands / specification length), the command string's repetition
+    (its length / its zlib-compressed length)."""
+    from genr8_dist.grammar import load_universe
+
+    voxels = load_universe("tables").hooks.voxels
+    table = voxels.develop(text)
+    word = voxels.derive(voxels.parse(text))[0]
+    commands = voxels.command_string(word, calls=False).encode()
+    return {"voxels": table.n_voxels, "top_filled": voxels.top_filled_share(table.voxels),
+            "commands": table.commands, "specification": specification_length(text),
+            "compression": table.commands / specification_length(text),
+            "repetition": len(commands) / max(1, len(zlib.compress(commands, 9)))}
+
+
+def one_run(job: tuple[str, int, int, int]) -> dict:
     """Evolve one seed of one encoding on one island; the best paper fitness of every generation."""
     from genr8_dist.config import RunConfig
-    from genr8_dist.evolution.evaluate import universe_for
     from genr8_dist.evolution.island import Island
 
-    universe, seed, population, generations, length = job
+    universe, seed, population, generations = job
     config = RunConfig.from_dict({
         "universe": universe, "seed": seed,
-        "genome": {"length": length, "codon_max": 255, "max_depth": 5, "max_wraps": 2},
         "ea": {"population": population, "generations": generations, "tournament": 3, "elites": 2,
-               "crossover_rate": 0.9, "mutation_rate": 0.02},
+               "crossover_rate": 0.5},
         "islands": {"count": 1, "migrants": 0},
     })
     island = Island(config, 0)
-    start = time.perf_counter()
-    population_now = island.initial()
+    start = time.process_time()
+    now = island.initial()
     best_per_generation = []
     for generation in range(generations + 1):
         if generation:
-            population_now = island.step(population_now, generation)
-        best = min(population_now, key=lambda ind: ind.fitness)
+            now = island.step(now, generation)
+        best = min(now, key=lambda ind: ind.fitness)
         best_per_generation.append(-best.fitness if best.valid else 0.0)
-    best = min(population_now, key=lambda ind: ind.fitness)
-    phenotype = universe_for(config).hooks.PHENOTYPE
-    table = phenotype.develop(best.text, config).value if best.valid else None
-    return {"universe": universe, "seed": seed, "best": best_per_generation,
-            "voxels": table.n_voxels if table is not None else 0,
-            "reuse": table.commands / max(1, len(best.text.split())) if table is not None else 0.0,
-            "criteria": dict(best.criteria), "text": best.text, "seconds": time.perf_counter() - start}
+    best = min(now, key=lambda ind: ind.fitness)
+    return {"universe": universe, "seed": seed, "best": best_per_generation, "text": best.text,
+            "cpu_seconds": time.process_time() - start, **regularity(str(best.text))}
 
 
 def _quartiles(values: list[float]) -> tuple[float, float, float]:
@@ -73,43 +121,90 @@ def _quartiles(values: list[float]) -> tuple[float, float, float]:
 
 
 def _pictures(by: dict[str, list[dict]], folder: Path, args: argparse.Namespace) -> None:
-    """The final best table of each encoding's median seed, drawn by the tables phenotype."""
+    """The final best table of each encoding: of its best seed and of its median seed."""
     from genr8_dist.grammar import load_universe
 
     phenotype = load_universe("tables").hooks.PHENOTYPE
     folder.mkdir(parents=True, exist_ok=True)
     for u, runs in by.items():
         ranked = sorted(runs, key=lambda r: r["best"][-1])
-        r = ranked[len(ranked) // 2]
-        path = folder / f"{u}.png"
-        phenotype.preview(phenotype.develop(r["text"], None), path, config=None,
-                          title=f"{u}: seed {r['seed']}'s best after {args.generations} generations")
-        print(f"  wrote {path} (seed {r['seed']}, fitness {r['best'][-1]:.4g})")
+        for label, r in (("median", ranked[len(ranked) // 2]), ("best", ranked[-1])):
+            path = folder / f"{u}-{label}.png"
+            phenotype.preview(phenotype.develop(r["text"], None), path, config=None,
+                              title=f"{u}: seed {r['seed']}'s best after {args.generations} generations")
+            print(f"  wrote {path} ({label} seed {r['seed']}, fitness {r['best'][-1]:.4g})")
+
+
+def summarise(by: dict[str, list[dict]], args: argparse.Namespace) -> dict:
+    """The figures the report prints (and ``--json`` writes)."""
+    out: dict = {"settings": {k: getattr(args, k) for k in ("seeds", "population", "generations")},
+                 "encodings": {}}
+    for u, runs in by.items():
+        gen0 = [r["best"][0] for r in runs]
+        final = [r["best"][-1] for r in runs]
+        gains = [f / g0 if g0 > 0 else float("inf") for f, g0 in zip(final, gen0, strict=True)]
+        out["encodings"][u] = {
+            "generation_0": _quartiles(gen0), "final": _quartiles(final),
+            "improvement": _quartiles([g for g in gains if g != float("inf")] or [float("nan")]),
+            **{k: _quartiles([float(r[k]) for r in runs]) for k in (
+                "voxels", "top_filled", "commands", "specification", "compression", "repetition",
+                "cpu_seconds")},
+            "runs": runs,
+        }
+    gen = [r["best"][-1] for r in by["tables"]]
+    direct = [r["best"][-1] for r in by["tables_direct"]]
+    from scipy.stats import mannwhitneyu
+
+    p = float(mannwhitneyu(gen, direct, alternative="greater").pvalue) if len(gen) > 1 else float("nan")
+    threshold = statistics.median(direct)
+    reach = {u: [next((g for g, v in enumerate(r["best"]) if v >= threshold), None) for r in by[u]]
+             for u in by}
+    out["comparison"] = {
+        "generation_0_ratio": statistics.median([r["best"][0] for r in by["tables"]]) /
+        max(1e-12, statistics.median([r["best"][0] for r in by["tables_direct"]])),
+        "final_ratio": statistics.median(gen) / max(1e-12, statistics.median(direct)),
+        "mann_whitney_p": p, "wins": sum(g > d for g, d in zip(gen, direct, strict=True)),
+        "direct_median_final": threshold,
+        "reaches_direct_median": {u: [g for g in reach[u]] for u in reach},
+    }
+    return out
+
+
+def _row(name: str, q: tuple[float, float, float], fmt: str = ".4g") -> str:
+    return f"{name:>22}  {q[1]:>10{fmt}} [{q[0]:>9{fmt}} .. {q[2]:>9{fmt}}]"
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--population", type=int, default=30)
-    parser.add_argument("--generations", type=int, default=40)
-    parser.add_argument("--length", type=int, default=300, help="codons per genome (both encodings)")
+    parser.add_argument("--population", type=int, default=20)
+    parser.add_argument("--generations", type=int, default=45)
+    parser.add_argument("--paper", action="store_true",
+                        help="the paper's size: 100 seeds of 100 individuals for 1,000 generations")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--every", type=int, default=5, help="print every N-th generation")
+    parser.add_argument("--json", metavar="FILE", help="write every figure (and each run's) to FILE")
     parser.add_argument("--pictures", metavar="DIR", help="draw each encoding's final best table of "
-                        "the seed with the median final fitness into DIR/<universe>.png")
+                        "its best and its median seed into DIR/<universe>-{best,median}.png")
     args = parser.parse_args(argv)
+    if args.paper:
+        args.seeds, args.population, args.generations = 100, 100, 1000
+        args.every = max(args.every, 100)
 
-    jobs = [(u, seed, args.population, args.generations, args.length)
+    jobs = [(u, seed, args.population, args.generations)
             for seed in range(1, args.seeds + 1) for u in ENCODINGS]
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
-        results = pool.map(one_run, jobs)
+        results = pool.map(one_run, jobs, chunksize=1)
     wall = time.perf_counter() - start
     by = {u: [r for r in results if r["universe"] == u] for u in ENCODINGS}
+    figures = summarise(by, args)
+    cpu_total = sum(r["cpu_seconds"] for r in results) + time.process_time() - cpu
+    figures["settings"].update(wall_seconds=wall, cpu_seconds=cpu_total, workers=args.workers)
 
     print(f"Hornby & Pollack's comparison: {args.seeds} seeds per encoding, population {args.population}, "
-          f"{args.generations} generations, elitism 2, genome {args.length} codons; {wall:.0f} s on "
-          f"{args.workers} workers")
+          f"{args.generations} generations, elitism 2, the paper's operators; {wall:.0f} s wall on "
+          f"{args.workers} workers, {cpu_total:.0f} CPU-s")
     print("best fitness (height x surface x stability / excess), median [quartiles] over the seeds")
     print(f"{'gen':>4}  " + "  ".join(f"{u:>36}" for u in ENCODINGS))
     for g in list(range(0, args.generations + 1, args.every)) + (
@@ -119,46 +214,45 @@ def main(argv: list[str] | None = None) -> int:
             lo, mid, hi = _quartiles([r["best"][g] for r in by[u]])
             cells.append(f"{mid:>12.4g} [{lo:>9.4g} .. {hi:>9.4g}]")
         print(f"{g:>4}  " + "  ".join(f"{c:>36}" for c in cells))
-
-    print("final best tables: voxels, reuse (commands run per text token), seconds per run")
     for u in ENCODINGS:
-        vox = sorted(r["voxels"] for r in by[u])
-        reuse = [r["reuse"] for r in by[u]]
-        secs = [r["seconds"] for r in by[u]]
-        print(f"  {u:<14} voxels median {statistics.median(vox):.0f} (range {vox[0]}..{vox[-1]}), "
-              f"reuse median {statistics.median(reuse):.1f}, {statistics.median(secs):.1f} s/run")
-
+        e = figures["encodings"][u]
+        print(f"{u}: final best tables, median [quartiles]")
+        for key, label, fmt in (("generation_0", "generation-0 best", ".4g"), ("final", "final best", ".4g"),
+                                ("improvement", "final / generation 0", ".3g"),
+                                ("voxels", "voxels", ".0f"), ("top_filled", "top layer filled", ".2f"),
+                                ("commands", "commands run", ".0f"),
+                                ("specification", "specification length", ".0f"),
+                                ("compression", "compression", ".3g"),
+                                ("repetition", "command repetition", ".3g"),
+                                ("cpu_seconds", "CPU-s per run", ".0f")):
+            print(_row(label, e[key], fmt))
+    c = figures["comparison"]
+    print(f"generation-0 median best, generative / direct: {c['generation_0_ratio']:.3g}")
+    print(f"final median best, generative / direct: {c['final_ratio']:.3g}; generative ends fitter in "
+          f"{c['wins']}/{args.seeds} seeds; Mann-Whitney U (generative > direct): p = "
+          f"{c['mann_whitney_p']:.3g}")
+    for u in ENCODINGS:
+        done = [g for g in c["reaches_direct_median"][u] if g is not None]
+        print(f"  {u:<14} reaches the direct encoding's median final best ({c['direct_median_final']:.4g}) "
+              f"in {len(done)}/{args.seeds} seeds" +
+              (f", median generation {statistics.median(done):g}" if done else ""))
+    gen_reach = [g for g in c["reaches_direct_median"]["tables"] if g is not None]
+    dir_reach = [g for g in c["reaches_direct_median"]["tables_direct"] if g is not None]
+    higher = c["final_ratio"] > 1 and c["mann_whitney_p"] < 0.05
+    sooner = bool(gen_reach) and len(gen_reach) >= len(dir_reach) and (
+        not dir_reach or statistics.median(gen_reach) <= statistics.median(dir_reach))
+    fair = 1 / 3 <= c["generation_0_ratio"] <= 3
+    figures["verdict"] = {"higher": higher, "sooner": sooner, "fair_start": fair}
+    print("verdict: " + (
+        "the paper's claim holds here: from random designs of similar fitness (generation-0 medians "
+        "within 3x) the generative encoding evolves fitter tables, sooner" if higher and sooner and fair
+        else f"the paper's claim is not shown here (fitter: {'yes' if higher else 'no'}, sooner: "
+             f"{'yes' if sooner else 'no'}, similar start: {'yes' if fair else 'no'})"))
     if args.pictures:
         _pictures(by, Path(args.pictures), args)
-
-    gen_final = [r["best"][-1] for r in by["tables"]]
-    dir_final = [r["best"][-1] for r in by["tables_direct"]]
-    wins = sum(g > d for g, d in zip(gen_final, dir_final, strict=True))
-    print(f"seeds where the generative encoding ends fitter than the direct one: {wins}/{args.seeds}")
-    first = {}
-    threshold = statistics.median(dir_final)
-    for u in ENCODINGS:
-        reach = [next((g for g, v in enumerate(r["best"]) if v >= threshold), None) for r in by[u]]
-        done = [g for g in reach if g is not None]
-        first[u] = (len(done), statistics.median(done) if done else None)
-        print(f"  {u:<14} reaches the direct encoding's median final fitness ({threshold:.4g}) in "
-              f"{len(done)}/{args.seeds} seeds" + (f", median generation {first[u][1]:g}" if done else ""))
-    try:
-        from scipy.stats import mannwhitneyu
-
-        p = float(mannwhitneyu(gen_final, dir_final, alternative="greater").pvalue)
-        print(f"Mann-Whitney U, generative > direct on the final best fitness: p = {p:.3g}")
-    except ImportError:  # scipy is a test extra
-        p = float("nan")
-    higher = statistics.median(gen_final) > statistics.median(dir_final)
-    sooner = first["tables"][0] >= first["tables_direct"][0] and (
-        first["tables"][1] is not None and (first["tables_direct"][1] is None
-                                            or first["tables"][1] <= first["tables_direct"][1]))
-    agree = higher and sooner and (p != p or p < 0.05)
-    print("verdict: " + ("our runs agree with the paper: the generative encoding reaches higher fitness, "
-                         "sooner" if agree else
-                         "our runs do not clearly agree with the paper (higher: "
-                         f"{'yes' if higher else 'no'}, sooner: {'yes' if sooner else 'no'}, p = {p:.3g})"))
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1, default=float) + "\n")
+        print(f"  wrote {args.json}")
     return 0
 
 

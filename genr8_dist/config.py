@@ -35,6 +35,7 @@ __all__ = [
     "INITS",
     "SEARCH_MODES",
     "TOPOLOGIES",
+    "VARIATIONS",
     "EASettings",
     "GenomeSettings",
     "IslandSettings",
@@ -46,6 +47,7 @@ __all__ = [
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
 INITS: tuple[str, ...] = ("random", "ramped")
+VARIATIONS: tuple[str, ...] = ("auto", "ge")   # genr8_dist.evolution.variation
 SEARCH_MODES: tuple[str, ...] = ("weighted", "pareto", "map-elites")
 EMIGRANTS: tuple[str, ...] = ("best", "novel")
 
@@ -170,6 +172,17 @@ class EASettings:
             "crossover cuts and mutation flips only within the codons the mapper read (PonyGE2's "
             "*within used*)"
         ))
+    variation: str = setting(
+        "auto", (
+            "`\"auto\"`: a universe whose `hooks.py` declares its own genome and operators "
+            "(`VARIATION`: the tables universes, Hornby & Pollack's structural mutation and "
+            "recombination) evolves with them, its genome the text's characters; every other "
+            "universe, and any under `\"ge\"`, with GE's (int genomes, one-point crossover, "
+            "int-flip). Under a universe's variation each offspring is one child, recombined with "
+            "probability `crossover_rate` (the paper: 0.5), else mutated; `mutation_rate`, "
+            "`genome.*`, `init` and `within_used` play no part (docs/phenotypes.md)"
+        ),
+        choices=VARIATIONS)
 
     def __post_init__(self) -> None:
         check_settings(self, "ea")
@@ -336,7 +349,7 @@ def _sections_doc() -> str:
 if __doc__ is not None:
     __doc__ = __doc__.replace("{sections}", _sections_doc())
 
-_TOP_KEYS = ("universe", "seed", "genome", "ea", "fitness", "environment", "islands", "search",
+_TOP_KEYS = ("universe", "seed", "meshing", "genome", "ea", "fitness", "environment", "islands", "search",
              "stored_universe")
 
 
@@ -430,6 +443,7 @@ class RunConfig:
 
     universe: str = "default"
     seed: int = 0
+    meshing: int = 2             # how surfaces are cut into triangles (genr8_dist.hemls.meshing.MESHINGS)
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
     fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
@@ -457,6 +471,9 @@ class RunConfig:
             except Genr8Error as exc:
                 raise _fail("stored_universe", str(exc)) from None
         _set(self, "seed", read_int(self.seed, "", "seed", minimum=0, maximum=2**63 - 1))
+        from genr8_dist.hemls.meshing import check_meshing
+
+        _set(self, "meshing", check_meshing(self.meshing))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
         if self.fitness is None:
@@ -509,15 +526,18 @@ class RunConfig:
 
     @classmethod
     def from_toml(cls, text: str, *, source: str = "<config>",
-                  criteria: Sequence[str] | None = None) -> RunConfig:
+                  criteria: Sequence[str] | None = None, meshing: int | None = None) -> RunConfig:
         """Build and validate from TOML text (a run's stored configuration: the environment inline);
-        malformed TOML is a ``ConfigError`` naming ``source``."""
+        malformed TOML is a ``ConfigError`` naming ``source``. ``meshing``: the version a text that
+        names none uses (a run's recorded one, ``RunStore.meshing``); default the current one."""
         import tomllib
 
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        if meshing is not None and "meshing" not in data:
+            data["meshing"] = meshing
         return cls.from_dict(data, source=source, criteria=criteria)
 
     @classmethod
@@ -528,7 +548,7 @@ class RunConfig:
         for key in data:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
-        kwargs: dict[str, Any] = {k: data[k] for k in ("seed",) if k in data}
+        kwargs: dict[str, Any] = {k: data[k] for k in ("seed", "meshing") if k in data}
         if "stored_universe" in data:
             from genr8_dist.grammar.source import UniverseSource
 
@@ -556,7 +576,7 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         """A TOML-ready table (the environment always inline), such that ``from_dict(to_dict())`` is
         equal to this configuration."""
-        out: dict[str, Any] = {"universe": self.universe, "seed": self.seed}
+        out: dict[str, Any] = {"universe": self.universe, "seed": self.seed, "meshing": self.meshing}
         for name in _SECTIONS:
             section = getattr(self, name)
             out[name] = {f.name: _lists(getattr(section, f.name)) for f in fields(section)}

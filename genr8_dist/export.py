@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from genr8_dist.errors import ConfigError
-from genr8_dist.files import replacing
+from genr8_dist.files import is_stream, replacing
 
 if TYPE_CHECKING:
     from genr8_dist.environment import Environment
@@ -82,24 +82,45 @@ def _write_bytes(path: Path, data: bytes | str) -> None:
         tmp.write_bytes(data.encode() if isinstance(data, str) else data)
 
 
-def _arrays(surface: SurfaceLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _arrays(surface: SurfaceLike, smooth: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(points, edges, faces): the surface's mesh by its meshing (``Surface.mesh``: its vertices first,
+    then the points meshing added), after ``smooth`` Loop subdivision steps (each cuts every triangle
+    into four and moves the points towards the smooth limit surface)."""
     vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
-    return vertices, edges, faces
+    meshed = getattr(surface, "mesh", None)
+    if callable(meshed):
+        mesh = meshed()
+        points, faces = np.asarray(mesh.points, dtype=np.float64), np.asarray(mesh.triangles, dtype=np.int64)
+    else:
+        points, faces = vertices, np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    if smooth and len(faces):
+        from trimesh.remesh import subdivide_loop
+
+        points, faces = subdivide_loop(points, faces, iterations=int(smooth))
+    return points, edges, faces
 
 
-def mesh_of(surface: SurfaceLike) -> Any:
-    """The surface's regions as one ``trimesh.Trimesh`` (every vertex kept, in order; not merged)."""
+def check_smooth(smooth: Any) -> int:
+    """``--smooth N`` checked: subdivision steps, 0 to 4 (each multiplies the triangles by four)."""
+    if isinstance(smooth, bool) or not isinstance(smooth, int) or not 0 <= smooth <= 4:
+        raise ConfigError(f"--smooth {smooth!r}: use 0 to 4 subdivision steps (each x4 the triangles)")
+    return smooth
+
+
+def mesh_of(surface: SurfaceLike, smooth: int = 0) -> Any:
+    """The surface's regions as one ``trimesh.Trimesh``: the surface's vertices first, in order (not
+    merged), then the points its meshing added; ``smooth`` Loop subdivision steps after."""
     import trimesh
 
-    vertices, _, faces = _arrays(surface)
-    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False, validate=False)
+    points, _, faces = _arrays(surface, check_smooth(smooth))
+    return trimesh.Trimesh(vertices=points, faces=faces, process=False, validate=False)
 
 
-def export_mesh(surface: SurfaceLike, path: str | Path) -> Path:
-    """Write the triangulated regions to ``path`` (OBJ, PLY, STL or GLB by suffix); returns the path."""
-    return write_mesh(mesh_of(surface), path)
+def export_mesh(surface: SurfaceLike, path: str | Path, *, smooth: int = 0) -> Path:
+    """Write the triangulated regions to ``path`` (OBJ, PLY, STL or GLB by suffix), after ``smooth``
+    subdivision steps; returns the path."""
+    return write_mesh(mesh_of(surface, smooth), path)
 
 
 def write_mesh(mesh: Any, path: str | Path) -> Path:
@@ -186,7 +207,7 @@ def save_png(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
     path = Path(path)
     plt = _pyplot()
     try:
-        if path.suffix.lower() != ".png":
+        if path.suffix.lower() != ".png" and not is_stream(path):
             raise ConfigError(f"{path}: a preview is a .png file")
         with _atomic(path) as tmp:
             fig.savefig(tmp, format="png", dpi=dpi, bbox_inches="tight", pad_inches=0.15,
@@ -196,22 +217,67 @@ def save_png(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
     return path
 
 
-def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any) -> np.ndarray:
-    """Colour by height, shaded by a fixed light (Lambert, two-sided so face winding does not matter)."""
+_LIGHT = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
+_DRAWN_TRIANGLES = 40_000   # a mesh of more triangles is drawn as its meshing-1 triangles (speed)
+
+
+def smooth_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(P, 3) unit normals at the points: the area-weighted mean of the normals of the triangles
+    around each (the faces are oriented like their regions, so neighbours agree)."""
+    tri = points[faces]
+    face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])      # length: twice the area
+    normal = np.zeros_like(points)
+    for k in range(3):
+        np.add.at(normal, faces[:, k], face)
+    length = np.linalg.norm(normal, axis=1, keepdims=True)
+    return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+
+
+def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float = 0.15,
+                  span_: float = 0.7, dark: float = 0.45) -> np.ndarray:
+    """Colour by height, shaded by a fixed light through smooth (point-averaged) normals: each
+    triangle takes the mean of its corners' Lambert terms (two-sided), so no facet or seam shows."""
     tri = vertices[faces]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    norm = np.linalg.norm(normal, axis=1, keepdims=True)
-    normal = np.divide(normal, norm, out=np.zeros_like(normal), where=norm > 0)
-    light = np.array([-0.4, -0.5, 0.77])
-    light /= np.linalg.norm(light)
-    lambert = np.abs(normal @ light)
+    lambert = np.abs(smooth_normals(vertices, faces) @ _LIGHT)[faces].mean(axis=1)
     z = tri[:, :, 2].mean(axis=1)
     span = float(np.ptp(z)) if len(z) else 0.0
     level = (z - z.min()) / span if span > 1e-12 else np.full(len(z), 0.55)
-    colours = cmap(0.15 + 0.7 * level)
-    colours[:, :3] *= (0.45 + 0.55 * lambert)[:, None]
+    colours = cmap(low + span_ * level)
+    colours[:, :3] *= (dark + (1.0 - dark) * lambert)[:, None]
     colours[:, 3] = 1.0
     return colours
+
+
+def _drawn(surface: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The points and triangles a picture draws: the surface's mesh, or its meshing-1 triangles when
+    the mesh is too large to draw quickly."""
+    points, _, faces = _arrays(surface)
+    if len(faces) > _DRAWN_TRIANGLES and hasattr(surface, "triangles"):
+        points = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+        faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    return points, faces
+
+
+def _add_surface(ax: Any, surface: Any, plt: Any, *, low: float, span: float, dark: float,
+                 curve_width: float, zorder: float | None = None) -> None:
+    """The shaded mesh (triangle edges hidden: drawn in the face colour, hairline, to close seams)
+    and the scaffold as B-spline curves (``genr8_dist.scaffold``)."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
+
+    from genr8_dist.scaffold import scaffold_curves
+
+    points, faces = _drawn(surface)
+    extra = {} if zorder is None else {"zorder": zorder}
+    if len(faces):
+        colours = _face_colours(points, faces, plt.get_cmap("viridis"), low, span, dark)
+        ax.add_collection3d(Poly3DCollection(points[faces], facecolors=colours, edgecolors=colours,
+                                             linewidths=0.1, antialiased=False, **extra))
+    edges = np.asarray(surface.edges).reshape(-1, 2)
+    if len(edges):
+        curves = scaffold_curves(surface)
+        extra_l = {} if zorder is None else {"zorder": zorder + 1}
+        ax.add_collection3d(Line3DCollection(curves, colors="0.12", linewidths=curve_width, alpha=0.8,
+                                             **extra_l))
 
 
 def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray,
@@ -340,9 +406,9 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
     if path.suffix.lower() != ".png":
         raise ConfigError(f"{path}: a preview is a .png file")
     plt = _pyplot()
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
-
-    vertices, edges, faces = _arrays(surface)
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
+    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
     regions = getattr(surface, "regions", None)
     fig = plt.figure(figsize=size, dpi=dpi)
     try:
@@ -354,16 +420,9 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
             lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         else:
             lo, hi = np.zeros(3), np.ones(3)
-        if len(faces):
-            colours = _face_colours(vertices, faces, plt.get_cmap("viridis"))
-            # edges painted in the face colour hide the seams between the triangles of one region
-            polys = Poly3DCollection(vertices[faces], facecolors=colours, edgecolors=colours, linewidths=0.25,
-                                     zorder=1)
-            ax.add_collection3d(polys)
-        if len(edges):
+        if len(faces) or len(edges):
             width = 0.8 if len(edges) < 3000 else (0.4 if len(edges) < 20000 else 0.2)
-            ax.add_collection3d(Line3DCollection(vertices[edges], colors="0.12", linewidths=width, alpha=0.9,
-                                                 zorder=2))
+            _add_surface(ax, surface, plt, low=0.15, span=0.7, dark=0.45, curve_width=width, zorder=1)
         rim = _perimeter(surface)
         if len(rim) > 1:
             loop = vertices[np.append(rim, rim[0])]
@@ -404,33 +463,15 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
 
 
 def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
-    """Draw ``surface`` on the 3D axes ``ax``: its regions (triangulated) shaded by height and lit from
-    above, its edges (the scaffold) as thin dark lines, equal scale on every axis, no axis clutter."""
-    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
-
+    """Draw ``surface`` on the 3D axes ``ax``: its mesh shaded by height and lit from above through
+    smooth normals (no triangle edge drawn), its scaffold as B-spline curves, equal scale on every
+    axis, no axis clutter."""
     plt = _pyplot()
     v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
-    edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
     lo, hi = v.min(axis=0), v.max(axis=0)
     centre = (lo + hi) / 2.0
     radius = max(float((hi - lo).max()) / 2.0, 1e-9)
-    if len(faces):
-        tri = v[faces]
-        z = tri[:, :, 2].mean(axis=1)
-        zn = (z - lo[2]) / (hi[2] - lo[2]) if hi[2] > lo[2] else np.full(len(z), 0.55)
-        colours = plt.get_cmap("viridis")(0.18 + 0.64 * zn)
-        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        length = np.linalg.norm(normal, axis=1)
-        light = np.array([-0.4, -0.5, 0.77]) / np.linalg.norm([-0.4, -0.5, 0.77])
-        lit = np.where(length > 0, np.abs(normal @ light) / np.where(length > 0, length, 1.0), 0.8)
-        colours[:, :3] *= (0.55 + 0.45 * lit)[:, None]
-        # edges in the face colour close the hairline seams between the triangles of one region
-        ax.add_collection3d(Poly3DCollection(tri, facecolors=colours, edgecolors=colours,
-                                             linewidths=0.35))
-    if len(edges):
-        ax.add_collection3d(Line3DCollection(v[edges], colors="#1b1b1b", linewidths=0.45,
-                                             alpha=0.85))
+    _add_surface(ax, surface, plt, low=0.18, span=0.64, dark=0.55, curve_width=0.45)
     ax.set_xlim(centre[0] - radius, centre[0] + radius)
     ax.set_ylim(centre[1] - radius, centre[1] + radius)
     ax.set_zlim(centre[2] - radius, centre[2] + radius)
@@ -439,9 +480,11 @@ def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58
     ax.set_axis_off()
 
 
-def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str) -> Path:
-    """A Rhino file holding the surface as one mesh named ``name`` (every vertex, in order; the regions'
-    triangles) and its edges as a line layer, the scaffold a designer builds on (the ``rhino`` extra)."""
+def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str, smooth: int = 0) -> Path:
+    """A Rhino file holding the surface as one mesh named ``name`` (its vertices first, in order, then
+    the points its meshing added; ``smooth`` subdivision steps after), its edges as a line layer
+    ("genr8 scaffold"), and the scaffold's lines as degree-3 NURBS curves ("genr8 scaffold curves":
+    ``genr8_dist.scaffold``, the smooth lines a designer builds on; the ``rhino`` extra)."""
     path = Path(path)
     try:
         import importlib
@@ -449,9 +492,10 @@ def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str) -> Path:
         rhino3dm: Any = importlib.import_module("rhino3dm")  # its stubs miss writable attributes
     except ImportError:
         raise ConfigError(".3dm export needs rhino3dm: pip install 'genr8-dist[rhino]'") from None
-    vertices, edges, faces = _arrays(surface)
+    points, edges, faces = _arrays(surface, check_smooth(smooth))
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     mesh = rhino3dm.Mesh()
-    for x, y, z in vertices.tolist():
+    for x, y, z in points.tolist():
         mesh.Vertices.Add(x, y, z)
     for a, b, c in faces.tolist():
         mesh.Faces.AddFace(a, b, c)
@@ -472,6 +516,18 @@ def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str) -> Path:
     for a, b in edges.tolist():
         p, q = vertices[a], vertices[b]
         model.Objects.AddLine(rhino3dm.Point3d(*p), rhino3dm.Point3d(*q), line_attributes)
+    from genr8_dist.scaffold import scaffold_lines
+
+    curve_layer = rhino3dm.Layer()
+    curve_layer.Name = "genr8 scaffold curves"
+    curve_attributes = rhino3dm.ObjectAttributes()
+    curve_attributes.LayerIndex = model.Layers.Add(curve_layer)
+    for ids, closed in scaffold_lines(vertices, edges):
+        control = [rhino3dm.Point3d(*p) for p in vertices[ids].tolist()]
+        degree = min(3, len(control) - 1)
+        curve = rhino3dm.NurbsCurve.Create(closed, degree, control)
+        if curve is not None:
+            model.Objects.AddCurve(curve, curve_attributes)
     with _atomic(path) as tmp:
         if not model.Write(str(tmp), 7):
             raise OSError(5, "rhino3dm could not write the file", str(path))

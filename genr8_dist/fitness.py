@@ -200,9 +200,32 @@ def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
     return np.asarray(np.minimum(np.minimum(first, second), third))
 
 
+def sliver_roundness(degrees: float = SLIVER_DEGREES) -> float:
+    """The isoperimetric quotient ``4 pi area / perimeter**2`` of the roundest triangle whose smallest
+    angle is ``degrees`` (its other two equal): about 0.231 at 10 degrees."""
+    half = math.radians(degrees) / 2.0
+    area = 0.5 * math.sin(2.0 * half)                 # two sides of length 1 about the small angle
+    perimeter = 2.0 + 2.0 * math.sin(half)
+    return 4.0 * math.pi * area / perimeter ** 2
+
+
 def slivers(surface: Any) -> float:
-    """The share of the surface's exported triangles (``surface.triangles()``) whose smallest angle is
-    below ``SLIVER_DEGREES``; 0 when it has none (no region, or a surface-like without triangles)."""
+    """The share of thin parts of the surface, by its meshing (``hemls.meshing``; docs/run-config.md):
+
+    - meshing 2 and later (the triangles are well shaped, so they say nothing of the form): the share
+      of its regions thinner than a sliver triangle, whose isoperimetric quotient
+      (``meshing.region_roundness``) is below ``sliver_roundness()`` (a triangle of smallest angle
+      ``SLIVER_DEGREES``): thin strips, slivers and regions folded over themselves;
+    - meshing 1 (runs created before meshing was recorded), and a surface-like without a meshing: the
+      share of its triangles (``surface.triangles()``) whose smallest angle is below
+      ``SLIVER_DEGREES``.
+
+    0 when it has none (no region, or a surface-like without triangles)."""
+    if getattr(surface, "meshing", 1) >= 2 and hasattr(surface, "region_offsets"):
+        from genr8_dist.hemls.meshing import region_roundness
+
+        roundness = region_roundness(surface)
+        return float(np.mean(roundness < sliver_roundness())) if len(roundness) else 0.0
     triangles = surface.triangles() if hasattr(surface, "triangles") else ()
     angles = triangle_min_angles(surface.vertices, triangles)
     return float(np.mean(angles < SLIVER_DEGREES)) if len(angles) else 0.0
@@ -419,8 +442,9 @@ for _info in (
                   description="regions (cells) of the map: keeps counting as branches join, where "
                               "`V / E` levels off (four-sided tiles after 3 steps: 64)"),
     CriterionInfo("slivers", lambda s, env: slivers(s), 0.0, weight=0.0, heading="sliver",
-                  description="share of the exported triangles whose smallest angle is below 10 "
-                              "degrees: 0 for clean cells, near 1 for a crumpled strip"),
+                  description="share of the regions thinner than a triangle of smallest angle 10 "
+                              "degrees (meshing 1 runs: of the triangles): 0 for clean cells, near 1 for "
+                              "a crumpled strip"),
 ):
     register_criterion(_info)
 

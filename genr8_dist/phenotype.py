@@ -12,6 +12,9 @@ the report only ever talk to a phenotype through this interface:
                                            ``size_<name>`` columns beside the criteria
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
 ``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
+``screen(text, config) -> (bool, str)``    (optional) what the text shows before development:
+                                           trivial for sure, and a key equal for texts that
+                                           develop alike (default: never trivial, the text)
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
@@ -108,6 +111,13 @@ class Phenotype(ABC):
         place in generation 0 (sensible initialisation redraws it); by default never."""
         return False
 
+    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+        """What ``text`` shows before it is developed: whether its development is sure to be
+        ``trivial`` (an island then draws or varies it again without developing it), and a key
+        equal for two texts only when they develop into one phenotype (a copy, known without
+        developing it); by default never trivial, and the text itself."""
+        return False, text
+
     def describe(self, developed: Developed) -> str:
         """One line saying what was developed (``genr8 show``): its counts, else its kind."""
         parts = [f"{n} {k}" for k, n in developed.counts.items()]
@@ -146,6 +156,7 @@ class SurfacePhenotype(Phenotype):
     trivial_from_sizes = True
     # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
     export_formats = ("obj", "ply", "stl", "glb", "3dm")
+    smooths = True      # export takes smooth=N (Loop subdivision steps: genr8 show --smooth)
 
     def parse(self, text: str) -> Any:
         """Read a derived text (a rewrite system); raises for a text no individual could grow from.
@@ -165,6 +176,8 @@ class SurfacePhenotype(Phenotype):
             raise
         result = grow(system, config.environment)
         surface = result.surface
+        if hasattr(surface, "with_meshing"):     # the run's meshing (a stored run keeps its own)
+            surface = surface.with_meshing(getattr(config, "meshing", surface.meshing))
         steps = result.steps
         capped = result.capped
         n_regions = getattr(surface, "n_regions", None)
@@ -183,6 +196,15 @@ class SurfacePhenotype(Phenotype):
         """At most one region: the axiom polygon as it was, or grown without a subdivision."""
         return evaluation.sizes.get("regions", 0) <= 1
 
+    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+        """Trivial when no rule that can fire draws a branch (no region can ever split: one region
+        whatever the environment); the key is the text without the rules that can never fire
+        (``genr8_dist.hemls.splitting.screen``)."""
+        from genr8_dist.hemls.splitting import screen
+
+        env = getattr(config, "environment", None)
+        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0))
+
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):
             return "degenerate surface: no vertices or no edges"
@@ -191,14 +213,16 @@ class SurfacePhenotype(Phenotype):
     def fitness(self, raw: Mapping[str, float], config: Any) -> float:
         return config.fitness.evaluate(raw)
 
-    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
-        """The surface as a triangle mesh (.obj .ply .stl .glb, every vertex in order) or as a Rhino
-        .3dm file (the mesh, named ``name``, and the scaffold's edges as lines)."""
+    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "",
+               smooth: int = 0) -> Path:
+        """The surface as a triangle mesh by its run's meshing (.obj .ply .stl .glb: every vertex in
+        order, then the points meshing added) or as a Rhino .3dm file (the mesh, named ``name``, the
+        scaffold's edges as lines and its lines as NURBS curves); ``smooth`` subdivision steps."""
         from genr8_dist.export import export_3dm, export_mesh
 
         if Path(path).suffix.lower() == ".3dm":
-            return export_3dm(developed.value, path, name=name or "genr8 surface")
-        return export_mesh(developed.value, path)
+            return export_3dm(developed.value, path, name=name or "genr8 surface", smooth=smooth)
+        return export_mesh(developed.value, path, smooth=smooth)
 
     def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
         """The shaded surface in the run's environment (boundaries, attractors, repellers, gravity)."""

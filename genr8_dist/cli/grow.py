@@ -45,6 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--each-step", action="store_true",
                         help="write one file per derivation step (OUT-step1.obj, OUT-step2.obj, ...)")
     parser.add_argument("--title", help="title of the PNG (default: the system's name and step count)")
+    parser.add_argument("--smooth", type=int, default=0, metavar="N",
+                        help="Loop subdivision steps applied to the -o mesh (0-4; each x4 the triangles)")
+    parser.add_argument("--meshing", type=int, default=None, metavar="V",
+                        help="meshing version (docs/run-config.md; default the current, 2; 1: the old "
+                        "cut of each region into m - 2 triangles)")
     parser.set_defaults(handler=_handle)
 
 
@@ -105,7 +110,7 @@ def _write(surface: Any, args: argparse.Namespace, env: Any, title: str, step: i
             continue
         path = Path(value) if step is None else step_path(Path(value), step)
         if writer == "mesh":
-            export_mesh(surface, path)
+            export_mesh(surface, path, smooth=args.smooth)
         elif writer == "scaffold":
             export_scaffold(surface, path)
         else:
@@ -126,8 +131,13 @@ def _cap_message(capped: str, env: Any) -> str:
 
 
 def _handle(args: argparse.Namespace) -> int:
+    from genr8_dist.export import check_smooth
     from genr8_dist.hemls import grow, load_system
+    from genr8_dist.hemls.meshing import check_meshing
 
+    check_smooth(args.smooth)
+    if args.meshing is not None:
+        check_meshing(args.meshing, "--meshing")
     _check_outputs(args)
     env = _environment(args)
     system = load_system(args.system)
@@ -138,6 +148,9 @@ def _handle(args: argparse.Namespace) -> int:
     writes = args.each_step and any((args.output, args.scaffold, args.png))
 
     result = grow(system, env, keep_steps=writes)
+    if args.meshing is not None:
+        result = dataclasses.replace(result, surface=result.surface.with_meshing(args.meshing),
+                                     history=[s.with_meshing(args.meshing) for s in result.history])
     out = sys.stdout
     print(f"{name}: {env.steps} derivation step{'s' if env.steps != 1 else ''}, seed {env.seed}", file=out)
     print(f"{'step':>4}  {'vertices':>9}  {'edges':>9}  {'regions':>9}  {'seconds':>8}", file=out)

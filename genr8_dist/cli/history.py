@@ -68,9 +68,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--island", type=int32, help="only this island")
     p.add_argument("--criterion", help="rank by this criterion's distance to its target, not the total")
     p.add_argument("--systems", action="store_true", help="print each individual's rewrite system")
-    p.add_argument("--distinct", action="store_true",
-                   help="one row per form (copies, elites and mirror images of one design are one form), "
-                        "with how many individuals share it")
+    rows = p.add_mutually_exclusive_group()
+    rows.add_argument("--distinct", action="store_true",
+                      help="one row per form, the default: copies, elites and mirror images of one design "
+                           "are one form, listed by its best with how many individuals share it")
+    rows.add_argument("--all", action="store_true",
+                      help="every individual, a form's copies included (elites rank twice)")
     p.add_argument("--pareto", action="store_true",
                    help="list the non-dominated designs over the Pareto objectives instead")
     p.set_defaults(handler=_top)
@@ -80,7 +83,8 @@ def register(subparsers: Any) -> None:
         description="Every ancestor of an individual, how each was made (crossover, mutation, elite, "
                     "migrant, injected) and from whom; '*' marks the line of first parents.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3)")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index (e.g. 2-49-3), or "
+                                            "'best': the run's best valid individual")
     p.add_argument("--depth", type=int32, help="only this many generations back")
     p.add_argument("--all", action="store_true",
                    help="list every ancestor (default: the main line and 12 per generation)")
@@ -93,11 +97,14 @@ def register(subparsers: Any) -> None:
                     "under, check its phenotype (a surface, a table...) against the recorded digest and "
                     "sizes, and export it.")
     _run_arg(p)
-    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index")
+    p.add_argument("id", metavar="ID", help="the individual, as island-generation-index, or 'best': the "
+                                            "run's best valid individual")
     p.add_argument("-o", "--output", action="append", default=[], metavar="OUT",
                    help="export it in a format of its phenotype (a surface: .obj .ply .stl .glb through "
                         "trimesh or .3dm for Rhino; a table: .obj .ply .stl .glb); repeatable")
     p.add_argument("--png", metavar="OUT.png", help="a picture of it (its phenotype's preview)")
+    p.add_argument("--smooth", type=int, default=0, metavar="N",
+                   help="Loop subdivision steps applied to a surface's -o mesh (0-4; each x4 the triangles)")
     p.add_argument("--grammar", metavar="OUT.txt", help="save its rewrite system")
     p.add_argument("--genome", metavar="OUT.txt", help="save its genome (codons, one line)")
     p.set_defaults(handler=_show)
@@ -115,6 +122,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("--max-rows", type=_count, default=100, help="rows printed at most (default 100)")
     p.add_argument("--timeout", type=_seconds, default=None, metavar="SECONDS",
                    help="interrupt a statement running longer (default 60)")
+    p.add_argument("--as-of", type=_count, default=None, metavar="G",
+                   help="read the run as of generation G: its individuals up to G, the events at them, "
+                        "the configurations in force by G (time travel)")
     p.set_defaults(handler=_query)
 
     p = subparsers.add_parser(
@@ -139,6 +149,24 @@ def register(subparsers: Any) -> None:
     p.set_defaults(handler=_gallery)
 
     p = subparsers.add_parser(
+        "export", help="regrow many designs and export each: the Pareto front, a cluster, or ids",
+        description="Regrow every chosen design (checked bit-identical, as `genr8 show`) and write it in "
+                    "each chosen format into DIR, as DIR/ID.FORMAT.")
+    _run_arg(p)
+    which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument("--front", action="store_true",
+                       help="the run's Pareto front (its non-dominated distinct designs, as top --pareto)")
+    which.add_argument("--cluster", type=int32, metavar="K",
+                       help="every distinct design of kind of form K (1: the largest cluster) of the run's "
+                            "--clusters N (as gallery --clusters)")
+    which.add_argument("--ids", nargs="+", metavar="ID", help="these individuals ('best' for the best)")
+    p.add_argument("--clusters", type=int32, default=12, metavar="N", help="kinds of form (default 12)")
+    p.add_argument("--format", action="append", metavar="EXT",
+                   help="obj, ply, stl, glb or 3dm (a surface), repeatable (default: obj)")
+    p.add_argument("-o", "--output", required=True, metavar="DIR", help="the folder to write into")
+    p.set_defaults(handler=_export)
+
+    p = subparsers.add_parser(
         "report", help="one self-contained HTML page: curves, gallery, top individuals, interventions",
         description="Write one HTML file with the fitness curves, a gallery of the best designs, the "
                     "top individuals with their rewrite systems and criteria, and the interventions. "
@@ -155,6 +183,29 @@ def _print(text: str) -> None:
     sys.stdout.write(text + "\n")
 
 
+def _sayer(*paths: Any) -> Any:
+    """``_print``, or its standard-error twin when one of ``paths`` is standard output (``-``,
+    ``/dev/stdout``): the data alone goes there, as a Unix tool's does."""
+    from genr8_dist.files import is_stdout
+
+    if any(p is not None and is_stdout(p) for p in paths):
+        return lambda text: print(text, file=sys.stderr)
+    return _print
+
+
+def _individual_id(run: str, ident: str) -> str:
+    """``ident``, with ``best`` standing for the run's best valid individual (so a command written
+    before the run is known, as in the README, names an individual every run has)."""
+    if ident.strip().lower() != "best":
+        return ident
+    from genr8_dist import history
+
+    table = history.top(run, 1)
+    if table.num_rows == 0:
+        raise history.HistoryError(f"{run}: has no valid individual yet; name one as ISLAND-GENERATION-INDEX")
+    return str(table["id"][0].as_py())
+
+
 def _history(args: argparse.Namespace) -> int:
     from genr8_dist import history
     from genr8_dist.history import _text
@@ -164,7 +215,7 @@ def _history(args: argparse.Namespace) -> int:
     table = history.per_generation(store, island=args.island)
     if args.csv:
         history.write_table(table, args.csv)
-        _print(f"wrote {table.num_rows} rows to {args.csv}")
+        _sayer(args.csv)(f"wrote {table.num_rows} rows to {args.csv}")
     else:
         crits = [c[len("closest_"):] for c in table.column_names if c.startswith("closest_")]
         headings = {"generation": "gen", "island": "isl", "n_valid": "valid", "best_id": "best id"}
@@ -194,9 +245,9 @@ def _top(args: argparse.Namespace) -> int:
         _print(_text.format_table(table, columns, headings=headings))
         return 0
     table = history.top(args.run, args.k, generation=args.generation, island=args.island,
-                        criterion=args.criterion, systems=args.systems, distinct=args.distinct)
+                        criterion=args.criterion, systems=args.systems, distinct=not args.all)
     columns = ["rank", *_text.shown_columns(table.column_names)]
-    if args.distinct:
+    if not args.all:
         columns.append("copies")
     if args.criterion:
         columns.insert(columns.index("fitness") + 1, "deviation")
@@ -219,6 +270,7 @@ def _lineage(args: argparse.Namespace) -> int:
     from genr8_dist.history import _text
 
     store = history.open_run(args.run)
+    args.id = _individual_id(args.run, args.id)
     table = history.lineage(store, args.id, depth=args.depth)
     _print(_text.lineage_text(table, args.id, per_generation=None if args.all else 12))
     if args.png:
@@ -234,8 +286,15 @@ def _show(args: argparse.Namespace) -> int:
     from genr8_dist.history import _regrow as regrow
     from genr8_dist.store.schema import criterion_of
 
-    if args.png and not str(args.png).lower().endswith(".png"):
+    say = _sayer(*args.output, args.png, args.grammar, args.genome)
+
+    if args.png and args.png != "-" and not str(args.png).lower().endswith(".png"):
         raise HistoryError(f"{args.png}: --png writes a .png file")
+    args.id = _individual_id(args.run, args.id)
+    if args.smooth:
+        from genr8_dist.export import check_smooth
+
+        check_smooth(args.smooth)
     if args.output:  # refuse a bad name before anything is grown or written
         phenotype = regrow.phenotype_of_run(args.run, args.id)
         for path in args.output:
@@ -243,35 +302,35 @@ def _show(args: argparse.Namespace) -> int:
     result = regrow.regrow(args.run, args.id)
     row = result.row
     crits = {c: v for k, v in row.items() if (c := criterion_of(k)) is not None}
-    _print(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
+    say(f"{row['id']}: generation {row['generation']}, island {row['island']}, "
            f"{row['origin']}, configuration version {row['config_version']}")
     if row["valid"]:
-        _print(f"fitness {_text.format_value(row['fitness'])}  " + "  ".join(
+        say(f"fitness {_text.format_value(row['fitness'])}  " + "  ".join(
             f"{k} {_text.format_value(v)}" for k, v in crits.items()))
     else:
-        _print(f"invalid at {row['stage']}: {row['error']}")
-    _print("rewrite system:")
+        say(f"invalid at {row['stage']}: {row['error']}")
+    say("rewrite system:")
     for statement in (row["text"] or "(none: the genome did not map)").splitlines():
-        _print(f"    {statement}")
+        say(f"    {statement}")
     if row["text"] and result.text_matches is False:
-        _print("note: the genome no longer maps to this rewrite system with this universe; the "
+        say("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")
     if result.developed is not None:
-        _print(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
+        say(f"regrown: {result.phenotype.describe(result.developed)} after {result.steps} "
                f"derivation steps; digest {result.digest} matches the recorded one")
     for path in args.output:
-        regrow.export(result, path)
-        _print(f"wrote {path}")
+        regrow.export(result, path, smooth=args.smooth)
+        say(f"wrote {path}")
     if args.png:
         regrow.picture(result, args.png)
-        _print(f"wrote {args.png}")
+        say(f"wrote {args.png}")
     if args.grammar:
         regrow.save_text(row["text"] or "", args.grammar, what="rewrite system", id=row["id"])
-        _print(f"wrote {args.grammar}")
+        say(f"wrote {args.grammar}")
     if args.genome:
         regrow.save_text(" ".join(str(c) for c in row["genome"]) + "\n", args.genome, what="genome",
                          id=row["id"])
-        _print(f"wrote {args.genome}")
+        say(f"wrote {args.genome}")
     return 0
 
 
@@ -286,10 +345,10 @@ def _query(args: argparse.Namespace) -> int:
         if inside is not None:
             raise history.HistoryError(f"{target}: is inside the run directory {inside}; query never "
                                        "writes into a run: choose a path outside it")
-    table = history.query(args.run, args.sql, timeout=timeout)
+    table = history.query(args.run, args.sql, timeout=timeout, as_of=args.as_of)
     if target:
         history.write_table(table, target, format="csv" if args.csv else "parquet")
-        _print(f"wrote {table.num_rows} rows to {target}")
+        _sayer(target)(f"wrote {table.num_rows} rows to {target}")
         return 0
     if table.num_columns == 0:
         _print("(no result)")
@@ -313,7 +372,45 @@ def _gallery(args: argparse.Namespace) -> int:
         info = pictures.gallery_png(args.run, args.output, generation=args.generation, k=args.k,
                                     island=args.island, per_island=args.per_island,
                                     distinct=not args.duplicates)
-    _print(f"wrote {args.output}: {info}")
+    _sayer(args.output)(f"wrote {args.output}: {info}")
+    return 0
+
+
+def _export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from genr8_dist import history
+    from genr8_dist.history import _regrow as regrow
+
+    if args.front:
+        ids = history.pareto_front(args.run)["id"].to_pylist()
+    elif args.cluster is not None:
+        kinds = history.clusters(args.run, args.clusters)
+        if not 1 <= args.cluster <= kinds.num_rows:
+            raise history.HistoryError(f"--cluster {args.cluster}: the run's {kinds.num_rows} kinds of form "
+                                       f"are 1..{kinds.num_rows}")
+        ids = kinds["member_ids"][args.cluster - 1].as_py()
+    else:
+        ids = list(dict.fromkeys(_individual_id(args.run, i) for i in args.ids))
+    out = Path(args.output)
+    inside = history.run_directory_holding(out)
+    if inside is not None:
+        raise history.HistoryError(f"{out}: is inside the run directory {inside}; choose a folder outside it")
+    formats = [f.lower().lstrip(".") for f in (args.format or ["obj"])]
+    if not ids:
+        raise history.HistoryError(f"{args.run}: no design to export")
+    phenotype = regrow.phenotype_of_run(args.run, ids[0])
+    paths = {i: [out / f"{i}.{f}" for f in formats] for i in ids}
+    for path in paths[ids[0]]:   # a bad format is refused before anything is grown or written
+        regrow.check_export_path(path, phenotype)
+    out.mkdir(parents=True, exist_ok=True)
+    for ident in ids:
+        result = regrow.regrow(args.run, ident)
+        for path in paths[ident]:
+            regrow.export(result, path)
+    more = f" and {len(ids) - 12} more" if len(ids) > 12 else ""
+    _print(f"wrote {len(ids)} design{'s' if len(ids) != 1 else ''} x {', '.join(formats)} to {out}: "
+           + " ".join(ids[:12]) + more)
     return 0
 
 
@@ -321,5 +418,5 @@ def _report(args: argparse.Namespace) -> int:
     from genr8_dist.history import report
 
     report.write_report(args.run, args.output, k=args.k, gallery_k=args.gallery)
-    _print(f"wrote {args.output}")
+    _sayer(args.output)(f"wrote {args.output}")
     return 0

@@ -71,17 +71,35 @@ def _resume(args: argparse.Namespace) -> int:
 
 
 def _repair(args: argparse.Namespace) -> int:
+    from genr8_dist.errors import StoreError
     from genr8_dist.store import RunStore
 
     store = RunStore.open(args.run_dir)
     problems = store.verify()
     if not problems:
+        with store.lock("edit") as lock:
+            if not lock.acquire():
+                raise StoreError(f"{args.run_dir}: the run is running; repair it after it stops")
+            upgraded = store.upgrade() if args.upgrade or store.manifest_layout >= 2 else False
+        if upgraded:  # (layout 2: upgrade() only finishes a glob view a crash left one commit behind)
+            print(f"{args.run_dir}: upgraded to layout 2 (commit {store.version}); any Parquet reader "
+                  "now reads individuals/*.parquet and events/*.parquet exactly")
+            return 0
         print(f"{args.run_dir}: intact (commit {store.version}); nothing to repair")
+        if store.manifest_layout < 2:
+            print(f"note: {args.run_dir} has layout 1; `genr8 repair --upgrade {args.run_dir}` converts it "
+                  "so that any Parquet reader reads it exactly")
         return 0
     for problem in problems:
         print(f"damaged: {problem}")
     store.repair()
     print(f"repaired: {store.last_repair}")
+    if args.upgrade and store.upgrade():
+        print(f"{args.run_dir}: upgraded to layout 2 (commit {store.version})")
+    if store.set_aside:
+        from genr8_dist.store.foreign import describe
+
+        print(describe(store.set_aside, args.run_dir))
     print(f"{args.run_dir}: now at commit {store.version}; islands committed up to "
           + ", ".join(f"{i}: {g}" for i, g in store.committed_generations().items()))
     return 0
@@ -111,7 +129,8 @@ def _edit(args: argparse.Namespace) -> int:
              f"of island {h['island']}" for h in result.hand_fitness]
     if result.queued:
         print(f"{args.run_dir}: the run is running; the edit is queued ({result.queued}) and takes effect "
-              f"at its next epoch (generation {result.effective_generation} or later)")
+              f"at the first generation the run has not started (generation {result.effective_generation} "
+              "or later)")
         for line in what:
             print(f"  {line}")
         return 0
@@ -119,6 +138,10 @@ def _edit(args: argparse.Namespace) -> int:
           f"{result.effective_generation} (the run now ends at generation {result.last_generation})")
     for line in what:
         print(f"  {line}")
+    if result.set_aside:
+        from genr8_dist.store.foreign import describe
+
+        print(describe(result.set_aside, args.run_dir))
     print(f"go on with: genr8 resume {args.run_dir}")
     return 0
 
@@ -156,6 +179,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "by the files it was compacted from, or dropped alone (later commits stay). What is "
                     "dropped is printed in one line and recorded as a recovery event.")
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
+    p.add_argument("--upgrade", action="store_true",
+                   help="convert a run written before layout 2 in place (one atomic commit), so that any "
+                        "Parquet reader reads individuals/*.parquet exactly (docs/run-store.md)")
     p.set_defaults(handler=_repair)
 
     p = subparsers.add_parser(
@@ -163,7 +189,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Record a new configuration version of the run in DIR, in force from the "
                     "generation after the last committed one, and individuals to inject there. "
                     "Then `genr8 resume DIR`. On a run that is running, the edit is queued and the run "
-                    "takes it at its next epoch, without stopping.")
+                    "takes it at the first generation it has not started, without stopping.")
     p.add_argument("run_dir", metavar="DIR", help="the run directory")
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="change a configuration value (TOML syntax), e.g. fitness.size.weight=2, "

@@ -79,7 +79,10 @@ def _fmt(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.6g}"
 
 
-def _print_table(report: dict[str, Any]) -> None:
+def _print_table(report: dict[str, Any], mentioned: set[str] | None = None) -> None:
+    """The report as a table; with ``mentioned`` (the criteria a ``--fitness`` configuration names), a
+    criterion it does not name and that counts for nothing (weight 0, the default) is left out, and
+    one it does not name that counts by default is marked ``(default)``."""
     def count(n: int, noun: str) -> str:
         return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
@@ -89,8 +92,11 @@ def _print_table(report: dict[str, Any]) -> None:
     print(header)
     print("-" * len(header))
     for name, row in report["criteria"].items():
+        default = mentioned is not None and name not in mentioned
+        if default and not row["weight"]:
+            continue
         print(f"{name:<14} {_fmt(row['raw']):>12} {_fmt(row['target']):>10} {_fmt(row['weight']):>8} "
-              f"{_fmt(row['deviation']):>12}")
+              f"{_fmt(row['deviation']):>12}" + ("   (default)" if default else ""))
     print("-" * len(header))
     print(f"{'total':<14} {'':>12} {'':>10} {'':>8} {_fmt(report['total']):>12}   (lower is better)")
     if report["problem"]:
@@ -131,8 +137,10 @@ def _handle(args: argparse.Namespace) -> int:
     from genr8_dist.phenotype import SURFACES, phenotype_of
 
     spec, env = FitnessSpec(), None
+    mentioned: set[str] | None = None
     if args.fitness:
         config = load_config(args.fitness)
+        mentioned = _mentioned(args.fitness)
         spec, env = config.fitness, config.environment
         if phenotype_of(universe_for(config)) is not SURFACES:
             name = "<stdin>" if args.system == "-" else args.system
@@ -158,5 +166,13 @@ def _handle(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
     else:
-        _print_table(report)
+        _print_table(report, mentioned)
     return 0
+
+
+def _mentioned(path: str) -> set[str]:
+    """The criteria the ``[fitness]`` table of the configuration file at ``path`` names."""
+    from genr8_dist.tomlfile import read_toml
+
+    table = read_toml(path, "run configuration").get("fitness")
+    return set(table) if isinstance(table, dict) else set()

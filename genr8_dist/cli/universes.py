@@ -49,6 +49,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--max-wraps", type=int, default=2, metavar="W", help="times the genome may wrap (2)")
     p.add_argument("--json", action="store_true",
                    help="print genome, text, valid, reason, codons_used and wraps as JSON")
+    p.add_argument("--trust-hooks", action="store_true",
+                   help="run the Python code (hooks.py) of a plugin folder given by a path; needed once "
+                        "per code digest (the trust rule: docs/run-store.md)")
     p.set_defaults(handler=_map)
 
     p = subparsers.add_parser(
@@ -60,7 +63,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("file", metavar="FILE", help="the rewrite system's file, or - for standard input")
     p.add_argument("--max-depth", type=int, default=5, metavar="D", help="maximum derivation depth (5)")
     p.add_argument("--json", action="store_true", help="print universe, genome and text as JSON")
+    p.add_argument("--trust-hooks", action="store_true",
+                   help="run the Python code (hooks.py) of a plugin folder given by a path; needed once "
+                        "per code digest (the trust rule: docs/run-store.md)")
     p.set_defaults(handler=_invert)
+
+
+def _retry(args: argparse.Namespace) -> str:
+    """The command to give again with ``--trust-hooks`` (what the refusal tells the user)."""
+    return f"{args.command} --universe {args.universe}"
 
 
 def parse_genome(text: str) -> list[int]:
@@ -75,7 +86,7 @@ def parse_genome(text: str) -> list[int]:
         try:
             value = int(part, 10)
         except ValueError:
-            raise GenomeError(f"codon {i} is '{part}': codons are non-negative integers") from None
+            raise GenomeError(f"codon {i} is {part[:40]!r}: codons are non-negative integers") from None
         if value < 0:
             raise GenomeError(f"codon {i} is {value}: codons are non-negative integers")
         genome.append(value)
@@ -99,7 +110,7 @@ def _universes(args: argparse.Namespace) -> int:
 
 
 def _map(args: argparse.Namespace) -> int:
-    from genr8_dist.grammar import load_universe
+    from genr8_dist.grammar.discovery import load_named_universe
 
     for name, value, low in (("--max-depth", args.max_depth, 1), ("--max-wraps", args.max_wraps, 0),
                              ("--length", args.length, 1), ("--max-codon", args.max_codon, 0),
@@ -113,7 +124,7 @@ def _map(args: argparse.Namespace) -> int:
             raise ConfigError(f"{name} must be <= {high}, got {value}")
     if args.max_codon > 2**31 - 1:
         raise ConfigError(f"--max-codon must be <= {2**31 - 1} (codons are 32-bit), got {args.max_codon}")
-    universe = load_universe(args.universe)
+    universe = load_named_universe(args.universe, trust_flag=args.trust_hooks, command=_retry(args))
     if args.random:
         from genr8_dist.rng import stream
 
@@ -149,11 +160,11 @@ def _map(args: argparse.Namespace) -> int:
 
 
 def _invert(args: argparse.Namespace) -> int:
-    from genr8_dist.grammar import load_universe
+    from genr8_dist.grammar.discovery import load_named_universe
 
     if not 1 <= args.max_depth <= 100:
         raise ConfigError(f"--max-depth must be from 1 to 100, got {args.max_depth}")
-    universe = load_universe(args.universe)
+    universe = load_named_universe(args.universe, trust_flag=args.trust_hooks, command=_retry(args))
     try:
         if args.file == "-":
             text = sys.stdin.read()

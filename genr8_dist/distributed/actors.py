@@ -137,6 +137,7 @@ class IslandHost:
         hand: Sequence[tuple[Individual, float]] = (),
         write: bool = False,
         emigrants: tuple[int, str] | None = None,
+        live: bool = False,
     ) -> Generated:
         """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
 
@@ -145,7 +146,8 @@ class IslandHost:
         hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``. ``hand``:
         individuals with the fitness a designer gave them, parents of this generation (``Island.breed``).
         ``write``: write the island's rows not yet in a part (this generation's included) as a part
-        file; ``emigrants``: ``(k, mode)``, return the generation's emigrant candidates."""
+        file; ``emigrants``: ``(k, mode)``, return the generation's emigrant candidates; ``live``: write the
+        generation to the run's live view for the studio (``store/live.py``; local runs only)."""
         model = self._island(island, config, config_version)
         held = self._latest.get(island)
         if held is None or held[0] != generation - 1:
@@ -161,6 +163,8 @@ class IslandHost:
         self._latest[island] = (generation, population)
         with self._writing:
             self._unwritten.setdefault(island, []).extend(population)
+        if live:
+            self._store_of().live().write(island, generation, population)
         candidates = None
         if emigrants is not None:
             from genr8_dist.distributed.migration import select_emigrants
@@ -175,12 +179,17 @@ class IslandHost:
         return its ``Part``; with none to write, the last part written (the driver may not have
         received it: a generation that ended an epoch as the run was stopped), or ``None``."""
         from genr8_dist.store.parts import write_part
+        from genr8_dist.store.schema import individuals_table
 
         with self._writing:
             rows = self._unwritten.pop(island, None)
             if not rows:
                 return self._written.get(island)
-            part = self._written[island] = write_part(self._store_of(), rows)
+            store = self._store_of()
+            table = individuals_table(rows, store.run_id, store.criteria, store.schema)
+            gens = [ind.generation for ind in rows]
+            part = self._written[island] = write_part(
+                store, table, stem=f"part-{island:06d}-{min(gens):06d}-{max(gens):06d}")
             return part
 
     def latest(self, island: int) -> list[Individual]:

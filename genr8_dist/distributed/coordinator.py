@@ -9,8 +9,8 @@ file (``store.parts``) and returns it with the generation's fitness values and e
 computes the migrants from the candidates of each island's last generation
 (``migration.plan_migration``; the stored generation after a resume or an edit of the migration
 settings) and sends them with the first generation of the next epoch. On a stop, hosts flush what
-they completed, so that it is committed. ``island_generation`` is the place for per-island,
-per-generation callbacks (the studio's stream).
+they completed, so that it is committed. ``on_island`` sees each island's generation as it completes
+(a ``Generated``; with ``live``, the hosts also write it to the studio's live view, ``store/live.py``).
 
 Generation ``g`` uses the configuration version in effect at ``g`` (``store.config_for(g)``), and the
 individuals a user injected for ``g`` (recorded in the ``intervention`` event). Everything an island
@@ -28,10 +28,12 @@ evaluates a share of that generation's genomes (``actors.IslandHost``), which ch
 is done, never what it computes.
 
 Interventions queued while the run runs (``genr8 edit`` on a running run, the studio) are taken
-before each epoch and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
+before each epoch and, as each generation completes, inside one (in force from the first generation no
+island has started), and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
 ``pause`` holds the run between epochs, with Ray up, until a ``continue``.
 
-Hooks (``on_generation``, ``on_commit``) let a caller watch the run (tests use them to inject faults).
+Hooks (``on_generation``, ``on_commit``, ``on_island``: one island's generation, before its commit) let
+a caller watch the run (tests use them to inject faults; the studio's live view, ``store/live.py``).
 """
 
 from __future__ import annotations
@@ -156,6 +158,8 @@ class Coordinator:
         stop: StopRequest | None = None,
         on_generation: Callable[[Coordinator, int], None] | None = None,
         on_commit: Callable[[Coordinator, Mapping[int, int]], None] | None = None,
+        on_island: Callable[[Coordinator, int, int, Any], None] | None = None,
+        live: bool = False,
         poll_seconds: float = 0.2,
     ) -> None:
         self.store = store
@@ -163,6 +167,8 @@ class Coordinator:
         self.stop = stop if stop is not None else StopRequest()
         self.on_generation = on_generation
         self.on_commit = on_commit
+        self.on_island = on_island
+        self.live = live   # hosts write each completed generation to the live view (store/live.py)
         self.poll_seconds = poll_seconds
         self._created = time.perf_counter()
         self.summary = RunSummary(hosts=hosts.size)
@@ -181,11 +187,10 @@ class Coordinator:
         # generation -> island -> (the (k, mode) they were chosen for, emigrant candidates): what the
         # next migration needs, from the hosts' answers; only the newest committed generation is kept
         self._candidates: dict[int, dict[int, tuple[Any, tuple[Individual, ...]]]] = {}
-        self._compact_every = store.compact_every
-        store.compact_every = None   # hosts write parts meanwhile: compaction (and its sweep) at the end
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
         self._hand = self._load_hand(history)
+        self._now: Epoch | None = None   # the epoch under way
 
     # -- reading the store ----------------------------------------------------------------------
 
@@ -249,13 +254,14 @@ class Coordinator:
                     (marked, float(item["fitness"])))
         return out
 
-    def _take_interventions(self) -> None:
+    def _take_interventions(self, during: int | None = None) -> None:
         """Record the interventions queued while the run runs (``intervene.take_queued``) and take
-        them into account from the next generation: new configuration versions, injections, hand
-        fitness, a longer run; ``pause`` and ``continue`` set ``paused``."""
+        them into account from the next generation (``during``: from that one, inside an epoch): new
+        configuration versions, injections, hand fitness, a longer run; ``pause`` and ``continue`` set
+        ``paused``."""
         from genr8_dist.distributed.intervene import take_queued
 
-        taken = self._timed_store(take_queued, self.store)
+        taken = self._timed_store(take_queued, self.store, during=during)
         if not taken:
             return
         for kind, outcome in taken:
@@ -320,10 +326,7 @@ class Coordinator:
                 committed = self._epoch(committed, end)
         finally:
             self.summary.committed = committed
-            self.store.compact_every = self._compact_every
             self._close_books()
-        if self._compact_every and self.store._small_files() >= self._compact_every:
-            self._timed_store(self.store.compact)   # the hosts are idle now
         low = min(committed.values())
         if low >= self.last:
             self.summary.status = "complete"
@@ -368,7 +371,28 @@ class Coordinator:
         return Event(kind=kind, generation=max(0, generation), island=island, detail=detail)
 
     def _epoch(self, committed: dict[int, int], end: int) -> dict[int, int]:
-        return Epoch(self, committed, end).run()
+        self._now = Epoch(self, committed, end)
+        try:
+            return self._now.run()
+        finally:
+            self._now = None
+
+    def _island_done(self, island: int, generation: int, done: Any) -> None:
+        """One island completed one generation (``done``: the host's ``Generated``; not committed
+        yet): ``on_island`` sees it, then the edits queued meanwhile are taken."""
+        if self.on_island is not None:
+            self.on_island(self, island, generation, done)
+        self._take_during_epoch()
+
+    def _take_during_epoch(self) -> None:
+        """The edits queued meanwhile, in force from the first generation of the epoch under way that
+        no island has started (``intervene.take_queued``'s ``during``)."""
+        epoch = self._now
+        if epoch is None or not self._timed_store(self.store.queued):
+            return
+        first = max([*epoch.cursor.values(), *(g for _, g in epoch.pending.values())]) + 1
+        if first <= epoch.end:
+            self._take_interventions(during=first)
 
     @staticmethod
     def _settle(offers: Sequence[Any]) -> None:
@@ -390,10 +414,6 @@ class Coordinator:
         if self.on_generation is not None:
             self.on_generation(self, generation)
 
-    def island_generation(self, island: int, generation: int, done: Any) -> None:
-        """One island has completed one generation (``done``: the host's ``Generated``): the place for
-        per-island, per-generation callbacks (before it is committed; ``on_commit`` says when it is)."""
-
     def _commit(self, committed: dict[int, int], results: Mapping[int, Mapping[int, Any]]) -> dict[int, int]:
         """Commit the part files the hosts wrote for ``results`` (island -> generation -> ``Generated``)
         and the pending events, in one manifest; returns the committed generations after it."""
@@ -402,9 +422,12 @@ class Coordinator:
         for i in sorted(results):
             for g in sorted(results[i]):
                 part = getattr(results[i][g], "part", None)
-                if part is not None and part.first == after[i] + 1:
+                if part is None:
+                    continue
+                span = part.islands.get(str(i))
+                if span is not None and span[0] == after[i] + 1:
                     parts.append(part)
-                    after[i] = part.last
+                    after[i] = span[1]
         events = list(self._pending_events)
         if not self._completed and min(after.values()) >= self.last:   # the run ends with this commit
             events.append(self._event("complete", self.last, None,
@@ -480,7 +503,7 @@ class Epoch:
         ticket = next(_TICKETS)
         ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
                                   [run.hosts.handle(n) for n in helpers], ticket, hand, g == self.end,
-                                  emigrants)
+                                  emigrants, bool(getattr(run, "live", False)))
         self.pending[ref] = (island, g)
         self.tickets[ref] = ticket
         self.lent.update(dict.fromkeys(helpers, ref))
@@ -526,7 +549,7 @@ class Epoch:
         ask for the next one, and show every generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
-        self.run_.island_generation(island, g, population)
+        self.run_._island_done(island, g, population)
         if g < self.end:
             self.submit(island)
         low = min(self.cursor.values())

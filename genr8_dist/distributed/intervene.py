@@ -9,8 +9,11 @@ a one-line error and the run directory is left as it was.
 
 A run that is running (its driver holds the run's lock, ``store/pending.py``) is not written to: the
 edit is checked, then queued in the run directory, and the coordinator records it exactly so (a
-configuration version and its ``intervention`` event, in force from the generation after the epoch it
-is taken at) before its next epoch, without stopping Ray (``take_queued``).
+configuration version and its ``intervention`` event) without stopping Ray (``take_queued``): from the
+first second of the run, before anything is committed. It takes effect at the first generation it can:
+one no island has started yet, taken as the generations of an epoch complete (``take_queued(during=G)``),
+or before the next epoch for an edit that changes the epochs themselves (``islands.*``, the run's
+length) and for ``pause``/``continue``. A run with nothing committed is edited from generation 0.
 
 Besides configuration changes and injections, an edit may *favour* individuals (copies join the next
 generation on their own island, as ``--inject-copy``) and *hand-set a fitness* (the thesis' interactive
@@ -30,7 +33,7 @@ from __future__ import annotations
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -101,6 +104,7 @@ class EditResult:
     last_generation: int = 0
     hand_fitness: list[dict[str, Any]] = field(default_factory=list)
     queued: str | None = None
+    set_aside: list[tuple[str, str]] = field(default_factory=list)   # users' files moved (store/foreign.py)
 
 
 def _read_text(name: str) -> str:
@@ -130,6 +134,14 @@ def parse_assignment(text: str) -> tuple[tuple[str, ...], Any]:
 
 
 def _assign(table: dict[str, Any], path: tuple[str, ...], value: Any) -> None:
+    old: Any = table
+    for part in path:
+        old = old.get(part) if isinstance(old, dict) else None
+    if isinstance(old, dict) and not isinstance(value, dict):   # `--set ea=1`: a table's name, not a key
+        keys = ", ".join(sorted(old)[:6]) + (", ..." if len(old) > 6 else "")
+        key = ".".join(path)
+        raise ConfigError(f"--set {key}={value!r}: '{key}' is a table of settings ({keys}), not a key; "
+                          f"set one of them, e.g. --set {key}.{sorted(old)[0] if old else 'KEY'}=VALUE")
     at = table
     for depth, part in enumerate(path[:-1]):
         nxt = at.get(part)
@@ -172,16 +184,18 @@ def apply_edit(run_dir: str, edit: Edit, *, source: str = "edit") -> EditResult:
                           result.last_generation, result.hand_fitness, queued=item.name)
     with lock:
         store.refresh()
-        return record_edit(store, edit, source=source)
+        result = record_edit(store, edit, source=source)
+    return replace(result, set_aside=list(store.set_aside))
 
 
 def record_edit(store: RunStore, edit: Edit, *, source: str = "edit",
-                request_id: str | None = None) -> EditResult:
-    """Record ``edit`` in ``store`` (held by its one writer): a configuration version in force from the
-    generation after the last committed one, with its ``intervention`` event."""
+                request_id: str | None = None, effective: int | None = None) -> EditResult:
+    """Record ``edit`` in ``store`` (held by its one writer): a configuration version in force from
+    ``effective`` (default: the generation after the last committed one, 0 when none is), with its
+    ``intervention`` event."""
     from genr8_dist.store import Event
 
-    config, detail, result = _prepare(store, edit)
+    config, detail, result = _prepare(store, edit, effective=effective)
     detail["source"] = source
     if request_id is not None:
         detail["queued"] = request_id
@@ -190,15 +204,15 @@ def record_edit(store: RunStore, edit: Edit, *, source: str = "edit",
     return result
 
 
-def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], EditResult]:
+def _prepare(store: RunStore, edit: Edit, *,
+             effective: int | None = None) -> tuple[RunConfig, dict[str, Any], EditResult]:
     """Everything ``edit`` would record, checked: the new configuration, the event detail, the result."""
     from genr8_dist.config import RunConfig
     from genr8_dist.store import RunStore
 
-    committed = store.committed_generations()
-    if not committed:
-        raise StoreError(f"{store.path}: no generation is committed yet; there is nothing to edit")
-    effective = max(committed.values()) + 1
+    if effective is None:   # versions take effect in order: not before one taken inside an epoch
+        effective = max(max(store.committed_generations().values(), default=-1) + 1,
+                        int(store.configs()[-1].effective_generation))
     current = store.config(store.configs()[-1])
     data = current.to_dict()
     changes: dict[str, Any] = {}
@@ -246,13 +260,14 @@ def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], Ed
     systems = [*edit.inject_systems, *((f"text {name}", _read_text(name)) for name in edit.inject_text)]
     if systems:
         from genr8_dist.evolution.evaluate import universe_for
+        from genr8_dist.evolution.variation import genome_of
         from genr8_dist.grammar.discovery import consent_for_stored
 
         consent_for_stored([config.universe_source], trust_flag=edit.trust_hooks,
                            command=f"edit {store.path}")
         universe = universe_for(config)
         for label, text in systems:
-            genome = universe.invert(text, max_depth=config.genome.max_depth)
+            genome = genome_of(config, universe, text)   # GE's inversion, or a text genome
             injected.append({"island": edit.island or 0, "genome": [int(c) for c in genome],
                              "copy_of": None, "source": label})
     for ref in edit.inject_from:
@@ -292,11 +307,23 @@ def _prepare(store: RunStore, edit: Edit) -> tuple[RunConfig, dict[str, Any], Ed
     return config, detail, result
 
 
-def take_queued(store: RunStore) -> list[tuple[str, Any]]:
+def changes_epochs(edit: Edit) -> bool:
+    """Whether ``edit`` changes what an epoch is (migration, islands, the run's last generation): such
+    an edit is taken between epochs only."""
+    keys = [".".join(parse_assignment(a)[0]) for a in edit.assignments]
+    return edit.generations is not None or any(
+        k in ("ea", "islands", "ea.generations") or k.startswith("islands.") for k in keys)
+
+
+def take_queued(store: RunStore, *, during: int | None = None) -> list[tuple[str, Any]]:
     """Record the running run's pending interventions in queue order (the coordinator calls this
     between epochs, as the run's one writer). Returns ``(kind, outcome)`` per request taken: ``edit``
     with its ``EditResult``, ``pause``/``continue``, or ``refused`` with the one-line reason (also
-    recorded as a ``refused`` event). A request already recorded (its ``id`` in an event) is dropped."""
+    recorded as a ``refused`` event). A request already recorded (its ``id`` in an event) is dropped.
+
+    ``during=G``: the coordinator is inside an epoch and no island has started generation ``G``; the
+    queue's leading edits are recorded in force from ``G``, up to the first request that must wait for
+    the epoch's end (``pause``/``continue``, an edit that ``changes_epochs``)."""
     from genr8_dist.errors import Genr8Error
     from genr8_dist.store import Event
 
@@ -317,12 +344,15 @@ def take_queued(store: RunStore) -> list[tuple[str, Any]]:
             store.dequeue(item)
             continue
         kind = request.get("kind")
-        generation = max(store.committed_generations().values(), default=-1) + 1
+        generation = max(store.committed_generations().values(), default=-1) + 1 if during is None else during
         source = str(request.get("source") or "queue")
+        if during is not None and not _takes_now(request):
+            break
         try:
             if kind == "edit":
                 edit = Edit.from_request(request.get("edit") or {})
-                out.append(("edit", record_edit(store, edit, source=source, request_id=request["id"])))
+                out.append(("edit", record_edit(store, edit, source=source, request_id=request["id"],
+                                                effective=during)))
             elif kind in ("pause", "continue"):
                 store.record_event(kind, generation=generation, detail={"queued": request["id"],
                                                                         "source": source})
@@ -336,6 +366,16 @@ def take_queued(store: RunStore) -> list[tuple[str, Any]]:
             out.append(("refused", reason))
         store.dequeue(item)
     return out
+
+
+def _takes_now(request: Mapping[str, Any]) -> bool:
+    """Whether a queued request may be taken inside an epoch (an edit that leaves the epochs alone)."""
+    if request.get("kind") != "edit":
+        return False
+    try:
+        return not changes_epochs(Edit.from_request(request.get("edit") or {}))
+    except ConfigError:
+        return True   # malformed: refused at once, whenever it is taken
 
 
 def _jsonable(value: Any) -> Any:

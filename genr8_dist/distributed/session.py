@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
     from genr8_dist.store import RunStore
+    from genr8_dist.store.pending import RunLock
 
 __all__ = ["RunOptions", "connect_ray", "drive", "hold_run_lock", "latest_config", "resume_run", "start_run",
            "stored_universes"]
@@ -138,6 +139,72 @@ def _meanwhile(work: Callable[[], None] | None) -> threading.Thread | None:
     return thread
 
 
+# A local Ray on a loaded machine can take longer than Ray's own waits (30 s for the GCS's port, about
+# 20 s for the GCS to answer, 60 s for a worker to register): the local Ray gets these, unless the
+# environment already sets them. The raylet's own 30 s registration wait is fixed in Ray: a start that
+# still fails is tried again once, after a pause, then refused in one line.
+PATIENT_RAY_ENV = {
+    "RAY_gcs_server_port_wait_time_s": "120",
+    "RAY_worker_register_timeout_seconds": "180",
+}
+PATIENT_GCS_RETRIES = 120
+START_ATTEMPTS = 2
+RETRY_PAUSE = 3.0
+
+
+@contextmanager
+def _patient_start() -> Iterator[None]:
+    """Ray's start-up waits raised (``PATIENT_RAY_ENV``) while a local Ray starts; put back after."""
+    from ray._private import ray_constants
+
+    saved = {name: os.environ.get(name) for name in PATIENT_RAY_ENV}
+    retries = ray_constants.NUM_REDIS_GET_RETRIES
+    for name, value in PATIENT_RAY_ENV.items():
+        os.environ.setdefault(name, value)
+    if "RAY_NUM_REDIS_GET_RETRIES" not in os.environ:
+        ray_constants.NUM_REDIS_GET_RETRIES = max(retries, PATIENT_GCS_RETRIES)
+    try:
+        yield
+    finally:
+        ray_constants.NUM_REDIS_GET_RETRIES = retries
+        for name, before in saved.items():
+            if before is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = before
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0].strip() if text else type(exc).__name__
+
+
+def _init_with_retry(ray: Any, address: str | None, kwargs: dict[str, Any]) -> None:
+    """``ray.init(**kwargs)``, tried ``START_ATTEMPTS`` times; then a one-line ``RunError`` saying why
+    and what to do. Ray raises a plain ``Exception`` for a node that timed out during start-up, so
+    every ``Exception`` is met here (a SIGTERM's ``SystemExit`` is the caller's)."""
+    import time
+
+    cause = ""
+    for attempt in range(1, START_ATTEMPTS + 1):
+        try:
+            ray.init(**kwargs)
+            return
+        except Exception as exc:   # Ray's start-up failures have no class of their own
+            cause = _first_line(exc)
+            with contextlib.suppress(Exception):
+                ray.shutdown()   # what a half-started Ray left: its processes, its global state
+        if attempt < START_ATTEMPTS:
+            time.sleep(RETRY_PAUSE)
+    tries = f"{START_ATTEMPTS} tries" if START_ATTEMPTS > 1 else "1 try"
+    if address is None:
+        raise RunError(f"a new local Ray did not start ({tries}; Ray said: {cause}); this machine may be "
+                       "too busy: try again when it is quieter, or give the run fewer CPUs with --cpus N")
+    raise RunError(f"cannot connect to Ray at {address} ({tries}; Ray said: {cause}); check that the "
+                   f"cluster is up (`ray status --address {address}`), or leave --address out to run on "
+                   "a local Ray")
+
+
 @contextmanager
 def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
                 meanwhile: Callable[[], None] | None = None) -> Iterator[Any]:
@@ -184,12 +251,11 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
             from genr8_dist.distributed.reaper import start_reaper
 
             start_reaper()
-            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, **kwargs)
+            with _patient_start():
+                _init_with_retry(ray, None, dict(address="local", num_cpus=num_cpus, include_dashboard=False,
+                                                 **kwargs))
         else:
-            ray.init(address=address, **kwargs)
-    except (ConnectionError, TimeoutError, RuntimeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise RunError(f"cannot connect to Ray at {address or 'a new local Ray'}: {first}") from None
+            _init_with_retry(ray, address, dict(address=address, **kwargs))
     except SystemExit:  # SIGTERM while Ray starts: its own handler exits; nothing is written yet
         ray.shutdown()
         raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
@@ -205,6 +271,23 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
         yield ray
     finally:
         ray.shutdown()
+
+
+def joined_address(requested: str | None) -> str:
+    """The cluster the connected Ray belongs to, as the run's ``start``/``resume`` event records it:
+    ``"local"`` for a Ray this command started itself, else the GCS address actually joined (what
+    ``auto``, ``RAY_ADDRESS`` from ``ray job submit``, or ``--address`` led to), from Ray's runtime
+    context; the requested address when Ray does not say (a ``ray://`` client)."""
+    given = requested or os.environ.get("RAY_ADDRESS") or None
+    if given is None:
+        return "local"
+    import ray
+
+    try:
+        gcs = ray.get_runtime_context().gcs_address
+    except Exception:  # a client connection or an older Ray: no runtime context address
+        gcs = None
+    return str(gcs) if gcs else given
 
 
 def _local_path(run_dir: str) -> Path | None:
@@ -269,16 +352,47 @@ def _creation_config(store: RunStore) -> RunConfig:
     return store.config(first)
 
 
+def _refuse_if_running(store: RunStore, holder: dict[str, Any] | None = None) -> None:
+    """``RunError`` when a ``run``-role process holds the run's lock (``holder``: who, when known)."""
+    if holder is None:
+        holder = store.running()
+        if holder is None or holder.get("role") != "run":
+            return
+    raise _refuse_running(store.path, holder)
+
+
+def _refuse_running(where: str, holder: dict[str, Any] | None) -> RunError:
+    holder = holder or {}
+    return RunError(f"{where}: the run is running already (pid {holder.get('pid', '?')} on "
+                    f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+
+
+def _lock_new_run(run_dir: str) -> RunLock:
+    """The lock of the run about to be created in ``run_dir``, taken before anything is written there,
+    so that of two drivers starting the same run at once the second is refused and writes nothing."""
+    from genr8_dist.store._fs import resolve
+    from genr8_dist.store.pending import RunLock, lock_holder
+
+    rfs = resolve(run_dir)
+    if rfs.local_root is not None:
+        rfs.makedirs()
+    lock = RunLock(rfs, "run")
+    if not lock.acquire():
+        raise _refuse_running(rfs.show(), lock_holder(rfs))
+    return lock
+
+
 @contextmanager
-def hold_run_lock(store: RunStore) -> Iterator[None]:
+def hold_run_lock(store: RunStore, lock: RunLock | None = None) -> Iterator[None]:
     """Hold the run's lock while the run runs (``store/pending.py``): ``genr8 edit`` and the studio
     then queue their interventions for the coordinator instead of writing. Refuses a run that another
-    process is running."""
-    lock = store.lock("run")
-    if not lock.acquire():
-        holder = store.running() or {}
-        raise RunError(f"{store.path}: the run is running already (pid {holder.get('pid', '?')} on "
-                       f"{holder.get('host', '?')}); `genr8 edit` or the studio can steer it meanwhile")
+    process is running. ``lock``: the run's lock, already taken (``_lock_new_run``)."""
+    if lock is not None:
+        store.writer_lock = lock
+    else:
+        lock = store.lock("run")
+        if not lock.acquire():
+            raise _refuse_running(store.path, store.running())
     try:
         yield
     finally:
@@ -303,14 +417,22 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
     stop = stop if stop is not None else StopRequest()
+    live = store.live()   # the hosts write each island's completed generation there (advance's live)
+
+    def committed(coordinator: Coordinator, after: Any) -> None:
+        live.drop_committed(after)
+        if on_commit is not None:
+            on_commit(coordinator, after)
+
     try:
-        coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=on_commit,
-                                  progress=None)
+        coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
+                                  live=True, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
         with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):
             return coordinator.run()
     finally:
+        live.clear()
         if own_hosts:
             hosts.shutdown()
 
@@ -371,7 +493,8 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     out = out if out is not None else sys.stdout
     config = load_config(os.fspath(config_path))
     _check_new_run_dir(run_dir)
-    consent_for_new_run(config.universe_source, lambda line: print(line, file=sys.stderr, flush=True))
+    consent_for_new_run(config.universe_source, trust_flag=options.trust_hooks,
+                        command=f"run {config_path} --run-dir {run_dir}")
     if config.universe_source.code_digest:  # consented now: read again, so its phenotype sets the criteria
         config = load_config(config_path)
     build_universe(config.universe_source, check=True)   # a plugin's code, checked before anything is written
@@ -384,11 +507,13 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
         try:
+            lock = _lock_new_run(run_dir)
+            stack.callback(lock.release)
             store = RunStore.create(run_dir, config.to_toml())
-            stack.enter_context(hold_run_lock(store))
+            stack.enter_context(hold_run_lock(store, lock))
             store.record_event("start", generation=0, detail={
                 "config": str(config_path), "islands": config.islands.count, "hosts": hosts.size,
-                "address": options.address or "local"})
+                "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"run {run_dir}: {config.islands.count} island(s) x {config.ea.population} "
                       f"individuals, generations 0..{config.ea.generations}, on {hosts.size} Ray "
@@ -429,8 +554,9 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         summary = RunSummary(status="complete", committed=dict(committed), last_generation=last)
         return summary
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
-    with _signals_stop(stop, out), hold_run_lock(store), \
-            connect_ray(options.address, options.num_cpus, meanwhile=_preload):
+    _refuse_if_running(store)   # at once, before Ray starts; the lock itself is taken once Ray is up
+    with _signals_stop(stop, out), \
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
@@ -447,11 +573,17 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
                                    command=f"resume {run_dir}")
             else:
                 store.collect_garbage()  # what crashed writers left: orphaned files, stale temporaries
+            if store.upgrade():  # a run of layout 1: its folders become exact for any Parquet reader
+                print(f"{run_dir}: upgraded to layout 2 (docs/run-store.md)", file=out, flush=True)
+            if store.set_aside:
+                from genr8_dist.store.foreign import describe
+
+                print(describe(store.set_aside, run_dir), file=out, flush=True)
             committed = store.committed_generations()
             low = min(committed.get(i, -1) for i in range(n))
             store.record_event("resume", generation=max(0, low + 1), detail={
                 "committed": {str(i): int(committed.get(i, -1)) for i in range(n)},
-                "hosts": hosts.size, "address": options.address or "local"})
+                "hosts": hosts.size, "address": joined_address(options.address)})
             if not options.quiet:
                 print(f"resuming {run_dir} after generation {low} on {hosts.size} Ray host(s)",
                       file=out, flush=True)

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import GenomeError, Genr8Error
 from genr8_dist.evolution.individual import Evaluation, timing_columns
+from genr8_dist.evolution.variation import map_genome
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
@@ -360,10 +361,8 @@ class Evaluator:
             return previewed.untimed() if defer else self.measure(key, previewed.untimed())
         self.evaluations += 1
         start = time.perf_counter()
-        genome_settings = self.config.genome
         try:
-            mapped = self.universe.map(list(key), max_depth=genome_settings.max_depth,
-                                       max_wraps=genome_settings.max_wraps)
+            mapped = map_genome(self.config, self.universe, key)
         except Exception as exc:  # the mapper should not raise for int genomes; if it does, it is data
             result = Evaluation(stage="map", error=_describe(exc), map_seconds=time.perf_counter() - start)
             result = replace(result, eval_seconds=result.map_seconds)

@@ -21,7 +21,9 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    probability ``ea.crossover_rate``, then int-flip mutation of each codon with probability
    ``ea.mutation_rate`` (a child that was not crossed over is mutated at least once, so no offspring is a
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
-   With ``ea.within_used`` the cut and the flips fall within the codons the mapper read.
+   With ``ea.within_used`` the cut and the flips fall within the codons the mapper read. A universe
+   that brings its own operators (``evolution.variation``: ``hooks.VARIATION``, ``ea.variation``)
+   breeds by them instead (``_vary``): one child per recombination or mutation of texts.
 
 No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
@@ -38,6 +40,13 @@ trees (``grammar.derivations``); past the first half of a founder's redraws they
 (every repetition at least a few rounds, no edge label born) while those have given live founders at
 least as often as plain draws in this generation 0, so a universe whose random genomes seldom
 subdivide (``gecco``) still starts alive.
+No growth is spent where the text already shows the waste (the phenotype's ``screen``; surfaces:
+``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
+a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
+repeats a parent's or an earlier member's, is drawn or varied again from its text alone
+(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
+too, from its first parent (its own variation broke what made the parent split its regions, so
+its neighbourhood is mostly trivial), as is one whose growth was capped.
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
@@ -63,8 +72,9 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Container, Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
@@ -78,6 +88,7 @@ from genr8_dist.evolution.operators import (
     select_elites,
     tournament_select,
 )
+from genr8_dist.evolution.variation import Variation, genome_of, map_genome, text_genome, variation_for
 from genr8_dist.rng import stream
 
 if TYPE_CHECKING:
@@ -106,6 +117,8 @@ class IslandStats:
     revaried_invalid: int = 0   # offspring varied again because they were invalid (unmappable or capped)
     redrawn: int = 0            # offspring replaced by a newcomer after every re-variation failed
     unresolved: int = 0         # offspring or founders still repeating after every retry
+    revaried_trivial: int = 0   # offspring varied again because their surface was trivial (one region)
+    screened: int = 0           # drawn or varied again from the text alone, never developed
 
 
 @dataclass(frozen=True, slots=True)
@@ -118,10 +131,12 @@ class Birth:
     parents: tuple[str, ...] = ()
     evaluation: Evaluation | None = None
     avoid: frozenset[str] = frozenset()   # the parents' texts and phenotype digests (copies to avoid)
+    source: tuple[tuple[int, ...], int] | None = None   # the first parent's genome and codons read
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
+_SCREENS = 20   # genomes drawn or varied again, from their text alone, before one is grown
 
 
 def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
@@ -155,6 +170,20 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
     return keys
 
 
+class _Draws:
+    """``first``, then what ``more`` draws: a founder as drawn, then its redraws."""
+
+    def __init__(self, first: Genome, more: Callable[[], Genome]) -> None:
+        self.first: Genome | None = first
+        self.more = more
+
+    def __call__(self) -> Genome:
+        if self.first is not None:
+            first, self.first = self.first, None
+            return first
+        return self.more()
+
+
 class Island:
     """One island of a run: ``initial()`` builds generation 0, ``step()`` each next generation."""
 
@@ -177,6 +206,8 @@ class Island:
         self._founder_draws: dict[str, list[int]] = {"plain": [0, 0], "bushy": [0, 0]}
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
+        # The universe's own operators (``evolution.variation``), or None: GE's.
+        self.variation: Variation | None = variation_for(config, self.evaluator.universe)
 
     # -- random streams -----------------------------------------------------------------------
 
@@ -188,6 +219,8 @@ class Island:
         """``count`` founder genomes drawn from ``rng`` (``ea.init``); ``first``: the position of the
         first in the ramp of depth limits."""
         g = self.config.genome
+        if self.variation is not None:
+            return [text_genome(self.variation.founder(rng)) for _ in range(count)]
         if self.config.ea.init == "ramped":
             from genr8_dist.grammar.derivations import ramped_genomes
 
@@ -197,13 +230,48 @@ class Island:
 
     def _mapped(self, genome: Genome) -> tuple[str | None, int]:
         """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
-        g = self.config.genome
-        result = self.evaluator.universe.map(genome, max_depth=g.max_depth, max_wraps=g.max_wraps)
+        result = map_genome(self.config, self.evaluator.universe, genome)
         return result.text, result.codons_used
+
+    @property
+    def _varies_trivial(self) -> bool:
+        """Whether a trivial offspring is varied again: in ``weighted`` mode, where it only costs
+        the fitness it lacks; a Pareto front or a MAP-Elites archive may want its extremes (one
+        region is the most symmetric surface, the emptiest cell)."""
+        return self.config.search.mode == "weighted"
+
+    def _founder(self, rng, index: int) -> Genome:
+        """One founder genome drawn from ``rng`` at position ``index`` of generation 0."""
+        return self._founders(rng, 1, first=index)[0]
+
+    def _screen(self, text: str | None) -> tuple[bool, str | None]:
+        """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
+        wasted for sure (no text, or trivial as the phenotype's ``screen`` says) and its key (equal
+        keys, equal phenotypes: a copy known without growing it)."""
+        if text is None:
+            return True, None
+        screen = getattr(self.phenotype, "screen", None)
+        return screen(text, self.config) if screen is not None else (False, text)
+
+    def _screened(self, draw: Callable[[], Genome], avoid: Container[str | None] = ()) -> Genome:
+        """A genome from ``draw`` (called again while the last one's text is wasted for sure or its
+        key is in ``avoid``, at most ``_SCREENS`` times: mapping and reading a text costs no growth),
+        the last one drawn if all were."""
+        genome = draw()
+        for _ in range(_SCREENS):
+            wasted, key = self._screen(self._mapped(genome)[0])
+            if not wasted and key not in avoid:
+                break
+            self.stats.screened += 1
+            genome = draw()
+        return genome
 
     def _revary(self, rng, genome: Genome, codons: int) -> Genome:
         """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
-        a copy because its read codons are: flipping an unread one would change nothing)."""
+        a copy because its read codons are: flipping an unread one would change nothing); under a
+        universe's variation, its mutation of the text."""
+        if self.variation is not None:
+            return text_genome(self.variation.mutate(rng, "".join(map(chr, genome))))
         return int_flip_mutation(rng, genome, self.config.ea.mutation_rate, self.config.genome.codon_max,
                                  at_least_one=True, within=codons if codons > 0 else None)[0]
 
@@ -265,6 +333,8 @@ class Island:
             revaried_invalid=counted.revaried_invalid,
             redrawn=counted.redrawn,
             unresolved=counted.unresolved,
+            revaried_trivial=counted.revaried_trivial,
+            screened=counted.screened,
         )
         for hook in self.hooks:
             hook(population)
@@ -294,8 +364,7 @@ class Island:
         if isinstance(item, Individual):
             return tuple(item.genome), (item.id,)
         if isinstance(item, str):
-            genome = self.evaluator.universe.invert(item, max_depth=self.config.genome.max_depth)
-            return tuple(int(c) for c in genome), ()
+            return genome_of(self.config, self.evaluator.universe, item), ()
         return tuple(int(c) for c in item), ()
 
     def breed(self, generation: int, previous: Sequence[Individual] = (),
@@ -310,8 +379,7 @@ class Island:
         ea = self.config.ea
         g = self.config.genome
         if generation == 0:
-            return [Birth(genome, "random") for genome in self._founders(self.rng(0, "genomes"),
-                                                                         ea.population)]
+            return self._founder_births(ea.population)
         if not previous:
             raise ValueError(f"generation {generation} needs a non-empty previous generation")
         if len(migrants) + len(injected) > ea.population:
@@ -354,7 +422,10 @@ class Island:
         mutate_rng = self.rng(generation, "mutation")
         revary_rng = self.rng(generation, "revary")
         unique = ea.unique_retries > 0
-        texts = {b.evaluation.text for b in births if b.evaluation is not None} if unique else set()
+        texts = {self._screen(b.evaluation.text)[1] for b in births
+                 if b.evaluation is not None and b.evaluation.text is not None} if unique else set()
+        if self.variation is not None:
+            return self._vary(generation, births, size, pool, parent_ids, pick)
         while len(births) < size:
             a = pick(select_rng)
             b = pick(select_rng, first=False)
@@ -386,21 +457,94 @@ class Island:
                 if unique:
                     for i in picked:
                         avoid |= _keys(pool[i])
+                        if pool[i].text is not None:
+                            avoid.add(str(self._screen(pool[i].text)[1]))
                     text, read = self._mapped(genome)
+                    trivial, key = self._screen(text)
+                    trivial = trivial and (text is None or self._varies_trivial)
                     for _ in range(ea.unique_retries):
-                        if text is not None and text not in avoid and text not in texts:
+                        if not trivial and key not in avoid and key not in texts:
                             break
                         if text is None:
                             self.stats.revaried_invalid += 1
+                        elif trivial:
+                            self.stats.screened += 1
                         else:
                             self.stats.revaried_text += 1
                         genome = self._revary(revary_rng, genome, read)
                         text, read = self._mapped(genome)
+                        trivial, key = self._screen(text)
+                        trivial = trivial and (text is None or self._varies_trivial)
                         if origin == "crossover":
                             origin = "crossover+mutation"
-                    texts.add(text)
+                    texts.add(key)
+                first = pool[picked[0]]
                 births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid)))
+                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid),
+                                    (tuple(first.genome), first.codons_used) if first.valid else None))
+        return births
+
+    def _founder_births(self, count: int) -> list[Birth]:
+        """Generation 0's genomes: ``count`` founders (``ea.init``); with ``ea.founder_retries``,
+        one whose text shows it trivial or a copy of an earlier founder (``_screen``) is drawn again
+        from its text alone (``founders``' own stream ``screen``), never grown."""
+        drawn = self._founders(self.rng(0, "genomes"), count)
+        if self.config.ea.founder_retries <= 0:
+            return [Birth(tuple(genome), "random") for genome in drawn]
+        births: list[Birth] = []
+        keys: set[str | None] = set()
+        for index, first in enumerate(drawn):
+            rest = _Draws(first, partial(self._founder, self.rng(0, "screen", index), index))
+            genome = tuple(int(c) for c in self._screened(rest, keys))
+            keys.add(self._screen(self._mapped(genome)[0])[1])
+            births.append(Birth(genome, "random"))
+        return births
+
+    def _vary(self, generation: int, births: list[Birth], size: int, pool: Sequence[Individual],
+              parent_ids: Sequence[str], pick: Callable[..., int]) -> list[Birth]:
+        """The offspring of ``generation`` by the universe's own operators (``evolution.variation``):
+        each one child, the recombination of two tournament winners with probability
+        ``ea.crossover_rate`` (origin ``crossover``), else the mutation of one (``mutation``). A child
+        whose text repeats a parent's or an earlier member's is mutated again, up to
+        ``ea.unique_retries`` times (origin ``crossover+mutation`` for a recombined one); a parent
+        whose text the operators cannot read gives a newcomer (origin ``random``)."""
+        ea, variation = self.config.ea, self.variation
+        assert variation is not None
+        select_rng = self.rng(generation, "selection")
+        vary_rng = self.rng(generation, "variation")
+        revary_rng = self.rng(generation, "revary")
+        unique = ea.unique_retries > 0
+        texts = {b.evaluation.text for b in births if b.evaluation is not None}
+        while len(births) < size:
+            a = pick(select_rng)
+            picked: tuple[int, ...] = (a,)
+            crossed = bool(vary_rng.random() < ea.crossover_rate)
+            if crossed:
+                b = pick(select_rng, first=False)
+                tries = 0
+                while unique and tries < _MATE_RETRIES and (b == a or pool[b].text == pool[a].text):
+                    b = pick(select_rng, first=False)
+                    tries += 1
+                self.stats.mates_redrawn += tries
+                picked = (a, b)
+            origin = "crossover" if crossed else "mutation"
+            try:
+                text = (variation.recombine(vary_rng, str(pool[a].text), str(pool[picked[-1]].text))
+                        if crossed else variation.mutate(vary_rng, str(pool[a].text)))
+            except Exception:   # a parent the operators cannot read (hand-written, say): a newcomer
+                text, origin, picked = variation.founder(vary_rng), "random", ()
+            avoid: set[str] = set()
+            for i in picked:
+                avoid |= _keys(pool[i])
+            for _ in range(ea.unique_retries if unique else 0):
+                if text not in avoid and text not in texts:
+                    break
+                self.stats.revaried_text += 1
+                text = variation.mutate(revary_rng, text)
+                origin = "crossover+mutation" if origin == "crossover" else origin
+            texts.add(text)
+            births.append(Birth(text_genome(text), origin, tuple(parent_ids[i] for i in picked), None,
+                                frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
@@ -556,15 +700,17 @@ class Island:
                 tally[kind][1] += 1
                 return genome, evaluation
             rng = rng or self.rng(0, "founders", index)
-            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) else "bushy"
+            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) \
+                or self.variation is not None else "bushy"
             if kind == "plain":
-                genome = tuple(self._founders(rng, 1, first=index)[0])
+                genome = tuple(self._screened(partial(self._founder, rng, index)))
             else:   # plain draws keep failing: bushy trees over the labels a derivation starts with
                 from genr8_dist.grammar.derivations import bushy_genome
 
                 g = self.config.genome
-                genome = bushy_genome(self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
-                                      max_depth=g.max_depth)
+                genome = tuple(self._screened(partial(
+                    bushy_genome, self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
+                    max_depth=g.max_depth)))
             evaluation = self.evaluator.preview(genome)
             self.stats.founders_redrawn += 1
         evaluation = self.evaluator.measure(genome, evaluation)
@@ -582,20 +728,34 @@ class Island:
         newcomer (origin ``random``, no parents) up to ``ea.unique_redraws`` times."""
         genome, origin = birth.genome, birth.origin
 
+        phenotype = self.phenotype
+
+        def trivial(ev: Evaluation) -> bool:
+            measured = not isinstance(ev, Preview) or phenotype.trivial_from_sizes
+            return self._varies_trivial and ev.valid and measured and is_trivial(ev, phenotype)
+
         def wasted(ev: Evaluation) -> bool:
-            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid
+            return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid \
+                or trivial(ev)
 
         rng = None
         for _ in range(self.config.ea.unique_retries):
             evaluation = self._settled(genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
-            if evaluation.valid:
+            if trivial(evaluation):
+                self.stats.revaried_trivial += 1
+            elif evaluation.valid:
                 self.stats.revaried_phenotype += 1
             else:
                 self.stats.revaried_invalid += 1
             rng = rng or self.rng(generation, "revary", index)
-            genome = self._revary(rng, genome, evaluation.codons_used)
+            base, codons = genome, evaluation.codons_used
+            if (trivial(evaluation) or not evaluation.valid) and birth.source is not None:
+                # the variation broke what made the parent grow (it no longer splits a region, or
+                # its growth ran away): vary the parent anew rather than the broken child
+                base, codons = birth.source
+            genome = self._screened(partial(self._revary, rng, base, codons), birth.avoid)
             evaluation = self.evaluator.preview(genome)
             if origin == "crossover":
                 origin = "crossover+mutation"
@@ -605,7 +765,7 @@ class Island:
         fresh = None
         for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
             fresh = fresh or self.rng(generation, "redraw", index)
-            genome = tuple(self._founders(fresh, 1, first=index)[0])
+            genome = tuple(self._screened(partial(self._founder, fresh, index)))
             evaluation = self._settled(genome, self.evaluator.preview(genome), wasted)
             origin = "random"
             self.stats.redrawn += 1

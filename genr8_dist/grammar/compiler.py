@@ -44,6 +44,9 @@ _META = set(".^$*+?{}[]|()")
 MAX_MAX_DEPTH = 100
 MAX_NODES = 200_000   # grammar nodes (literals, edges, rule uses, groups) a universe may hold
 MAX_NUMBER_VALUES = 10_000
+#: The deepest nesting of groups ``( )`` and optionals ``[ ]`` a universe may write (grammars/README.md):
+#: Lark's grammar loader and this compiler walk them recursively, so a deeper grammar is refused first.
+MAX_NESTING = 100
 
 
 @dataclass(frozen=True, slots=True)
@@ -295,6 +298,34 @@ def _template(name: str, body: str, ctx: _Ctx) -> EdgeTemplate:
     return EdgeTemplate(name, prefix, suffix)
 
 
+def _check_nesting(text: str, ctx: _Ctx) -> None:
+    """``UniverseError`` at the first ``(`` or ``[`` that opens more than ``MAX_NESTING`` groups (strings,
+    regular expressions and comments skipped as Lark reads them; one linear scan)."""
+    if text.count("(") + text.count("[") <= MAX_NESTING:
+        return
+    depth, i, n = 0, 0, len(text)
+    while i < n:
+        ch = text[i]
+        if ch == '"' or (ch == "/" and text[i + 1:i + 2] != "/"):   # a string or a regular expression
+            i += 1
+            while i < n and text[i] != ch and text[i] != "\n":
+                i += 2 if text[i] == "\\" else 1
+        elif ch == "/":   # a comment, to the end of the line
+            end = text.find("\n", i)
+            i = n if end < 0 else end
+            continue
+        elif ch in "([":
+            depth += 1
+            if depth > MAX_NESTING:
+                line = text.count("\n", 0, i) + 1
+                column = i - (text.rfind("\n", 0, i) + 1) + 1
+                raise UniverseError(located(f"groups nest deeper than {MAX_NESTING} levels (the limit of a "
+                                            "universe, grammars/README.md)", ctx.source, line, column))
+        elif ch in ")]":
+            depth = max(depth - 1, 0)
+        i += 1
+
+
 def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     """Compile the Lark grammar ``text`` (read from ``source``) into a :class:`CompiledGrammar`."""
     from lark.exceptions import LarkError
@@ -303,6 +334,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     from lark.tree import Tree
 
     ctx = _Ctx(source, text)
+    _check_nesting(text, ctx)
     bias, repair_rule, description, directive_line, numbers = _directives(text, ctx)
     try:
         builder = GrammarBuilder()

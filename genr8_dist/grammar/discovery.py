@@ -36,7 +36,7 @@ from genr8_dist.resources import grammars_dir, plugins_dir
 
 __all__ = ["ENTRY_POINT_GROUP", "UniverseInfo", "consent_for_history", "consent_for_new_run",
            "consent_for_stored", "find_source",
-           "installed_code_digest", "list_universes", "load_universe"]
+           "installed_code_digest", "list_universes", "load_named_universe", "load_universe"]
 
 ENTRY_POINT_GROUP = "genr8_dist.universes"
 _NOT_UNIVERSES = {"hemls"}
@@ -250,21 +250,57 @@ def consent_for_history(source: UniverseSource) -> bool:
     return False
 
 
-def consent_for_new_run(source, notify: Callable[[str], None]) -> None:
-    """Consent to the code of a universe a run configuration names (``genr8 run``).
+def consent_for_new_run(source, *, trust_flag: bool, command: str = "run",
+                        ask: Callable[[str], bool] | None = None) -> None:
+    """Consent to the code of a universe named by a path (in a run TOML, on the command line) or
+    carried in a TOML's ``[stored_universe]``, or refuse in one line (``UniverseError``).
 
-    An installed plugin's code runs silently; code named by a path or carried in the TOML runs after
-    ``notify`` is given a one-line notice, the first time this machine sees its digest."""
+    An installed plugin's code (same name, same digest) and a digest this machine trusted before run
+    at once. Other code runs only with ``trust_flag`` (``--trust-hooks``) or a yes to ``ask`` (a
+    prompt, on a terminal only); its digest is then remembered. A notice is not consent."""
     digest = source.code_digest
     if may_run(digest):
         return
-    if installed_code_digest(source.name) != digest and digest not in remembered():
-        modules = ", ".join(f"{m}.py" for m in source.modules)
-        notify(f"genr8: note: universe '{source.name}' runs Python code ({modules} from "
-               f"{source.folder}, sha256 {digest[:16]}...); this machine trusts "
-               "it from now on (the trust rule: docs/run-store.md)")
+    if installed_code_digest(source.name) == digest or digest in remembered():
+        consent(digest)
+        return
+    modules = ", ".join(f"{m}.py" for m in source.modules)
+    what = (f"universe '{source.name}' carries Python code ({modules} from {source.folder}, sha256 "
+            f"{digest[:16]}...)")
+    asker = ask if ask is not None else _terminal_prompt
+    if trust_flag or asker(f"genr8: {what}; run it, and trust it from now on? [y/N] "):
         remember(digest, f"universe {source.name} ({source.folder})")
-    consent(digest)
+        consent(digest)
+        return
+    raise UniverseError(f"{what} that this machine has not trusted; read it, then run `genr8 {command} "
+                        "--trust-hooks` (the trust rule: docs/run-store.md)")
+
+
+def _terminal_prompt(question: str) -> bool:
+    """Ask ``question`` on the terminal; False at once when standard input or error is not one."""
+    import sys
+
+    if not (sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty()):
+        return False
+    print(question, end="", file=sys.stderr, flush=True)
+    try:
+        answer = sys.stdin.readline()
+    except (OSError, KeyboardInterrupt):
+        return False
+    return answer.strip().lower() in ("y", "yes")
+
+
+def load_named_universe(name: str | os.PathLike[str], *, trust_flag: bool, command: str) -> Universe:
+    """``load_universe`` for a command line's ``--universe``: a plugin folder given by a path runs its
+    code only with consent (:func:`consent_for_new_run`); a name (built-in, shipped or installed
+    plugin, entry point) is the user's own choice."""
+    source, origin = find_source(name)
+    if origin == "path":
+        source.check_hook_names()   # read, not run: a misspelt hook is named before consent is asked
+        consent_for_new_run(source, trust_flag=trust_flag, command=command)
+    else:
+        consent(source.code_digest)
+    return build_universe(source, origin=origin)
 
 
 def consent_for_stored(sources, *, trust_flag: bool, command: str) -> None:

@@ -31,6 +31,9 @@ if TYPE_CHECKING:
 __all__ = ["invert", "normalize"]
 
 _BUDGET = 400_000
+#: The longest text (in tokens) the search reads: it recurses about once per token (measured: 16,000
+#: tokens within its 20,000-frame limit), so a longer text is refused in one line instead.
+MAX_TOKENS = 12_000
 
 
 class _Token:
@@ -247,6 +250,22 @@ def _show(tok: str) -> str:
     return "the end of the line" if tok == "\n" else f"'{tok}'"
 
 
+def _check_nesting(tokens: list[_Token]) -> None:
+    """Refuse brackets nested deeper than a rewrite system may have (``language.MAX_NESTING``), at the
+    first ``[`` too many: Lark's tree and the search would recurse that deep."""
+    from genr8_dist.hemls.language import MAX_NESTING
+
+    depth = 0
+    for tok in tokens:
+        if tok.text == "[":
+            depth += 1
+            if depth > MAX_NESTING:
+                raise InversionError(f"line {tok.line}, column {tok.col}: brackets nest deeper than "
+                                     f"{MAX_NESTING} levels (the limit of a rewrite system, docs/hemls.md)")
+        elif tok.text == "]":
+            depth = max(depth - 1, 0)
+
+
 def _lark_check(universe: Universe, tokens: list[_Token], words: list[str]) -> None:
     """Parse with Lark; a syntax error becomes an InversionError at the user's line and column."""
     from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
@@ -312,12 +331,20 @@ def invert(universe: Universe, text: str, max_depth: int = 5) -> tuple[int, ...]
     words = [t.text for t in tokens]
     if not words:
         raise InversionError("the text is empty: there is no rewrite system to invert")
+    _check_nesting(tokens)
+    if len(words) > MAX_TOKENS:
+        raise InversionError(f"{_where(tokens, MAX_TOKENS)}: the text has {len(words)} tokens; invert reads "
+                             f"at most {MAX_TOKENS}")
     _lark_check(universe, tokens, words)
 
     limit = sys.getrecursionlimit()
     sys.setrecursionlimit(max(limit, 20_000))
     try:
-        found = _Search(universe, words, max_depth).run()
+        try:
+            found = _Search(universe, words, max_depth).run()
+        except RecursionError:   # a grammar costing more frames a token than measured: refused, not a crash
+            raise InversionError(f"the text is too long or too deeply nested to invert ({len(words)} "
+                                 "tokens)") from None
         if found is None:
             _diagnose(universe, tokens, words, max_depth)
     finally:

@@ -3,10 +3,12 @@
 A universe's ``.lark`` grammar is data; its Python modules (``hooks.py``, a phenotype module) are
 code. Code runs only where the user said so:
 
-* a universe the user names (``--universe NAME_OR_PATH``, a plugin in ``GENR8_PLUGINS``, the
-  plugins shipped with genr8_dist, an installed package's entry point) is the user's choice;
-* a plugin named by a path in a run TOML runs after a one-line notice, the first time its code
-  digest is seen (the digest is then remembered);
+* a universe the user names by name (``--universe NAME``, a plugin in ``GENR8_PLUGINS``, the
+  plugins shipped with genr8_dist, an installed package's entry point) is the user's choice, and so
+  is ``load_universe`` in the user's own Python;
+* a plugin folder named by a path (in a run TOML, or ``--universe PATH`` on the command line) runs
+  only with consent: ``--trust-hooks`` or a yes on a terminal, after which its digest is remembered
+  (``discovery.consent_for_new_run``); a notice is not consent;
 * code stored in a run directory runs only for the commands that continue the run (``run``,
   ``resume``, ``edit``), and only when its code digest is remembered, matches an installed plugin's,
   or the user passes ``--trust-hooks`` (which remembers it). History commands, ``show`` and the report

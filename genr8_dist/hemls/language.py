@@ -56,6 +56,10 @@ DEFAULT_ANGLE = 90.0
 DEFAULT_BRANCH_ANGLE = 30.0
 
 _COMMENT_RE = re.compile(r"(//|#)[^\n]*")
+#: The deepest bracket nesting a rewrite system may have (docs/hemls.md): every reader and the turtle
+#: walk branches recursively, so a deeper text is refused, naming where, before any of them runs.
+MAX_NESTING = 100
+_BRACKET_OR_COMMENT = re.compile(r"[\[\]]|(?://|#)[^\n]*")
 MAX_NUMBER = 2**31 - 1  # the largest edge number or age offset a rewrite system may use
 _EDGE_RE = re.compile(r"^(?:Edge(?P<num>[0-9]+)|(?P<letter>[A-Z]))(?:_i(?P<off>[+-][0-9]+)?(?P<timed>))?$")
 
@@ -783,11 +787,32 @@ def parse(text: str, source: str = "<text>", *, name: str = "") -> RewriteSystem
     """Read a rewrite system; malformed text raises ParseError naming line, column and what was expected."""
     if not isinstance(text, str):
         raise TypeError(f"parse() needs a str, got {type(text).__name__}")
+    _check_nesting(text, source)
     direct = _direct(text)
     if direct is not None:
         return RewriteSystem(direct.axiom, direct.rules, direct.angle, direct.branch_angle, direct.sync,
                              name=name or source)
     return _parse_lark(text, source, name)
+
+
+def _check_nesting(text: str, source: str) -> None:
+    """``ParseError`` at the first ``[`` that opens more than ``MAX_NESTING`` brackets (one linear scan;
+    none at all for a text with fewer ``[`` than the limit)."""
+    if text.count("[") <= MAX_NESTING:
+        return
+    depth = 0
+    for match in _BRACKET_OR_COMMENT.finditer(text):
+        bracket = match.group()
+        if bracket == "[":
+            depth += 1
+            if depth > MAX_NESTING:
+                at = match.start()
+                line = text.count("\n", 0, at) + 1
+                column = at - (text.rfind("\n", 0, at) + 1) + 1
+                raise _located_error(f"brackets nest deeper than {MAX_NESTING} levels (the limit of a "
+                                     "rewrite system, docs/hemls.md)", source, line, column, text)
+        elif bracket == "]":
+            depth = max(depth - 1, 0)
 
 
 def _parse_lark(text: str, source: str, name: str) -> RewriteSystem:

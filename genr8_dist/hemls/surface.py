@@ -14,10 +14,14 @@ import hashlib
 import math
 import os
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from genr8_dist.errors import GrowthError
+
+if TYPE_CHECKING:
+    from genr8_dist.hemls.meshing import Mesh
 
 __all__ = ["Surface"]
 
@@ -38,7 +42,8 @@ class Surface:
 
     def __init__(self, vertices: np.ndarray, edges: np.ndarray, labels: np.ndarray, ages: np.ndarray,
                  region_offsets: np.ndarray, region_vertices: np.ndarray, perimeter: np.ndarray,
-                 masses: np.ndarray | None = None, stopped: np.ndarray | None = None) -> None:
+                 masses: np.ndarray | None = None, stopped: np.ndarray | None = None,
+                 meshing: int | None = None) -> None:
         self.vertices = _frozen(np.reshape(vertices, (-1, 3)), np.float64)
         n = len(self.vertices)
         self.edges = _frozen(np.reshape(edges, (-1, 2)), np.int64)
@@ -49,6 +54,9 @@ class Surface:
         self._perimeter = _frozen(perimeter, np.int64)
         self.masses = _frozen(np.ones(n) if masses is None else masses, np.float64)
         self.stopped = _frozen(np.zeros(n, bool) if stopped is None else stopped, bool)
+        from genr8_dist.hemls.meshing import MESHING, check_meshing
+
+        self.meshing = MESHING if meshing is None else check_meshing(meshing)
 
     # -- sizes -----------------------------------------------------------------------------------
     @property
@@ -181,6 +189,26 @@ class Surface:
         tri = triangulate_polygons(self.vertices, self.region_offsets, self.region_vertices)
         tri.setflags(write=False)
         return tri
+
+    def with_meshing(self, meshing: int) -> Surface:
+        """This map (the same arrays) cut by meshing version ``meshing`` (``hemls.meshing``): what a
+        run's stored meshing gives its regrown surfaces."""
+        if int(meshing) == self.meshing:
+            return self
+        return Surface(self.vertices, self.edges, self.labels, self.ages, self.region_offsets,
+                       self.region_vertices, self._perimeter, self.masses, self.stopped, meshing=meshing)
+
+    def mesh(self) -> Mesh:
+        """The triangle mesh exports, pictures and the studio use, cut by this surface's ``meshing``
+        (``hemls.meshing``): points (the vertices first, then any meshing added), triangles, the region
+        of each triangle."""
+        return self._mesh
+
+    @functools.cached_property
+    def _mesh(self) -> Mesh:
+        from genr8_dist.hemls.meshing import mesh_surface
+
+        return mesh_surface(self, self.meshing, cut=triangulate_polygons)
 
     # -- checks ------------------------------------------------------------------------------------
     def validate(self, *, strict: bool = False) -> list[str]:

@@ -60,6 +60,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     has none.
     """
     from genr8_dist.evolution.evaluate import universe_for
+    from genr8_dist.evolution.variation import map_genome
     from genr8_dist.grammar.trust import may_run
     from genr8_dist.history._tables import individual
 
@@ -71,8 +72,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     phenotype = phenotype_for(store, config)
     if may_run(config.universe_source.code_digest):  # consented by phenotype_for: installed or trusted
         universe = universe_for(config)
-        mapped = universe.map(list(row["genome"]), max_depth=config.genome.max_depth,
-                              max_wraps=config.genome.max_wraps)
+        mapped = map_genome(config, universe, row["genome"])
         text_matches = bool(mapped.valid) and mapped.text == text
     if text is None or row["phenotype_digest"] is None:
         return Regrown(row, config, phenotype, None, 0, None, text_matches)
@@ -131,13 +131,18 @@ def _outside_runs(path: Path) -> Path:
     return path
 
 
-def export(result: Regrown, path: str | os.PathLike) -> Path:
+def export(result: Regrown, path: str | os.PathLike, *, smooth: int = 0) -> Path:
     """Write the regrown phenotype to ``path`` through its phenotype's ``export`` (the suffix picks the
     format; a surface: .obj .ply .stl .glb through trimesh, .3dm through rhino3dm), named after the
-    individual where the format keeps names. The file is written atomically."""
+    individual where the format keeps names; ``smooth`` subdivision steps (a surface's meshes). The
+    file is written atomically."""
     path = check_export_path(path, result.phenotype)
     developed = _need_developed(result, "export")
-    return result.phenotype.export(developed, path, result.config, name=result.row["id"])
+    if not smooth:
+        return result.phenotype.export(developed, path, result.config, name=result.row["id"])
+    if not getattr(result.phenotype, "smooths", False):
+        raise HistoryError(f"--smooth: phenotype {result.phenotype.name} has no smoothed export")
+    return result.phenotype.export(developed, path, result.config, name=result.row["id"], smooth=smooth)
 
 
 def picture(result: Regrown, path: str | os.PathLike) -> Path:

@@ -14,7 +14,7 @@ import pyarrow.dataset as pads
 
 from genr8_dist.errors import ConfigError, HistoryError, StoreError
 from genr8_dist.evolution.individual import parse_id
-from genr8_dist.files import replacing
+from genr8_dist.files import is_stream, replacing
 from genr8_dist.store.schema import criterion_of
 
 if TYPE_CHECKING:
@@ -120,6 +120,8 @@ def as_numpy(column: pa.ChunkedArray | pa.Array, fill: float = math.nan) -> np.n
 
 def run_directory_holding(path: str | os.PathLike) -> Path | None:
     """The run directory ``path`` lies in (itself or a folder above it holding ``_manifest/``), or None."""
+    if is_stream(path):
+        return None
     here = Path(os.path.realpath(path))
     for folder in (here, *here.parents):
         if (folder / "_manifest").is_dir():
@@ -131,10 +133,10 @@ def atomic_write(path: str | os.PathLike, write: Any) -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``: a reader never sees half
     a file, and a failure leaves ``path`` as it was. The folder must exist, and must not be inside a
     run directory: the history commands only read runs (a file written there could replace one the
-    run is made of)."""
+    run is made of). ``-``, a device, a FIFO and a symlink are written as ``files.replacing`` says."""
     target = Path(path)
     folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
+    if not is_stream(path) and not folder.is_dir():
         raise FileNotFoundError(2, "no such directory", str(folder))
     inside = run_directory_holding(target)
     if inside is not None:

@@ -156,7 +156,8 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
              island: int | None = None) -> pa.Table:
     """``k`` clusters of the run's distinct phenotypes (or of ``generation``, ``island``) by k-means over
     their standardised criteria and the logs of their sizes; per cluster the design nearest its
-    centroid, with its ``cluster`` number and how many ``members`` the cluster has, largest first."""
+    centroid, with its ``cluster`` number, how many ``members`` the cluster has (largest first) and
+    their ids (``member_ids``, each form's best)."""
     if k < 1:
         raise HistoryError(f"clusters: k must be at least 1, got {k}")
     try:
@@ -178,7 +179,7 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     k = min(k, len(x))
     model = KMeans(n_clusters=k, n_init=10, random_state=0).fit(x)
     labels = model.labels_
-    picks, sizes = [], []
+    picks, sizes, ids = [], [], []
     for c in range(k):
         members = np.flatnonzero(labels == c)
         if not members.size:
@@ -186,7 +187,9 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
         nearest = members[np.argmin(((x[members] - model.cluster_centers_[c]) ** 2).sum(axis=1))]
         picks.append(int(nearest))
         sizes.append(int(members.size))
+        ids.append([table["id"][int(m)].as_py() for m in members])
     order = sorted(range(len(picks)), key=lambda i: (-sizes[i], picks[i]))
     rows = _with_top_columns(store, [table["id"][picks[i]].as_py() for i in order])
     rows = rows.append_column("cluster", pa.array(list(range(1, len(order) + 1)), pa.int32()))
-    return rows.append_column("members", pa.array([sizes[i] for i in order], pa.int32()))
+    rows = rows.append_column("members", pa.array([sizes[i] for i in order], pa.int32()))
+    return rows.append_column("member_ids", pa.array([ids[i] for i in order], pa.list_(pa.string())))

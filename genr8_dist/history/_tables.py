@@ -462,7 +462,7 @@ _SANDBOX = {
 }
 
 
-def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table:
+def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT, as_of: int | None = None) -> pa.Table:
     """The result of ``sql`` (DuckDB's dialect) over the tables ``individuals``, ``events`` and
     ``configs`` of the run (a run of store schema 1 or 2 has its surface-named columns under both
     names: ``surface_digest`` and ``phenotype_digest``, ``n_regions`` and ``size_regions``...).
@@ -470,7 +470,10 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
     them (each checked against the manifest's sha256), registered in an in-memory database that can
     reach no file, network or extension and cannot be reconfigured; nothing is written anywhere. A
     statement running over ``timeout`` seconds is interrupted. A malformed or refused statement is a
-    ``HistoryError`` with DuckDB's one-line reason. Needs the ``sql`` extra
+    ``HistoryError`` with DuckDB's one-line reason. ``as_of=G`` reads the run as it was when
+    generation ``G`` was committed (time travel, ``genr8 query --as-of G``): the individuals of
+    generations up to ``G``, the events recorded at them, the configuration versions in force by
+    then; commits only append generations, so this holds for any ``G``. Needs the ``sql`` extra
     (``pip install 'genr8-dist[sql]'``)."""
     import threading
 
@@ -482,12 +485,19 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
         raise HistoryError("query: the SQL statement is empty")
     if not (isinstance(timeout, (int, float)) and 0 < timeout < 1e9):
         raise HistoryError(f"query: the timeout must be a positive number of seconds, got {timeout!r}")
+    if as_of is not None and (isinstance(as_of, bool) or not isinstance(as_of, int) or as_of < 0):
+        raise HistoryError(f"query: --as-of takes a generation (an integer >= 0), got {as_of!r}")
     store = open_run(run)
     individuals = dataset(store)
     renamed = getattr(individuals, "renamed", {})   # a schema 1 or 2 run: a view adds the new names
     stored = getattr(individuals, "stored", individuals)
-    tables = {"stored_individuals" if renamed else "individuals": stored, "events": store.events(),
-              "configs": configs(store)}
+    events_t, configs_t = store.events(), configs(store)
+    if as_of is not None:
+        stored = stored.filter(pc.field("generation") <= as_of)
+        events_t = events_t.filter(pc.less_equal(events_t["generation"], as_of))
+        configs_t = configs_t.filter(pc.less_equal(configs_t["effective_generation"], as_of))
+    tables = {"stored_individuals" if renamed else "individuals": stored, "events": events_t,
+              "configs": configs_t}
     con = duckdb.connect(":memory:", config=dict(_SANDBOX))  # type: ignore[arg-type]
     timer = threading.Timer(float(timeout), con.interrupt)
     try:
@@ -499,8 +509,10 @@ def query(run: RunLike, sql: str, *, timeout: float = QUERY_TIMEOUT) -> pa.Table
         timer.start()
         try:
             relation = con.sql(sql)
-            if relation is None:
-                return pa.table({})
+            if relation is None:   # nothing but ';' or comments, or a statement that yields no table
+                shown = " ".join(str(sql).split())[:60]
+                raise HistoryError(f"query: {shown!r} is no statement that answers with rows; write a "
+                                   "SELECT over individuals, events or configs")
             return relation.to_arrow_table()
         except duckdb.InterruptException:
             raise HistoryError(f"query: stopped after {timeout:g} s, the statement timeout "

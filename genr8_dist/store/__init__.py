@@ -7,6 +7,7 @@ See docs/run-store.md for the layout and every column.
 
 from __future__ import annotations
 
+from genr8_dist.store.parts import Part, write_part
 from genr8_dist.store.runstore import (
     COMPACT_EVERY,
     COMPACT_TARGET_ROWS,
@@ -34,9 +35,11 @@ __all__ = [
     "TIMING_COLUMNS",
     "ConfigVersion",
     "Event",
+    "Part",
     "RunStore",
     "criterion_column",
     "events_schema",
     "individuals_schema",
+    "write_part",
     "write_synthetic_run",
 ]

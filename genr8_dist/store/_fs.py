@@ -5,7 +5,9 @@ temporary name in the same folder, fsynced, then renamed into place, and the fol
 crash leaves the old file or the new one, never half of one. Manifests are *linked* into place, which
 fails if the name exists, so two writers cannot both commit the same version. On other filesystems
 (object stores) a write is one PUT, which is atomic there; readers never trust a file the manifest
-does not name, and a torn manifest fails its checksum and is skipped.
+does not name, and a torn manifest fails its checksum and is skipped. On S3 an exclusive write (a
+manifest, a queued request) is a conditional PUT, ``If-None-Match: *`` (``store/_s3.py``), so there too
+two writers cannot both create the same name; on other object stores it is a check, then a PUT.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from genr8_dist.errors import StoreError
 
 if TYPE_CHECKING:
     import pyarrow.fs as pafs
+
+    from genr8_dist.store._s3 import ObjectStore
 
 __all__ = ["RunFS", "resolve"]
 
@@ -55,6 +59,7 @@ class RunFS:
         self.root = root
         self.display = display
         self.local_root: str | None = None
+        self._objects: ObjectStore | bool | None = False   # False: not looked up yet
         if isinstance(fs, pafs.LocalFileSystem):
             self.local_root = root
         elif isinstance(fs, pafs.SubTreeFileSystem) and isinstance(fs.base_fs, pafs.LocalFileSystem):
@@ -66,9 +71,24 @@ class RunFS:
         return posixpath.join(self.root, rel) if rel else self.root
 
     def show(self, rel: str = "") -> str:
-        """``rel`` as a user would name it in a message."""
-        base = self.display.rstrip("/")
-        return f"{base}/{rel}" if rel else self.display
+        """``rel`` as a user would name it in a message (a URI's query, its endpoint say, left out)."""
+        if not rel:
+            return self.display
+        base = self.display.split("?", 1)[0] if "://" in self.display else self.display
+        return f"{base.rstrip('/')}/{rel}"
+
+    def objects(self) -> ObjectStore | None:
+        """The conditional-write client when the run is on S3 (``store/_s3.py``), else None; a
+        one-line ``StoreError`` when it is on S3 and boto3 is missing."""
+        if self._objects is False:
+            if self.local_root is not None:
+                self._objects = None
+            else:
+                from genr8_dist.store._s3 import object_store
+
+                self._objects = object_store(self.fs, self.root, self.show().split("?", 1)[0])
+        assert self._objects is not True
+        return self._objects
 
     def _local(self, rel: str) -> str:
         assert self.local_root is not None
@@ -127,7 +147,11 @@ class RunFS:
 
     def write_new(self, rel: str, data: bytes | memoryview) -> None:
         """Put ``data`` at ``rel``, a name no other writer uses (it holds a writer token); like
-        ``write_exclusive``, it never replaces a file: ``FileExistsError`` if ``rel`` exists."""
+        ``write_exclusive``, it never replaces a file: ``FileExistsError`` if ``rel`` exists. On an
+        object store it is pyarrow's own PUT (the token makes the name this writer's)."""
+        if self.local_root is None:
+            self._put_checked(rel, data)
+            return
         self._put_exclusive(rel, data)
 
     def write_exclusive(self, rel: str, data: bytes | memoryview) -> None:
@@ -145,11 +169,16 @@ class RunFS:
         return float(info.mtime.timestamp())
 
     def _put_exclusive(self, rel: str, data: bytes | memoryview) -> None:
+        if self.local_root is None and (objects := self.objects()) is not None:
+            from genr8_dist.store._s3 import Conflict
+
+            try:
+                objects.create(rel, data)
+            except Conflict:
+                raise FileExistsError(self.show(rel)) from None
+            return
         if self.local_root is None:
-            if self.kind(rel) != "missing":
-                raise FileExistsError(self.show(rel))
-            with self.fs.open_output_stream(self.full(rel)) as fh:
-                fh.write(data)
+            self._put_checked(rel, data)
             return
         tmp = self._write_temp(rel, data)
         final = self._local(rel)
@@ -165,6 +194,12 @@ class RunFS:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(tmp)
         self._sync_dir(rel)
+
+    def _put_checked(self, rel: str, data: bytes | memoryview) -> None:
+        if self.kind(rel) != "missing":
+            raise FileExistsError(self.show(rel))
+        with self.fs.open_output_stream(self.full(rel)) as fh:
+            fh.write(data)
 
     def delete(self, rel: str) -> None:
         with contextlib.suppress(FileNotFoundError):

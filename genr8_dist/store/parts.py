@@ -1,87 +1,166 @@
-"""Parts: Parquet files of rows written by the island hosts themselves, committed by the driver's manifest.
+"""Parts: individuals files written by any process that reaches the run directory, committed by its writer.
 
-A host writes the generations it computed into the run store (``write_part``) and hands the driver a
-small ``Part`` (its path, sha256, rows, bytes and the island's generations in it); the driver's commit
-(``RunStore.commit_parts``) is then the manifest alone, so no row passes through the driver. The
-atomicity contract is the store's: a part is data of the run only once a manifest names it; a part no
-manifest names (its epoch was lost with the driver, or its host died before the commit) is an orphan
-that ``RunStore.collect_garbage`` deletes (``genr8 resume`` calls it before any host starts).
-
-Names are unique without coordination (``individuals/part-<island>-<first>-<last>-<token>.parquet``,
-the token random), so a host never overwrites anything, and an island recomputed after a failure
-writes a new file beside the orphan.
+``write_part(store, table)`` checks the rows against the run's schema and writes them as one Parquet
+file in ``_staging/`` (where no table reader looks, and which no writer's garbage collection touches
+while it is fresh), returning a small ``Part`` descriptor: its name, digest, rows, bytes and the
+generations of each island it holds. An island host calls it for its own generations and sends the
+descriptor to the coordinator, whose ``RunStore.commit_parts(parts, events)`` takes the files into
+``_files/individuals/`` and names them in the next manifest, atomically with the epoch's events. A
+part no commit takes (its host crashed, or the commit lost a race) is removed by the writer's garbage
+collection once it is an hour old.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+import contextlib
+import hashlib
+import os
+import secrets
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
-from genr8_dist.evolution.individual import Individual
+from genr8_dist.store.views import FILES, LAYOUT, STAGING
 
 if TYPE_CHECKING:
+    import pyarrow as pa
+
     from genr8_dist.store.runstore import RunStore
 
-__all__ = ["Part", "check_parts", "write_part"]
+__all__ = ["Part", "write_part"]
 
 
 @dataclass(frozen=True, slots=True)
 class Part:
-    """A written, not yet committed, part file: what the driver's manifest commit takes."""
+    """An individuals file written by ``write_part`` and not yet committed: what a commit takes."""
 
-    path: str                  # relative to the run directory
+    name: str                       # the file's name (``part-<stem>-<token>.parquet``)
     sha256: str
     rows: int
     bytes: int
-    island: int
-    first: int                 # the island's first and last generation in the file
-    last: int
+    islands: dict[str, list[int]] = field(default_factory=dict)   # island -> [first, last] generation
 
-    def entry(self) -> dict[str, Any]:
-        """The manifest entry of this part (the commit adds ``commits``)."""
-        return {"path": self.path, "rows": self.rows, "bytes": self.bytes, "sha256": self.sha256,
-                "islands": {str(self.island): [self.first, self.last]}}
+    @property
+    def staged(self) -> str:
+        """Where the part lies until it is committed, relative to the run directory."""
+        return f"{STAGING}/{self.name}"
 
 
-def write_part(store: RunStore, individuals: Sequence[Individual]) -> Part:
-    """Write ``individuals`` (consecutive generations of one island) as a new part file of the run in
-    ``store`` and return its ``Part``; nothing is committed (``RunStore.commit_parts`` does that)."""
-    from genr8_dist.store.schema import individuals_table
+def write_part(store: RunStore, table: pa.Table, *, stem: str = "part") -> Part:
+    """Write ``table`` (rows of the run's schema: one or more islands' consecutive generations, each id
+    once) as a part of the run (an open store: ``RunStore.open(path)`` in another process) and return its
+    descriptor for ``RunStore.commit_parts``. Safe from any process: the name holds a random token,
+    and nothing is committed until the run's writer commits it."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
 
-    if not individuals:
-        raise StoreError("write_part: no individuals to write")
-    islands = {ind.island for ind in individuals}
-    if len(islands) != 1:
-        raise StoreError(f"write_part: a part holds one island's rows, got islands {sorted(islands)}")
-    generations = sorted({ind.generation for ind in individuals})
-    first, last = generations[0], generations[-1]
-    if last - first + 1 != len(generations):
-        raise StoreError(f"write_part: generations {generations[:8]} do not follow one another")
-    island = islands.pop()
-    table = store._checked_rows(individuals_table(individuals, store.run_id, store.criteria, store.schema))
-    entry = store._write_parquet(f"individuals/part-{island:06d}-{first:06d}-{last:06d}", table)
-    store._pending.remove(entry["path"])   # a host's file: the driver's commit makes it the run's
-    return Part(path=entry["path"], sha256=entry["sha256"], rows=int(entry["rows"]),
-                bytes=int(entry["bytes"]), island=island, first=first, last=last)
+    from genr8_dist.store.schema import COMPRESSION, ROW_GROUP_ROWS
+
+    if not stem.replace("-", "").replace("_", "").isalnum():
+        raise StoreError(f"write_part: stem {stem!r} must be letters, digits, '-' or '_'")
+    table = store._checked_rows(table)
+    if table.num_rows == 0:
+        raise StoreError("write_part: the part holds no rows")
+    islands = island_spans(table)
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf, compression=COMPRESSION, row_group_size=ROW_GROUP_ROWS)
+    data = buf.getvalue()
+    name = f"{stem}-{secrets.token_hex(8)}.parquet"
+    rfs = store._fs
+    rfs.makedirs(STAGING)
+    rfs.write_new(f"{STAGING}/{name}", memoryview(data))
+    return Part(name, hashlib.sha256(memoryview(data)).hexdigest(), table.num_rows, data.size, islands)
 
 
-def check_parts(store: RunStore, parts: Sequence[Part], committed: Mapping[int, int]) -> list[dict[str, Any]]:
-    """The manifest entries of ``parts``, after checking that each island's parts follow its last
-    ``committed`` generation and one another, and that every file is there with its size (its sha256
-    is checked by readers and ``verify``, so the driver reads none of it)."""
-    entries = []
-    expected = dict(committed)
-    for part in sorted(parts, key=lambda p: (p.island, p.first)):
-        start = expected.get(part.island, -1) + 1
-        if part.first != start or part.last < part.first:
-            raise StoreError(f"island {part.island}: a part holds generations {part.first}..{part.last}, but "
-                             f"the next one to commit is {start}")
-        size = store._fs.size(part.path)
+def island_spans(table: pa.Table) -> dict[str, list[int]]:
+    """Each island's first and last generation in ``table``; ``StoreError`` if an id appears twice or an
+    island's generations do not follow one another."""
+    import numpy as np
+
+    island = table.column("island").to_numpy()
+    gen = table.column("generation").to_numpy()
+    index = table.column("index").to_numpy()
+    order = np.lexsort((index, gen, island))
+    si, sg, sx = island[order], gen[order], index[order]
+    dup = (si[1:] == si[:-1]) & (sg[1:] == sg[:-1]) & (sx[1:] == sx[:-1])
+    if dup.any():
+        k = int(np.argmax(dup))
+        raise StoreError(f"individual {si[k]}-{sg[k]}-{sx[k]} appears twice in one part")
+    spans: dict[str, list[int]] = {}
+    for isl in np.unique(si):
+        gens = np.unique(sg[si == isl])
+        if int(gens[-1]) - int(gens[0]) + 1 != len(gens):
+            raise StoreError(f"island {isl}: the part's generations {gens.tolist()[:8]} do not follow "
+                             "one another")
+        spans[str(int(isl))] = [int(gens[0]), int(gens[-1])]
+    return spans
+
+
+def take_parts(store: RunStore, parts: list[Part], version: int) -> list[dict[str, Any]]:
+    """Check ``parts`` (staged, whole, disjoint, each island following its last committed generation),
+    move them into the run's data folder as files of commit ``version`` and return their manifest
+    entries. Called inside the commit's transaction: the moved files are the commit's own, removed
+    again if it fails."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rfs = store._fs
+    done = store.committed_generations()
+    spans: dict[str, list[list[int]]] = {}
+    for part in parts:
+        if not isinstance(part, Part):
+            raise StoreError(f"commit_parts: expected Part descriptors, got {type(part).__name__}")
+        where = rfs.show(part.staged)
+        size = rfs.size(part.staged)
+        if size is None:
+            raise StoreError(f"{where}: the part is missing (written by write_part? already committed?)")
         if size != part.bytes:
-            raise StoreError(f"{store._fs.show(part.path)}: the part is missing or not the "
-                             f"{part.bytes} bytes its host wrote")
-        expected[part.island] = part.last
-        entries.append(part.entry())
+            raise StoreError(f"{where}: {size} bytes, its descriptor says {part.bytes}")
+        with rfs.fs.open_input_file(rfs.full(part.staged)) as fh:
+            rows = pq.ParquetFile(fh).metadata.num_rows
+        if rows != part.rows:
+            raise StoreError(f"{where}: holds {rows} rows, its descriptor says {part.rows}")
+        for island, span in part.islands.items():
+            spans.setdefault(island, []).append(list(span))
+    for island, got in spans.items():
+        got.sort()
+        expect = done.get(int(island), -1) + 1
+        for lo, hi in got:
+            if lo != expect:
+                raise StoreError(
+                    f"island {island}: the parts hold generations from {got[0][0]} to {got[-1][1]} "
+                    f"({len(got)} part(s)), but the next one to commit is {done.get(int(island), -1) + 1} "
+                    "and a commit's generations must follow one another"
+                )
+            expect = hi + 1
+    folder = f"{FILES}/individuals" if store.manifest_layout == LAYOUT else "individuals"
+    entries = []
+    for part in parts:
+        rel = f"{folder}/{part.name}"
+        store._pending.append(rel)
+        try:
+            if rfs.local_root is not None:
+                os.rename(rfs._local(part.staged), rfs._local(rel))
+            else:
+                rfs.fs.move(rfs.full(part.staged), rfs.full(rel))
+        except (OSError, pa.ArrowException) as exc:
+            raise StoreError(f"{rfs.show(part.staged)}: cannot take the part into the run ({exc})") from None
+        entries.append({"path": rel, "rows": part.rows, "bytes": part.bytes, "sha256": part.sha256,
+                        "commits": [version, version],
+                        "islands": dict(sorted(part.islands.items(), key=lambda kv: int(kv[0])))})
     return entries
+
+
+def clear_stale_parts(store: RunStore, stale_after: float) -> int:
+    """Delete staged parts older than ``stale_after`` seconds (no commit took them); how many."""
+    import time
+
+    rfs = store._fs
+    deleted = 0
+    for name in rfs.listdir(STAGING):
+        mtime = rfs.mtime(f"{STAGING}/{name}")
+        if mtime is not None and time.time() - mtime > stale_after:
+            with contextlib.suppress(OSError):
+                rfs.delete(f"{STAGING}/{name}")
+                deleted += 1
+    return deleted

@@ -4,15 +4,18 @@
 runs the evolution (``genr8 run``/``resume``, role ``run``) and, for the moment it writes, by
 ``genr8 edit`` (role ``edit``). The kernel drops it when its holder dies, so a killed driver never
 leaves a run looking busy. The file says who holds it (role, pid, host, since) for messages; whether
-it is held is what the kernel answers, never what the file says.
+it is held is what the kernel answers, never what the file says. Its holder removes the file when it
+lets go (the run finished, failed or was interrupted), so only a killed holder leaves one behind; a
+process that locked a file removed meanwhile sees it is no longer the one at the path and tries again.
 
 **The queue** (``queue/NNNNNNNNNN.json``) holds interventions asked for while the run is running (by
 ``genr8 edit`` or the studio). A request is written under the next free number with an exclusive link,
 so two writers never overwrite each other: the loser of a race takes the next number. The coordinator,
-the run's only writer, takes the requests in number order at its next epoch, records each as ``edit``
-records an edit (a configuration version and an ``intervention`` event naming the request's ``id``),
-then deletes the file; a request whose ``id`` is already recorded (a crash between the two) is only
-deleted. Requests are plain JSON data; nothing in them is code.
+the run's only writer, takes the requests in number order (as generations complete,
+``intervene.take_queued``), records each as ``edit`` records an edit (a configuration version and
+an ``intervention`` event naming the request's ``id``), then deletes the file; a request whose ``id``
+is already recorded (a crash between the two) is only deleted. Requests are plain JSON data; nothing
+in them is code.
 """
 
 from __future__ import annotations
@@ -26,10 +29,13 @@ import socket
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store._fs import RunFS
+
+if TYPE_CHECKING:
+    from genr8_dist.store.lease import Lease
 
 __all__ = ["LOCK_NAME", "QUEUE_DIR", "Queued", "RunLock", "enqueue", "lock_holder", "queued"]
 
@@ -52,7 +58,8 @@ class RunLock:
     """The run directory's lock for ``role`` (``"run"`` or ``"edit"``); see the module docstring.
 
     ``acquire()`` returns False when a running run holds it (a role ``edit`` holder is waited for, up
-    to ``wait`` seconds). On a run directory that is not on a local disk there is no lock: ``acquire``
+    to ``wait`` seconds). On S3 the lock is a lease object of the same name, taken and renewed with
+    conditional writes (``store/lease.py``). On other object stores there is no lock: ``acquire``
     returns True and the single-writer rule is the user's."""
 
     def __init__(self, rfs: RunFS, role: str, *, wait: float = 10.0) -> None:
@@ -60,18 +67,24 @@ class RunLock:
         self.role = role
         self.wait = wait
         self._fd: int | None = None
+        self._lease: Lease | None = None
 
     @property
     def held(self) -> bool:
-        return self._fd is not None
+        return self._fd is not None or (self._lease is not None and self._lease.held)
+
+    def check(self) -> None:
+        """Before a commit: ``StoreError`` when this holder's lease was lost (``Lease.check``)."""
+        if self._lease is not None:
+            self._lease.check()
 
     def acquire(self) -> bool:
         import fcntl
 
-        if self._fd is not None:
+        if self._fd is not None or self._lease is not None:
             return True
         if self._rfs.local_root is None:
-            return True
+            return self._acquire_lease()
         path = os.path.join(self._rfs.local_root, LOCK_NAME)
         deadline = time.monotonic() + self.wait
         while True:
@@ -89,6 +102,13 @@ class RunLock:
                                      "try again when it has finished") from None
                 time.sleep(0.05)
                 continue
+            try:
+                current = os.stat(path).st_ino
+            except FileNotFoundError:
+                current = None
+            if current != os.fstat(fd).st_ino:   # its holder removed it as we locked it: lock the new one
+                os.close(fd)
+                continue
             info = {"role": self.role, "pid": os.getpid(), "host": socket.gethostname(),
                     "since": datetime.now(UTC).isoformat()}
             os.ftruncate(fd, 0)
@@ -96,12 +116,39 @@ class RunLock:
             self._fd = fd
             return True
 
+    def _acquire_lease(self) -> bool:
+        from genr8_dist.store.lease import Lease
+
+        objects = self._rfs.objects()
+        if objects is None:
+            return True
+        deadline = time.monotonic() + self.wait
+        while True:
+            lease = Lease(objects, LOCK_NAME, self.role)
+            holder = lease.acquire()
+            if holder is None:
+                self._lease = lease
+                return True
+            if holder.get("role") == "run":
+                return False
+            if time.monotonic() > deadline:
+                raise StoreError(f"{self._rfs.show()}: another command holds the run's lease (pid "
+                                 f"{holder.get('pid')} on {holder.get('host')}); try again when it has "
+                                 "finished")
+            time.sleep(0.2)
+
     def release(self) -> None:
+        if self._lease is not None:
+            lease, self._lease = self._lease, None
+            lease.release()
         if self._fd is None:
             return
         fd, self._fd = self._fd, None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
+        if self._rfs.local_root is not None:   # removed while still held: no holder can meet a stale one
+            with contextlib.suppress(OSError):
+                os.unlink(os.path.join(self._rfs.local_root, LOCK_NAME))
         os.close(fd)   # closing the descriptor drops the flock
 
     def __enter__(self) -> RunLock:
@@ -116,7 +163,10 @@ def lock_holder(rfs: RunFS) -> dict[str, Any] | None:
     import fcntl
 
     if rfs.local_root is None:
-        return None
+        from genr8_dist.store.lease import lease_holder
+
+        objects = rfs.objects()
+        return None if objects is None else lease_holder(objects, LOCK_NAME)
     path = os.path.join(rfs.local_root, LOCK_NAME)
     try:
         fd = os.open(path, os.O_RDONLY)

@@ -47,7 +47,11 @@ from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError, StoreError
 from genr8_dist.evolution.individual import SCHEMA_2_NAMES, Individual
+from genr8_dist.store import views
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
+from genr8_dist.store.audit import below_gap, describe_missing, head_damaged, missing_manifests
+from genr8_dist.store.foreign import is_store_name, set_aside
+from genr8_dist.store.live import LIVE_DIR
 from genr8_dist.store.pending import (
     LOCK_NAME,
     QUEUE_DIR,
@@ -59,6 +63,8 @@ from genr8_dist.store.pending import (
     queued,
 )
 from genr8_dist.store.schema import (
+    COMPRESSION,
+    ROW_GROUP_ROWS,
     SCHEMA_VERSION,
     Event,
     events_schema,
@@ -95,8 +101,6 @@ MANIFEST_DIR = "_manifest"
 KEEP_MANIFESTS = 16          # manifests kept for concurrent readers and for repair()
 COMPACT_TARGET_ROWS = 100_000  # compact() merges small files into files of about this many rows
 COMPACT_EVERY = 32           # commit() compacts when this many small individuals files have built up
-ROW_GROUP_ROWS = 32_768      # Parquet row group size: statistics let readers skip row groups
-COMPRESSION = "snappy"       # twice as fast to write as zstd here, files about 12% larger
 HEAD = f"{MANIFEST_DIR}/HEAD"   # the newest commit's number, written after its manifest is linked
 TMP_STALE_SECONDS = 3600     # a temporary file this old is a crash's leftover, whoever wrote it
 _MANIFEST_NAME = re.compile(r"^(\d{10})\.json$")
@@ -105,6 +109,8 @@ _REL_PATH = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._-]{0,200}(/[A-Za-z0-9_][A-Za-z
 _SHA256 = re.compile(r"^[0-9a-f]{64}$")
 _RUN_ID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,127}$")
 _LAYOUT = {MANIFEST_DIR, "configs", "individuals", "events"}
+_NAMES = _LAYOUT | {views.FILES, views.STAGING, views.VIEWS, views.CURRENT}   # what a run directory holds
+_DATA = ("individuals", "events", f"{views.FILES}/individuals", f"{views.FILES}/events")
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,6 +238,17 @@ def _phenotype_columns(config_toml: str) -> tuple[tuple[str, ...], tuple[str, ..
     return tuple(config.fitness.names), tuple(run_phenotype(config.universe_source).sizes)
 
 
+def _config_meshing(config_toml: str) -> int:
+    """The meshing a new run of ``config_toml`` records: the one it names, else the current one."""
+    from genr8_dist.hemls.meshing import MESHING, check_meshing
+
+    try:
+        named = tomllib.loads(config_toml).get("meshing")
+    except tomllib.TOMLDecodeError:
+        return MESHING
+    return MESHING if named is None else check_meshing(named, "configuration version 1: meshing")
+
+
 class RenamedDataset:
     """The individuals files of a run of schema 1 or 2 read as a dataset whose columns carry their
     current names (``SCHEMA_2_NAMES``: ``surface_digest`` is ``phenotype_digest``, ``n_regions`` is
@@ -293,6 +310,8 @@ class RunStore:
         self._pending: list[str] = []                  # files written by the commit being made
         self._stale = stale                            # the newest manifest is lost or damaged
         self.last_repair = ""                          # what the last repair() dropped, in one line
+        self.set_aside: list[tuple[str, str]] = []     # users' files moved by collect_garbage (foreign.py)
+        self.writer_lock: RunLock | None = None        # checked before each manifest (a lease on S3)
 
     # --- building ----------------------------------------------------------------------------
     @classmethod
@@ -332,7 +351,7 @@ class RunStore:
                     "choose a new directory, or resume that run"
                 )
             if state == "foreign":
-                foreign = [n for n in rfs.listdir() if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]
+                foreign = [n for n in rfs.listdir() if n not in _NAMES | {LOCK_NAME, QUEUE_DIR, LIVE_DIR}]
                 raise StoreError(
                     f"{rfs.show()}: exists and is not empty (holds {foreign[0]!r}); "
                     "a new run needs a new or empty directory"
@@ -342,9 +361,12 @@ class RunStore:
                     f"{rfs.show()}: holds a damaged run (data files but no intact manifest in "
                     f"{MANIFEST_DIR}/); a new run needs a new or empty directory"
                 )
-            for folder in sorted(_LAYOUT & set(rfs.listdir())):  # a creation that stopped half-way
+            for folder in (MANIFEST_DIR, "configs", *_DATA):  # a creation that stopped half-way
+                if rfs.local_root is not None and os.path.islink(rfs._local(folder)):
+                    continue
                 for name in rfs.listdir(folder):
-                    rfs.delete(f"{folder}/{name}")
+                    if rfs.kind(f"{folder}/{name}") == "file":
+                        rfs.delete(f"{folder}/{name}")
         _check_toml(config_toml, "configuration version 1")
         if run_id is None:
             base = rfs.root.rstrip("/").rsplit("/", 1)[-1]
@@ -355,22 +377,25 @@ class RunStore:
                 f"run_id {run_id!r} is not allowed: use 1-128 letters, digits, '.', '_' or '-', "
                 "starting with a letter or digit"
             )
+        meshing = _config_meshing(config_toml)
         if criteria is None or sizes is None:
             own_criteria, own_sizes = _phenotype_columns(config_toml)
             criteria = own_criteria if criteria is None else criteria
             sizes = own_sizes if sizes is None else sizes
         names, sized = list(criteria), list(sizes)
         columns = [list(c) for c in run_columns(names, sizes=sized)]
-        for folder in sorted(_LAYOUT):
+        for folder in (MANIFEST_DIR, "configs", f"{views.FILES}/individuals", f"{views.FILES}/events"):
             rfs.makedirs(folder)
         created = _now().isoformat()
         manifest: dict[str, Any] = {
             "format": FORMAT,
             "schema_version": SCHEMA_VERSION,
+            "layout": views.LAYOUT,
             "run_id": run_id,
             "criteria": names,
             "sizes": sized,
             "columns": columns,
+            "meshing": meshing,
             "created": created,
             "version": 0,
             "configs": [],
@@ -449,6 +474,13 @@ class RunStore:
         return tuple(sizes_of(self.reading_schema.names))
 
     @property
+    def meshing(self) -> int:
+        """The meshing version (``hemls.meshing``) this run was created with: what its configurations
+        use unless they name one. 1 for a run created before meshing was recorded (it keeps cutting
+        its surfaces, and measuring its ``slivers``, as it did)."""
+        return int(self._m.get("meshing", 1))
+
+    @property
     def schema_version(self) -> int:
         """The store schema version this run was created with (it keeps it for good)."""
         return int(self._m["schema_version"])
@@ -478,6 +510,12 @@ class RunStore:
     def version(self) -> int:
         """The number of the manifest this store reads (one per commit)."""
         return int(self._m["version"])
+
+    @property
+    def manifest_layout(self) -> int:
+        """The run directory's layout: 2, data files in ``_files/`` and glob views (docs/run-store.md);
+        1, a run written before (its data files where its tables' readers glob: ``repair --upgrade``)."""
+        return int(self._m.get("layout", 1))
 
     def __repr__(self) -> str:
         return f"RunStore({self.path!r}, run_id={self.run_id!r}, version={self.version})"
@@ -521,26 +559,37 @@ class RunStore:
             self.compact()
         return version
 
-    def commit_parts(self, parts: Sequence[Part], events: Sequence[Event] = ()) -> int:
-        """Commit part files the island hosts wrote (``store.parts.write_part``) and ``events``
-        atomically: the manifest alone is written, no row is read. Each island's parts must follow its
-        last committed generation. Returns the commit number."""
-        from genr8_dist.store.parts import check_parts
+    def commit_parts(self, parts: Sequence[Part], events: Sequence[Event] = (),
+                     *, add: AddFiles | None = None) -> int:
+        """Commit parts written by ``write_part`` (in this process or any other: an island host) with
+        ``events``, atomically: one manifest names them all. Each island's generations across the
+        parts must follow its last committed one. Returns the commit number."""
+        from genr8_dist.store.parts import take_parts
 
         events = list(events)
-        if not parts and not events:
+        for event in events:
+            if not isinstance(event, Event):
+                raise StoreError(f"events must be Event records, got {type(event).__name__}")
+        if not parts and not events and add is None:
             return self.version
         with self._transaction():
             version = self._next_version()
             manifest = copy.deepcopy(self._m)
-            done = {int(i): g for i, g in manifest["generations"].items()}
-            for entry in check_parts(self, parts, done):
-                entry["commits"] = [version, version]
-                manifest["individuals"].append(entry)
+            manifest["individuals"].extend(take_parts(self, list(parts), version))
             self._add_events(manifest, events, version)
+            if add is not None:
+                add(manifest, version)
             manifest["generations"] = _generations(manifest["individuals"])
             self._publish(manifest, version)
+        if self.compact_every and self._small_files() >= self.compact_every:
+            self.compact()
         return version
+
+    def upgrade(self) -> bool:
+        """Convert a run of layout 1 in place to layout 2 (``store/upgrade.py``); whether it did."""
+        from genr8_dist.store.upgrade import upgrade
+
+        return upgrade(self)
 
     def write_file(self, stem: str, suffix: str, data: bytes | memoryview) -> dict[str, Any]:
         """Write one data file of the commit being made and return its manifest entry (``path``,
@@ -550,10 +599,12 @@ class RunStore:
         no other writer can use that name, and nothing is ever overwritten. If the commit fails or
         another writer commits first, the file is deleted again; nobody else's file is touched."""
         folder = stem.rpartition("/")[0]
-        if not folder or "/" in folder or folder == MANIFEST_DIR or not _REL_PATH.match(f"{stem}{suffix}"):
+        nested = folder.removeprefix(f"{views.FILES}/")
+        if (not folder or "/" in nested or folder in (MANIFEST_DIR, views.FILES)
+                or not _REL_PATH.match(f"{stem}{suffix}")):
             raise StoreError(f"write_file: {stem + suffix!r} is not 'folder/name' inside the run")
         rel = f"{stem}-{secrets.token_hex(8)}{suffix}"
-        if folder not in _LAYOUT:
+        if folder not in _LAYOUT or folder != nested:
             self._fs.makedirs(folder)
         self._pending.append(rel)
         self._fs.write_new(rel, data)
@@ -606,8 +657,10 @@ class RunStore:
 
     # --- the run's lock and its queue of pending interventions (store/pending.py) ------------
     def lock(self, role: str, *, wait: float = 10.0) -> RunLock:
-        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit)."""
-        return RunLock(self._fs, role, wait=wait)
+        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit); this
+        store's commits check it first (on S3, that its lease is still theirs)."""
+        self.writer_lock = RunLock(self._fs, role, wait=wait)
+        return self.writer_lock
 
     def running(self) -> dict[str, Any] | None:
         """Who runs the run now (role, pid, host, since), or None when no process holds its lock."""
@@ -616,6 +669,12 @@ class RunStore:
     def enqueue(self, request: dict[str, Any]) -> Queued:
         """Queue an intervention for the running run's next epoch (plain JSON data)."""
         return enqueue(self._fs, request)
+
+    def live(self) -> Any:
+        """The live view of the running run (``store/live.py``): what it has completed, not committed."""
+        from genr8_dist.store import live
+
+        return live.LiveView(self._fs)
 
     def queued(self) -> list[Queued]:
         """The pending interventions, in the order the coordinator takes them."""
@@ -750,7 +809,8 @@ class RunStore:
             from genr8_dist.config import RunConfig
 
             source = f"{self.path} configuration v{cv.version}"
-            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria)
+            parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria,
+                                         meshing=self.meshing)
             self._parsed[key] = parsed
         return parsed
 
@@ -803,14 +863,17 @@ class RunStore:
         """Problems with the committed files (missing, truncated, altered, unreadable) and with the
         manifests (the newest lost or damaged, an older one damaged), each naming its file; empty when
         the run is intact. Reads every committed byte."""
-        return [p for _, _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
+        return ([p for _, _, p in self._bad_entries(self._m, {})] + self._manifest_problems()
+                + ([] if self._stale else views.view_problems(self._fs, self._m)))
 
     def _manifest_problems(self) -> list[str]:
         out = [self._stale] if self._stale else []
-        head = _read_head(self._fs)
-        if head is None and self._fs.kind(HEAD) == "file":
+        if head_damaged(self._fs, HEAD):   # unreadable, or truncated to what still reads as a number
             out.append(f"{self._fs.show(HEAD)}: damaged (it should hold the newest commit's number)")
-        for version in _list_manifests(self._fs):
+        listed = _list_manifests(self._fs)
+        out += describe_missing(missing_manifests(listed, self.version),
+                                lambda v: self._fs.show(_manifest_rel(v)))
+        for version in listed:
             if version >= self.version:
                 continue  # a newer one torn or altered is the stale newest manifest, above
             rel = _manifest_rel(version)
@@ -829,6 +892,11 @@ class RunStore:
         cache: dict[tuple[str, str], str | None] = {}
         bad = self._bad_entries(self._m, cache)
         problems = [p for _, _, p in bad] + self._manifest_problems()
+        view = [] if self._stale else views.view_problems(self._fs, self._m)
+        if view and not problems:   # only the glob view: published again, no commit needed
+            views.rebuild_view(self._fs, self._m)
+            self.last_repair = f"rebuilt the glob view of commit {self.version}"
+            return view
         if not problems:
             self.last_repair = ""
             return []
@@ -994,8 +1062,10 @@ class RunStore:
         """Delete files no kept manifest names (left by crashes, compaction and repair), torn older
         manifests and temporary files left by crashed writers (their process is gone, or they are
         over an hour old). Only the run's writer may call it. Returns how many it deleted."""
+        from genr8_dist.store.parts import clear_stale_parts
+
         referenced: set[str] = set()
-        folders = set(_LAYOUT) - {MANIFEST_DIR}
+        folders = {"configs", *_DATA}
         deleted = 0
         for version in _list_manifests(self._fs):
             m = _read_manifest(self._fs, version)
@@ -1006,10 +1076,16 @@ class RunStore:
                 continue
             for _, e in file_entries(m):
                 referenced.add(e["path"])
-                folders.add(e["path"].split("/", 1)[0])
+                folders.add(e["path"].rsplit("/", 1)[0])
+        for version in below_gap(_list_manifests(self._fs), self.version):   # older than a missing one
+            self._fs.delete(_manifest_rel(version))
+            deleted += 1
         for _, e in file_entries(self._m):
             referenced.add(e["path"])
-            folders.add(e["path"].split("/", 1)[0])
+            folders.add(e["path"].rsplit("/", 1)[0])
+        if self._fs.local_root is not None:  # a view's links are not the run's files: never collected
+            folders = {f for f in folders if not os.path.islink(self._fs._local(f))}
+        deleted += clear_stale_parts(self, TMP_STALE_SECONDS) + views.clear_stale_links(self._fs)
         for folder in [*sorted(folders), MANIFEST_DIR]:
             for name in self._fs.listdir(folder):
                 rel = f"{folder}/{name}"
@@ -1017,9 +1093,35 @@ class RunStore:
                     if self._stale_tmp(rel, name):
                         self._fs.delete(rel)
                         deleted += 1
-                elif folder != MANIFEST_DIR and rel not in referenced and rel not in self._pending:
+                elif (folder != MANIFEST_DIR and rel not in referenced and rel not in self._pending
+                      and self._fs.kind(rel) == "file"):
+                    if is_store_name(name):
+                        self._fs.delete(rel)
+                        deleted += 1
+                    else:   # a user's file: moved aside, never deleted
+                        self.set_aside.append((rel, set_aside(self._fs, rel)))
+        deleted += self._collect_in_views(referenced)
+        return deleted
+
+    def _collect_in_views(self, referenced: set[str]) -> int:
+        """Files dropped into the published view (``individuals/``, ``events/``: links to the commit's
+        files) that are not the commit's: the store's own names deleted, a user's moved aside."""
+        deleted = 0
+        if self._fs.local_root is None:
+            return deleted
+        for table in views.TABLES:
+            if not os.path.islink(self._fs._local(table)):
+                continue
+            for name in self._fs.listdir(table):
+                rel = f"{table}/{name}"
+                if (f"{views.FILES}/{rel}" in referenced or name.startswith(TMP_PREFIX)
+                        or self._fs.kind(rel) != "file"):
+                    continue
+                if is_store_name(name):
                     self._fs.delete(rel)
                     deleted += 1
+                else:
+                    self.set_aside.append((rel, set_aside(self._fs, rel)))
         return deleted
 
     def _stale_tmp(self, rel: str, name: str) -> bool:
@@ -1077,6 +1179,8 @@ class RunStore:
     def _publish(self, manifest: dict[str, Any], version: int) -> None:
         manifest["version"] = version
         manifest["written"] = _now().isoformat()
+        if self.writer_lock is not None:
+            self.writer_lock.check()
         try:
             self._fs.write_exclusive(_manifest_rel(version), _encode_manifest(manifest))
         except FileExistsError:
@@ -1087,6 +1191,9 @@ class RunStore:
         self._pending = []  # committed: no longer this writer's to remove
         self._m = manifest
         self._stale = None
+        with contextlib.suppress(OSError):  # the glob view only lags (a crash): rebuilt by the next writer
+            views.publish_view(self._fs, manifest)
+            views.prune_views(self._fs, version - KEEP_MANIFESTS + 1)
         with contextlib.suppress(OSError):  # HEAD only lags (a full disk): never a false alarm
             if (_read_head(self._fs) or 0) < version:
                 self._fs.write_atomic(HEAD, f"{version}\n".encode())
@@ -1133,6 +1240,8 @@ class RunStore:
         buf = pa.BufferOutputStream()
         pq.write_table(table, buf, compression=COMPRESSION, row_group_size=ROW_GROUP_ROWS)
         data = buf.getvalue()
+        if self.manifest_layout == views.LAYOUT:
+            stem = f"{views.FILES}/{stem}"
         entry = self.write_file(stem, ".parquet", memoryview(data))
         return {"path": entry["path"], "rows": table.num_rows, "bytes": entry["bytes"],
                 "sha256": entry["sha256"]}
@@ -1340,9 +1449,9 @@ def half_created(rfs: RunFS) -> str:
     manifest, _ = _load_state(rfs)
     if manifest is not None:
         return "run"
-    if [n for n in names if n not in _LAYOUT | {LOCK_NAME, QUEUE_DIR}]:
+    if [n for n in names if n not in _NAMES | {LOCK_NAME, QUEUE_DIR, LIVE_DIR}]:
         return "foreign"
-    data = [n for f in ("individuals", "events") for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
+    data = [n for f in _DATA for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
     return "damaged" if data else "half-created"
 
 

@@ -51,6 +51,9 @@ __all__ = [
     "sizes_of",
 ]
 
+ROW_GROUP_ROWS = 32_768      # Parquet row group size: statistics let readers skip row groups
+COMPRESSION = "snappy"       # twice as fast to write as zstd here, files about 12% larger
+
 # Bump when a column is added, removed or changes meaning; readers refuse newer versions and read
 # older ones with the columns of their version. 2: the manifest records the run's columns. 3: the
 # digest and the sizes are the phenotype's (``phenotype_digest``, ``size_<name>``), not named after

@@ -6,6 +6,10 @@ from the rewrite system the run recorded, in the environment of the configuratio
 it: no universe is loaded, so no plugin code runs to show a design. Curves are computed once and then
 only for the generations committed since (``per_generation(since=...)``), so a live run of a million
 individuals updates in a fraction of a second.
+
+A running run's generations are shown as each island completes them, before their commit: the live
+view the driver writes (``store/live.py``) fills in what the store does not hold yet, and every row
+and generation taken from it says ``durable: false`` (the page marks it "not yet committed").
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import time
 from collections import OrderedDict
 from typing import Any
 
-from genr8_dist.errors import ConfigError, StoreError
+from genr8_dist.errors import ConfigError, Genr8Error, StoreError
 from genr8_dist.store.schema import criterion_column, size_column, size_of
 
 __all__ = ["MAX_FACES", "RunView"]
@@ -120,17 +124,23 @@ class RunView:
         else:
             status = "stopped"
         population = int(config.ea.population)
-        rate, left = self._rate(events, low, n * population, last, status)
+        live = store.live().read() if status in ("running", "paused") else {}
+        done = {i: max([committed.get(i, -1), *(g for g, by in live.items() if i in by)]) for i in range(n)}
+        shown = min(done.values(), default=-1)
+        rate, left = self._rate(events, shown, n * population, last, status)
         with self._lock:
             curves = self._curves or {"islands": {}}   # as far as computed (``curves`` runs apart)
         islands = []
         for i in range(n):
             best = curves["islands"].get(str(i), {}).get("best", [])
-            islands.append({"island": i, "generation": committed.get(i, -1),
-                            "best": best[-1] if best else None})
+            live_best = [r["fitness"] for r in live.get(done[i], {}).get(i, ()) if r["fitness"] is not None]
+            islands.append({"island": i, "generation": committed.get(i, -1), "completed": done[i],
+                            "best": min(live_best) if done[i] > committed.get(i, -1) and live_best
+                            else best[-1] if best else None})
         return {
             "run_id": store.run_id, "path": str(store.path), "version": store.version, "status": status,
             "generation": low, "last_generation": last, "islands": islands, "population": population,
+            "completed": shown, "live": {"generations": sorted(live), "durable": shown <= low},
             "individuals_per_second": rate, "seconds_left": left,
             "criteria": self._criteria(config),
             "queued": [{"number": q.number, "kind": q.request.get("kind"),
@@ -220,7 +230,40 @@ class RunView:
     def curves(self) -> dict[str, Any]:
         """Per generation: the best and mean fitness over all islands, each island's best, and the
         raw criteria of the generation's best design; plus the configuration versions' first
-        generations. Only the generations committed since the last call are read."""
+        generations. Only the generations committed since the last call are read. A running run's
+        generations every island has completed but not committed follow (``live`` counts them)."""
+        import copy
+
+        durable = self._durable_curves()
+        store = self.store()
+        live = store.live().read() if store.running() is not None else {}
+        n = int(self.config().islands.count)
+        ahead = sorted(g for g, by in live.items() if g > durable["last"] and len(by) == n)
+        if not ahead:
+            return dict(durable, live=0)
+        curves = copy.deepcopy(durable)
+        for g in ahead:
+            rows = [r for by in live[g].values() for r in by]
+            valid = [r for r in rows if r["fitness"] is not None]
+            best = min(valid, key=lambda r: (r["fitness"], r["island"], r["index"]), default=None)
+            curves["generation"].append(g)
+            curves["best"].append(best["fitness"] if best else None)
+            curves["mean"].append(sum(r["fitness"] for r in valid) / len(valid) if valid else None)
+            curves["best_id"].append(best["id"] if best else None)
+            for name in store.criteria:
+                value = best.get(criterion_column(name)) if best else None
+                curves["criteria"].setdefault(name, []).append(value)
+            for island, by in live[g].items():
+                isl = curves["islands"].setdefault(str(island), {"generation": [], "best": []})
+                fits = [r["fitness"] for r in by if r["fitness"] is not None]
+                isl["generation"].append(g)
+                isl["best"].append(min(fits) if fits else None)
+        curves["last"] = ahead[-1]
+        curves["live"] = len(ahead)
+        return curves
+
+    def _durable_curves(self) -> dict[str, Any]:
+        """``curves`` of the committed generations (cached, extended by each commit)."""
         import copy
 
         from genr8_dist.store import RunStore
@@ -254,10 +297,18 @@ class RunView:
 
         store = self.store()
         committed = store.committed_generations()
+        live = store.live().read() if store.running() is not None else {}
+        n = int(self.config().islands.count)
+        newest = min((committed.get(i, -1) for i in range(n)), default=-1)
+        completed = min((max([committed.get(i, -1), *(g for g, by in live.items() if i in by)])
+                         for i in range(n)), default=-1)
+        if generation is None or generation < 0:   # the newest every island completed; else the founders
+            generation = completed if completed >= 0 or 0 not in live else 0
+        if generation > newest and generation in live:
+            return self._live_generation(store, int(generation), committed, live[generation], newest)
         if not committed:
             return {"generation": -1, "individuals": []}
-        newest = min(committed.values())
-        g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
+        g = min(int(generation), max(committed.values()))
         with self._lock:
             rows = self._generations.get(g)
             if rows is not None:
@@ -271,10 +322,10 @@ class RunView:
         # one read of the files holding generation g (only they are checked against their sha256)
         table = store.dataset((g, g)).to_table(columns=columns, filter=pc.field("generation") == g)
         front = self._pareto(table, store.criteria)
-        table = table.drop_columns(crits)
         rows = table.to_pylist()
         for r, on in zip(rows, front, strict=True):
             r["pareto"] = bool(on)
+            r["criteria"] = {c: _finite(r.pop(criterion_column(c))) for c in store.criteria}
         rows.sort(key=lambda r: (not r["valid"], r["fitness"] if math.isfinite(r["fitness"]) else math.inf,
                                  r["island"], r["index"]))
         for r in rows:
@@ -285,6 +336,51 @@ class RunView:
                 while len(self._generations) > GENERATION_CACHE:
                     self._generations.popitem(last=False)
         return {"generation": g, "newest": newest, "individuals": rows}
+
+    def _live_generation(self, store: Any, g: int, committed: dict[int, int],
+                         live: dict[int, list[dict[str, Any]]], newest: int) -> dict[str, Any]:
+        """Generation ``g`` as far as the islands have completed it: committed islands' rows from the
+        store, the others' from the live view (``durable: false``)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        crits = [criterion_column(c) for c in store.criteria]
+        columns = ["id", "island", "index", "fitness", "valid", "origin",
+                   *[size_column(s) for s in store.sizes], "config_version", *crits]
+        rows: list[dict[str, Any]] = []
+        if any(c >= g for c in committed.values()):
+            table = store.dataset((g, g)).to_table(columns=columns, filter=pc.field("generation") == g)
+            rows = [dict(r, durable=True) for r in table.to_pylist()]
+        held = {r["island"] for r in rows}
+        for island, found in sorted(live.items()):
+            if island not in held:
+                rows += [dict({c: r.get(c) for c in columns}, durable=False) for r in found]
+        for r in rows:
+            r["fitness"] = _finite(r["fitness"]) if r["fitness"] is not None else None
+        table = pa.Table.from_pylist([{c: (math.inf if c == "fitness" and r[c] is None else r[c])
+                                       for c in columns} for r in rows])
+        front = self._pareto(table, store.criteria) if rows else []
+        for r, on in zip(rows, front, strict=True):
+            r["pareto"] = bool(on)
+            r["criteria"] = {c: r.pop(criterion_column(c), None) for c in store.criteria}
+        rows.sort(key=lambda r: (not r["valid"], r["fitness"] if r["fitness"] is not None else math.inf,
+                                 r["island"], r["index"]))
+        return {"generation": g, "newest": newest, "individuals": rows, "durable": False,
+                "islands": sorted({r["island"] for r in rows})}
+
+    def live_row(self, id: str) -> dict[str, Any] | None:
+        """``id``'s row in the running run's live view (completed, not committed), if it is there."""
+        from genr8_dist.evolution.individual import parse_id
+
+        parsed = parse_id(id)
+        if parsed is None:
+            return None
+        island, generation, _ = parsed
+        store = self.store()
+        for r in store.live().read().get(generation, {}).get(island, ()):
+            if r["id"] == id:
+                return dict(r)
+        return None
 
     def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
         """Which rows are on the Pareto front of their generation (all islands together): the
@@ -380,13 +476,20 @@ class RunView:
         from genr8_dist.history import individual, lineage
 
         store = self.store()
-        row = individual(store, id).to_pylist()[0]
+        try:
+            row = individual(store, id).to_pylist()[0]
+            durable = True
+        except Genr8Error:
+            found = self.live_row(id)
+            if found is None:
+                raise
+            row, durable = found, False
         config = self.config(int(row["config_version"]))
         crits = []
         for c in self._criteria(config):
             c["value"] = _finite(row.get(criterion_column(c["name"])))
             crits.append(c)
-        line = lineage(store, id, depth=LINEAGE_DEPTH).to_pylist()
+        line = lineage(store, id, depth=LINEAGE_DEPTH).to_pylist() if durable else []
         main = [{"id": r["id"], "generation": r["generation"], "origin": r["origin"],
                  "fitness": _finite(r["fitness"])} for r in line if r.get("main_line")]
         hand = [h for e in self._events(store) if e["kind"] == "intervention"
@@ -395,10 +498,11 @@ class RunView:
             "id": row["id"], "island": row["island"], "generation": row["generation"], "index": row["index"],
             "fitness": _finite(row["fitness"]), "valid": row["valid"], "stage": row["stage"],
             "error": row["error"], "origin": row["origin"], "parents": row["parents"],
-            "config_version": row["config_version"], "text": row["text"], "genome_length": len(row["genome"]),
+            "config_version": row["config_version"], "text": row["text"],
+            "genome_length": len(row["genome"]) if "genome" in row else None,
             "counts": {**{s: row[c] for c in row if (s := size_of(c)) is not None},
                        "steps": row["steps_done"]},
-            "criteria": crits, "lineage": main, "hand_fitness": hand,
+            "criteria": crits, "lineage": main, "hand_fitness": hand, "durable": durable,
         }
 
     # -- surfaces -----------------------------------------------------------------------------------
@@ -407,11 +511,17 @@ class RunView:
         from genr8_dist.hemls import grow, parse
         from genr8_dist.history import individual
 
-        row = individual(self.store(), id, ["text", "config_version", "phenotype_digest"]).to_pylist()[0]
-        if not row["text"] or row["phenotype_digest"] is None:
+        try:
+            row = individual(self.store(), id, ["text", "config_version", "phenotype_digest"]).to_pylist()[0]
+        except Genr8Error:
+            row = self.live_row(id)
+            if row is None:
+                raise
+        if not row["text"] or row.get("phenotype_digest") is None:
             raise StoreError(f"{id} has no surface: it failed before growing one")
         config = self.config(int(row["config_version"]))
-        return grow(parse(row["text"]), config.environment).surface, config
+        surface = grow(parse(row["text"]), config.environment).surface
+        return surface.with_meshing(config.meshing), config
 
     def surface_glb(self, id: str) -> bytes:
         """``id``'s surface as GLB: its regions (decimated past ``MAX_FACES`` triangles) and its map's
@@ -529,8 +639,13 @@ def _glb(surface: Any) -> bytes:
     import numpy as np
     import trimesh
 
-    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
-    faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    from genr8_dist.scaffold import scaffold_curves
+
+    mesh_ = surface.mesh()          # the run's meshing; its meshing-1 triangles when it is too large
+    vertices, faces = np.asarray(mesh_.points, dtype=np.float64), np.asarray(mesh_.triangles, dtype=np.int64)
+    if len(faces) > MAX_FACES:
+        vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+        faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
     edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
     scene = trimesh.Scene()
     if len(faces):
@@ -538,10 +653,13 @@ def _glb(surface: Any) -> bytes:
         if len(faces) > MAX_FACES:
             mesh = _decimate(mesh, MAX_FACES)
         scene.add_geometry(mesh, geom_name="surface")
-    if len(edges):
-        if len(edges) > MAX_EDGES:
-            edges = edges[:: math.ceil(len(edges) / MAX_EDGES)]
-        path = trimesh.load_path(vertices[edges])
+    if len(edges):      # the scaffold's lines as B-spline curves (genr8_dist.scaffold), sampled
+        per_span = max(1, min(8, MAX_EDGES // len(edges)))
+        curves = scaffold_curves(surface, per_span)
+        segments = np.concatenate([np.stack([c[:-1], c[1:]], 1) for c in curves if len(c) > 1])
+        if len(segments) > MAX_EDGES:
+            segments = segments[:: math.ceil(len(segments) / MAX_EDGES)]
+        path = trimesh.load_path(segments)
         scene.add_geometry(path, geom_name="edges")
     return scene.export(file_type="glb")
 

@@ -16,7 +16,7 @@ from genr8_dist.phenotype import Developed, Phenotype
 
 # A plugin's modules are one package (genr8_dist.grammar.source): its siblings are relative imports,
 # and they travel with the run that stores the universe, so this works after the plugin folder is gone.
-from . import voxels
+from . import variation, voxels
 
 
 def _declare(name: str, heading: str, description: str) -> None:
@@ -90,12 +90,15 @@ class TablesPhenotype(Phenotype):
         matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
-        fig = plt.figure(figsize=(5.2, 5.2))
-        ax = fig.add_subplot(projection="3d")
+        fig = plt.figure(figsize=(8.4, 5.0))
+        ax = fig.add_axes((0.0, 0.08, 0.62, 0.84), projection="3d")
         self.draw(ax, developed)
+        voxels.draw_plan(fig.add_axes((0.66, 0.3, 0.31, 0.52)), developed.value.voxels)
         raw = voxels.criteria(developed.value.voxels)
         fig.suptitle(title, fontsize=10)
         fig.text(0.5, 0.03, voxels.voxel_count_text(developed.value, raw), ha="center", fontsize=7.5)
+        fig.text(0.815, 0.22, f"top layer filled: {voxels.top_filled_share(developed.value.voxels):.0%} "
+                 "of its hull", ha="center", fontsize=7.5)
         return save_png(fig, path)
 
     def draw(self, ax: Any, developed: Developed) -> None:
@@ -103,3 +106,7 @@ class TablesPhenotype(Phenotype):
 
 
 PHENOTYPE = TablesPhenotype()
+
+# The paper's variation (sections 2.4 to 2.6: random systems, structural mutation and recombination
+# of the P0L-system), used instead of GE's under ``ea.variation = "auto"`` (genr8_dist.evolution.variation).
+VARIATION = variation.GENERATIVE

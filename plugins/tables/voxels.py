@@ -52,6 +52,7 @@ from __future__ import annotations
 import hashlib
 import re
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -77,37 +78,41 @@ class TablesError(ValueError):
 # Successor items: ("c", symbol, expr), ("call", name, (expr, ...)), ("[", items), ("{", expr, items).
 # A word (after substitution) has the same shape with plain floats in place of expressions.
 
-_TOKEN = re.compile(r"\s*(->|\d+(?:\.\d*)?|\.\d+|[A-Za-z_]\w*|[()\[\]{},:|+\-*/\\^<>])")
+_TOKEN = re.compile(r"\s*(->|\d+(?:\.\d*)?|\.\d+|[A-Za-z_]\w*|[()\[\]{},:|+\-*/\\^<>]|\S)")
+_PUNCTUATION = frozenset("()[]{},:|+-*/\\^<>_")
 
 
-def _tokens(line: str, lineno: int) -> list[tuple[str, int]]:
-    out, pos = [], 0
-    line = line.rstrip()
-    while pos < len(line):
-        m = _TOKEN.match(line, pos)
-        if not m:
-            col = pos + len(line[pos:]) - len(line[pos:].lstrip()) + 1
-            raise TablesError(f"line {lineno}, column {col}: unexpected character {line[col - 1]!r}")
-        out.append((m.group(1), m.start(1) + 1))
-        pos = m.end()
+def _tokens(line: str, lineno: int) -> list[str]:
+    out = _TOKEN.findall(line)
+    for token in out:
+        if len(token) == 1 and not token.isalnum() and token not in _PUNCTUATION:
+            col = _columns(line)[out.index(token)]
+            raise TablesError(f"line {lineno}, column {col}: unexpected character {token!r}")
     return out
+
+
+def _columns(line: str) -> list[int]:
+    """The column (from 1) of each token of ``line``: only an error message needs them."""
+    return [m.start(1) + 1 for m in _TOKEN.finditer(line)]
 
 
 class _Line:
     """A recursive-descent reader over one line's tokens."""
 
     def __init__(self, line: str, lineno: int, params: tuple[str, ...] = ()) -> None:
+        self.line = line
         self.toks = _tokens(line, lineno)
+        self.n = len(self.toks)
         self.i = 0
         self.lineno = lineno
         self.params = params
 
     def peek(self) -> str | None:
-        return self.toks[self.i][0] if self.i < len(self.toks) else None
+        return self.toks[self.i] if self.i < self.n else None
 
     def fail(self, what: str) -> TablesError:
-        if self.i < len(self.toks):
-            tok, col = self.toks[self.i]
+        if self.i < self.n:
+            tok, col = self.toks[self.i], _columns(self.line)[self.i]
             return TablesError(f"line {self.lineno}, column {col}: expected {what}, got {tok!r}")
         return TablesError(f"line {self.lineno}: expected {what} at the end of the line")
 
@@ -119,7 +124,7 @@ class _Line:
         return tok
 
     def done(self) -> bool:
-        return self.i >= len(self.toks)
+        return self.i >= self.n
 
     def number(self) -> float:
         sign = -1.0 if self.peek() == "-" else 1.0
@@ -141,7 +146,7 @@ class _Line:
     def expr(self) -> tuple:
         left = self.term()
         op = self.peek()
-        follows = self.toks[self.i + 1][0] if self.i + 1 < len(self.toks) else None
+        follows = self.toks[self.i + 1] if self.i + 1 < self.n else None
         if op in ("+", "-", "*", "/") and follows not in (None, ",", ")"):
             self.i += 1
             return ("op", op, left, self.term())
@@ -211,6 +216,7 @@ class System:
     productions: dict[str, Production]
 
 
+@lru_cache(maxsize=256)
 def parse(text: str) -> System:
     """Read a tables text: a P0L-system (its first line holds ``iterations``) or a command string."""
     lines = [(n, line) for n, line in enumerate(text.splitlines(), 1)
@@ -573,6 +579,16 @@ def criteria(voxels: np.ndarray) -> dict[str, float]:
             "excess": float(total - surface), "voxels": float(total)}
 
 
+def top_filled_share(voxels: np.ndarray) -> float:
+    """The top layer's voxels over the area of their convex hull: 1 for a solid top, far less for a
+    lattice of one-voxel bars spread over the same hull (0 for an empty structure)."""
+    layers = np.flatnonzero(voxels.sum(axis=(0, 2)))
+    if not len(layers):
+        return 0.0
+    xs, zs = np.nonzero(voxels[:, int(layers[-1]), :])
+    return float(len(xs)) / hull_area(np.column_stack([xs, zs]))
+
+
 def fitness(values: dict[str, float]) -> float:
     """``height * surface * stability / excess``, 0 when nothing lies below the top layer (maximised)."""
     excess = values["excess"]
@@ -616,9 +632,15 @@ def mesh_arrays(voxels: np.ndarray, cell: float = 1.0) -> tuple[np.ndarray, np.n
     return vertices, faces.astype(np.int64)
 
 
-def draw(ax: Any, voxels: np.ndarray, *, elev: float = 24.0, azim: float = -60.0) -> None:
-    """Draw the structure on a matplotlib 3D axes: its outer faces, shaded by height."""
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+TOP_COLOUR = np.asarray([0.16, 0.50, 0.62])     # the table top (layer Y_max)
+BODY_COLOUR = np.asarray([0.78, 0.55, 0.32])    # legs and everything below the top
+GROUND_COLOUR = np.asarray([0.42, 0.30, 0.22])  # what touches the ground (layer 0)
+
+
+def draw(ax: Any, voxels: np.ndarray, *, elev: float = 28.0, azim: float = -55.0) -> None:
+    """Draw the structure on a matplotlib 3D axes: its outer faces, the top layer in blue, the
+    voxels touching the ground dark and the rest wood, every voxel face outlined, on a ground grid."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
     vertices, faces = mesh_arrays(voxels)
     ax.set_axis_off()
@@ -628,17 +650,42 @@ def draw(ax: Any, voxels: np.ndarray, *, elev: float = 24.0, azim: float = -60.0
     tris = vertices[faces]
     normals = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     light = np.asarray([0.35, -0.55, 0.75])
-    shade = 0.45 + 0.55 * np.clip(normals @ light / (np.linalg.norm(normals, axis=1) + 1e-12), 0, 1)
-    height = tris[:, :, 2].mean(axis=1) / max(1.0, float(vertices[:, 2].max()))
-    base = np.column_stack([0.55 + 0.3 * height, 0.42 + 0.2 * height, 0.28 + 0.1 * height])
-    colours = np.clip(base * shade[:, None], 0, 1)
-    ax.add_collection3d(Poly3DCollection(tris, facecolors=colours, edgecolors="none"))
+    shade = 0.55 + 0.45 * np.clip(normals @ light / (np.linalg.norm(normals, axis=1) + 1e-12), 0, 1)
+    top = float(vertices[:, 2].max())
+    low = tris[:, :, 2].min(axis=1)   # the face's lowest corner: which layer's voxel it bounds
+    colours = np.where((low >= top - 1)[:, None], TOP_COLOUR,
+                       np.where((low < 1)[:, None], GROUND_COLOUR, BODY_COLOUR))
+    ax.add_collection3d(Poly3DCollection(tris, facecolors=np.clip(colours * shade[:, None], 0, 1),
+                                         edgecolors="none"))
+    half_count = len(tris) // 2   # mesh_arrays: each face's triangles (0, 1, 2), then (0, 2, 3)
+    first, second = tris[:half_count], tris[half_count:]
+    outline = np.concatenate([first[:, [0, 1]], first[:, [1, 2]], second[:, [1, 2]], second[:, [2, 0]]])
+    ax.add_collection3d(Line3DCollection(outline, colors=(0.1, 0.1, 0.1, 0.3), linewidths=0.2))
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    ground = [[(x, lo[1], 0), (x, hi[1], 0)] for x in np.linspace(lo[0], hi[0], 5)] + \
+             [[(lo[0], y, 0), (hi[0], y, 0)] for y in np.linspace(lo[1], hi[1], 5)]
+    ax.add_collection3d(Line3DCollection(ground, colors=(0.5, 0.5, 0.5, 0.35), linewidths=0.5))
     centre, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1.0)
     ax.set_xlim(centre[0] - half, centre[0] + half)
     ax.set_ylim(centre[1] - half, centre[1] + half)
     ax.set_zlim(centre[2] - half, centre[2] + half)
     ax.set_box_aspect((1, 1, 1))
+
+
+def draw_plan(ax: Any, voxels: np.ndarray) -> None:
+    """The table seen from above on a 2D axes: the top layer's voxels (blue) over the ground
+    footprint (layer 0, dark) and the rest of the structure's shadow (light), one cell a voxel."""
+    image = np.ones((GRID, GRID, 3))
+    layers = np.flatnonzero(voxels.sum(axis=(0, 2)))
+    if len(layers):
+        image[voxels.any(axis=1)] = 0.86
+        image[voxels[:, 0, :]] = GROUND_COLOUR
+        image[voxels[:, int(layers[-1]), :]] = TOP_COLOUR
+    ax.imshow(image.transpose(1, 0, 2), origin="lower", interpolation="nearest")
+    ax.set_xticks([0, GRID - 1])
+    ax.set_yticks([0, GRID - 1])
+    ax.tick_params(labelsize=6, length=2)
+    ax.set_title("from above: top (blue), ground contact (dark)", fontsize=7)
 
 
 def voxel_count_text(table: Table, values: dict[str, float]) -> str:
@@ -670,4 +717,5 @@ def is_connected(voxels: np.ndarray) -> bool:
 
 __all__ = ["COMMANDS", "CRITERIA", "GRID", "MAX_COMMANDS", "MAX_MODULES", "Production", "System",
            "Table", "TablesError", "build", "command_string", "criteria", "derive", "develop", "draw",
-           "fitness", "hull_area", "is_connected", "mesh_arrays", "parse"]
+           "draw_plan", "fitness", "hull_area", "is_connected", "mesh_arrays", "parse",
+           "top_filled_share"]

@@ -123,3 +123,14 @@ def test_a_rule_that_can_never_fire_is_a_warning_and_growth_goes_on(tmp_path, ca
     # the four branches meet at the centre: the two joins tie and cross, so neither is made
     # (branch_ties = "crossing", docs/fidelity.md)
     assert "   2         16         16          1" in out
+
+
+@pytest.mark.parametrize("levels", [500, 5000])
+def test_grow_of_brackets_nested_too_deep_is_one_line(tmp_path, capsys, levels):
+    path = tmp_path / "deep.hemls"
+    path.write_text("Edge1 + Edge1 + Edge1 + Edge1\nEdge1 -> Edge1 " + "[ " * levels + "+ Edge1 "
+                    + "] " * levels + "\n")
+    status, out, err = run(["grow", str(path), "--steps", "2"], capsys)
+    assert status == 2 and out == ""
+    assert err == f"genr8: error: {path}:2:216: brackets nest deeper than 100 levels (the limit of a " \
+                  "rewrite system, docs/hemls.md)\n"

@@ -84,7 +84,7 @@ def test_history_csv_and_png(capsys, run_dir, rows, tmp_path):
 
 
 def test_top_prints_the_k_best_in_order(capsys, run_dir, rows):
-    code, out, _ = _run(capsys, "top", run_dir, "-k", 10)
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 10, "--all")
     assert code == 0
     lines = out.strip().splitlines()
     assert len(lines) == 11
@@ -95,8 +95,22 @@ def test_top_prints_the_k_best_in_order(capsys, run_dir, rows):
     assert [line.split()[4] for line in lines[1:]] == [f"{f:.5g}" for f in expected["fitness"].to_pylist()]
 
 
+def test_top_lists_distinct_forms_by_default(capsys, run_dir):
+    from genr8_dist import history
+
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 10)
+    assert code == 0
+    lines = out.strip().splitlines()
+    assert lines[0].split()[-1] == "copies"
+    distinct = history.top(str(run_dir), 10, distinct=True)
+    assert [line.split()[1] for line in lines[1:]] == distinct["id"].to_pylist()
+    assert len(set(distinct["id"].to_pylist())) == len(distinct)
+    assert sum(int(line.split()[-1]) for line in lines[1:]) >= len(lines) - 1
+
+
 def test_top_with_systems_of_the_last_generation(capsys, run_dir, rows):
-    code, out, _ = _run(capsys, "top", run_dir, "-k", 3, "--generation", -1, "--island", 0, "--systems")
+    code, out, _ = _run(capsys, "top", run_dir, "-k", 3, "--generation", -1, "--island", 0, "--systems",
+                        "--all")
     assert code == 0
     last = rows.filter(pc.and_(rows["valid"], pc.and_(
         pc.equal(rows["generation"], history_runs.GENERATIONS - 1), pc.equal(rows["island"], 0))))
@@ -173,6 +187,9 @@ def test_query_prints_and_writes(capsys, run_dir, rows, tmp_path):
     ("top", "{run}", "--generation", "-51"),
     ("history", "{run}", "--csv", "{tmp}/no/such/folder/h.csv"),
     ("query", "{run}", "   "),
+    ("query", "{run}", ";"),
+    ("query", "{run}", "-- nothing"),
+    ("query", "{run}", "/* a comment */ ;;"),
 ])
 def test_bad_input_is_one_line_and_exit_2(capsys, run_dir, tmp_path, argv):
     from genr8_dist.store import RunStore
@@ -186,3 +203,40 @@ def test_bad_input_is_one_line_and_exit_2(capsys, run_dir, tmp_path, argv):
     assert err.startswith("genr8: error: ") and err.count("\n") == 1, err
     assert "Traceback" not in err
     assert not (tmp_path / "r.html").exists() and not (tmp_path / "g.png").exists()
+
+
+@pytest.fixture(scope="module")
+def real_run(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cli-history-real") / "run"
+    history_runs.build_real_run(path)
+    return path
+
+
+@pytest.mark.slow
+def test_export_writes_every_chosen_design_in_every_chosen_format(capsys, real_run, tmp_path):
+    from genr8_dist import history
+
+    run_dir = real_run
+    best = history.top(str(run_dir), 1)["id"][0].as_py()
+    code, out, _ = _run(capsys, "export", run_dir, "--ids", "best", "0-0-1", "-o", tmp_path / "ids",
+                        "--format", "obj", "--format", "glb")
+    assert code == 0, _
+    assert out.startswith("wrote 2 designs x obj, glb")
+    assert sorted(p.name for p in (tmp_path / "ids").iterdir()) == sorted(
+        f"{i}.{f}" for i in (best, "0-0-1") for f in ("obj", "glb"))
+    code, _, _ = _run(capsys, "show", run_dir, best, "-o", tmp_path / "one.obj")
+    assert (tmp_path / "one.obj").read_bytes() == (tmp_path / "ids" / f"{best}.obj").read_bytes()
+
+    front = history.pareto_front(str(run_dir))["id"].to_pylist()
+    assert _run(capsys, "export", run_dir, "--front", "-o", tmp_path / "front")[0] == 0
+    assert sorted(p.stem for p in (tmp_path / "front").iterdir()) == sorted(front)
+
+    kinds = history.clusters(str(run_dir), 4)
+    assert _run(capsys, "export", run_dir, "--cluster", 1, "--clusters", 4, "-o", tmp_path / "kind")[0] == 0
+    written = sorted(p.stem for p in (tmp_path / "kind").iterdir())
+    assert len(written) == kinds["members"][0].as_py() and kinds["id"][0].as_py() in written
+
+    code, _, err = _run(capsys, "export", run_dir, "--cluster", 9, "--clusters", 4, "-o", tmp_path / "none")
+    assert code == 2 and "1..4" in err and not (tmp_path / "none").exists()
+    code, _, err = _run(capsys, "export", run_dir, "--front", "-o", tmp_path / "bad", "--format", "docx")
+    assert code == 2 and "docx" in err and not (tmp_path / "bad").exists()

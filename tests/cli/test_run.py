@@ -93,6 +93,18 @@ def test_resume_of_a_directory_that_is_not_a_run(tmp_path, capsys):
     assert _snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("extra", [[], ["--generations", "1"]])
+def test_edit_setting_a_table_to_a_value_names_the_key(finished_run, capsys, extra):
+    _, run_dir, _, _ = finished_run
+    before = _snapshot(run_dir)
+    assert main(["edit", str(run_dir), "--set", "ea=1", *extra]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("genr8: error: --set ea=1: 'ea' is a table of settings (")
+    assert len(err.splitlines()) == 1
+    assert "not a key; set one of them, e.g. --set ea." in err and "--generations" not in err
+    assert _snapshot(run_dir) == before
+
+
 def test_edit_with_an_unknown_key_names_it(finished_run, capsys):
     _, run_dir, _, _ = finished_run
     before = _snapshot(run_dir)

@@ -55,6 +55,27 @@ def test_fitness_from_a_run_configuration(capsys, tmp_path):
     assert report["steps"] == 1  # the configuration's environment is used when --env is not given
 
 
+def test_the_table_leaves_out_criteria_the_configuration_does_not_mention_and_that_count_for_nothing(
+        capsys, tmp_path):
+    """quick.toml-like: `smoothness` named with weight 0 is shown; `cells` (default weight 0) is not
+    named and not shown; `size` not named but weighted by default is shown, marked (default)."""
+    from genr8_dist.fitness import FitnessSpec
+
+    defaults = FitnessSpec()
+    assert defaults["cells"].weight == 0 and defaults["size"].weight > 0
+    config = tmp_path / "run.toml"
+    config.write_text("[fitness]\nsmoothness = { target = 0.0, weight = 0.0 }\n"
+                      "undulation = { target = 1.0, weight = 1.0 }\n[environment]\nsteps = 1\n")
+    assert main(["score", "four-sided-tiles", "--fitness", str(config)]) == 0
+    rows = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[3:-2]}
+    assert "cells" not in rows and "smoothness" in rows and "undulation" in rows
+    assert rows["size"].endswith("(default)") and not rows["undulation"].endswith("(default)")
+    shown = [n for n in CRITERIA if n in rows]
+    assert shown == [n for n in CRITERIA if n in ("smoothness", "undulation") or defaults[n].weight > 0]
+    report = score_json(capsys, "four-sided-tiles", "--fitness", str(config))
+    assert list(report["criteria"]) == list(CRITERIA)   # the JSON report keeps every criterion
+
+
 def test_system_from_stdin(capsys, monkeypatch, tmp_path):
     monkeypatch.setattr("sys.stdin", io.StringIO(TILES))
     env = tmp_path / "env.toml"

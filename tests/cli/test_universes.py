@@ -148,3 +148,30 @@ def test_map_of_a_plugin_phenotypes_universe_prints_its_text_without_hemls_warni
     code, out, err = run(capsys, "map", "--universe", "tables", "--random", "--seed", "2")
     assert code == 0 and out.startswith("P0 ( ") and " iterations " in out.splitlines()[0]
     assert err == ""
+
+
+@pytest.mark.parametrize("levels", [500, 5000])
+def test_map_and_invert_refuse_nesting_too_deep_in_one_line(tmp_path, capsys, levels):
+    from pathlib import Path
+
+    default = (Path(__file__).parents[2] / "grammars" / "default.lark").read_text()
+    universe = tmp_path / "deep.lark"
+    universe.write_text(default.replace("successor: modifier* EDGE",
+                                        f"successor: {'(' * levels} modifier* EDGE {')' * levels}"))
+    status, out, err = run(capsys, "map", "--universe", str(universe), "--random")
+    assert status == 2 and out == "" and len(err.splitlines()) == 1
+    assert err.startswith(f"genr8: error: {universe}:") and "groups nest deeper than 100 levels" in err
+
+    text = tmp_path / "deep.hemls"
+    text.write_text("Edge0 + Edge1 + Edge2\nEdge0 -> " + "Edge0 [ " * levels + "Edge0 " + "] Edge0 " * levels
+                    + "Edge0\nAngle 30\nBranchAngle 15\n")
+    status, out, err = run(capsys, "invert", str(text))
+    assert status == 2 and out == ""
+    assert err == f"genr8: error: {text}: line 2, column 816: brackets nest deeper than 100 levels (the " \
+                  "limit of a rewrite system, docs/hemls.md)\n"
+
+
+def test_a_genome_with_a_newline_is_echoed_on_one_line(capsys):
+    status, out, err = run(capsys, "map", "--genome", "1,x\ny")
+    assert status == 2 and out == ""
+    assert err == "genr8: error: codon 1 is 'x\\ny': codons are non-negative integers\n"

@@ -27,7 +27,7 @@ def test_a_new_host_rebuilds_an_island_from_the_store(tmp_path):
     gen0 = host.latest(1)
     assert [ind.id for ind in gen0] == [f"1-0-{i}" for i in range(6)]
     assert done.fitness == tuple(ind.fitness for ind in gen0)
-    assert (done.part.island, done.part.first, done.part.last, done.part.rows) == (1, 0, 0, 6)
+    assert (done.part.islands, done.part.rows) == ({"1": [0, 0]}, 6)
     store.commit_parts([done.part])                     # the driver's commit: the manifest alone
     assert _untimed(store.load_generation(1, 0)) == _untimed(gen0)
     assert host.advance(1, 1, None, 1).part is None     # the host kept the configuration and generation 0

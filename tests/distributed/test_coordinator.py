@@ -279,3 +279,47 @@ def test_a_search_mode_run_resumed_equals_the_uninterrupted_one_archive_included
         sizes = collections.Counter((r["island"], r["generation"]) for r in rows(whole))
         assert max(sizes.values()) > 6   # the archive outgrew the population of 6
     assert all(r["pareto_rank"] is not None for r in rows(whole))
+
+
+def test_an_edit_queued_before_the_first_commit_takes_effect_at_once(pool, tmp_path):
+    """Edits made before anything is committed are queued, not refused: one queued before the first
+    epoch starts is in force from generation 0; one queued when every island has completed generation
+    0 (nothing committed yet) is taken inside the epoch under way, from the first generation no island
+    had started, not at the epoch's end. The rows equal those of a run whose edits were recorded at
+    those generations before it started."""
+    from genr8_dist.distributed.intervene import Edit, apply_edit, record_edit
+    from genr8_dist.store import RunStore
+
+    toml = tiny_toml(generations=12).replace("migration_interval = 2", "migration_interval = 12")
+    at_once = Edit(assignments=["fitness.size.weight=3"])
+    later = Edit(assignments=["fitness.size.weight=5"])
+    live = tmp_path / "live"
+    new_run(live, toml)
+    lock = RunStore.open(live).lock("run")
+    assert lock.acquire()
+    queued = [apply_edit(str(live), at_once)]
+
+    def steer(coordinator, generation):
+        if generation == 0 and len(queued) == 1:
+            assert RunStore.open(live).committed_generations() == {}
+            queued.append(apply_edit(str(live), later, source="studio"))
+
+    try:
+        summary, log = drive_to_end(live, pool, on_generation=steer)
+    finally:
+        lock.release()
+    assert summary.status == "complete" and all(q.queued for q in queued)
+    store = RunStore.open(live)
+    starts = [e["generation"] for e in store.events().to_pylist() if e["kind"] == "intervention"]
+    assert starts[0] == 0 and 1 <= starts[1] <= 12
+    assert f"configuration version 3 in force from generation {starts[1]}" in log
+    got = rows(live)
+    assert {r["config_version"] for r in got if r["generation"] < starts[1]} == {2}
+    assert {r["config_version"] for r in got if r["generation"] >= starts[1]} == {3}
+
+    recorded = tmp_path / "recorded"
+    new_run(recorded, toml)
+    record_edit(RunStore.open(recorded), at_once, effective=0)
+    record_edit(RunStore.open(recorded), later, source="studio", effective=starts[1])
+    drive_to_end(recorded, pool)
+    assert rows(recorded) == got

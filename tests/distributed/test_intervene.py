@@ -109,10 +109,42 @@ def test_text_the_universe_cannot_invert(run_dir, tmp_path):
     assert _snapshot(run_dir) == before
 
 
-def test_a_run_with_nothing_committed_cannot_be_edited(tmp_path):
+def test_a_run_with_nothing_committed_is_edited_from_generation_0(tmp_path):
     new_run(tmp_path / "fresh", tiny_toml())
-    with pytest.raises(StoreError, match="nothing to edit"):
-        apply_edit(str(tmp_path / "fresh"), Edit(assignments=["ea.mutation_rate=0.1"]))
+    result = apply_edit(str(tmp_path / "fresh"), Edit(assignments=["ea.mutation_rate=0.1"], generations=4))
+    assert (result.version, result.effective_generation, result.last_generation) == (2, 0, 3)
+    store = RunStore.open(tmp_path / "fresh")
+    assert store.config_for(0).version == 2
+    assert parse_config(store.config_for(0).toml, "v2").ea.mutation_rate == 0.1
+
+
+def test_an_edit_of_a_running_run_queues_before_its_first_commit_and_is_taken_inside_an_epoch(tmp_path):
+    """From the run's first second: queued with nothing committed; the coordinator takes the queue's
+    leading edits inside an epoch from the first generation no island started, and leaves a pause and
+    an edit that changes the epochs (here the run's length) for the epoch's end, in queue order."""
+    from genr8_dist.distributed.intervene import take_queued
+
+    new_run(tmp_path / "live", tiny_toml())
+    driver = RunStore.open(tmp_path / "live")
+    lock = driver.lock("run")
+    assert lock.acquire()
+    try:
+        first = apply_edit(str(tmp_path / "live"), Edit(assignments=["fitness.size.weight=3"]))
+        assert first.queued and first.effective_generation == 0
+        longer = apply_edit(str(tmp_path / "live"), Edit(generations=10))
+        driver.enqueue({"kind": "pause"})
+        third = apply_edit(str(tmp_path / "live"), Edit(assignments=["fitness.size.weight=4"]))
+        assert [q.name for q in driver.queued()] == [first.queued, longer.queued, "0000000003.json",
+                                                     third.queued]
+        ((kind, result),) = take_queued(driver, during=2)
+        assert kind == "edit" and (result.version, result.effective_generation) == (2, 2)
+        assert len(driver.queued()) == 3 and take_queued(driver, during=3) == []
+        taken = take_queued(driver)                      # the epoch's end: the rest, in order
+        assert [k for k, _ in taken] == ["edit", "pause", "edit"]
+    finally:
+        lock.release()
+    store = RunStore.open(tmp_path / "live")
+    assert [(v.version, v.effective_generation) for v in store.configs()] == [(1, 0), (2, 2), (3, 2), (4, 2)]
 
 
 def test_an_edit_of_a_running_run_is_queued_then_recorded_as_an_edit_records_it(run_dir, tmp_path):

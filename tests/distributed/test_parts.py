@@ -1,11 +1,13 @@
 """Hosts write their islands' parts; the driver commits the manifest alone: parts that follow the
-committed generations become the run's, exactly; a part of a lost epoch is an orphan that resuming
-deletes; a part that skips generations or lost its file is refused and nothing changes."""
+committed generations become the run's, exactly; a part of a lost epoch stays in _staging/, an
+orphan garbage collection sweeps once it is stale; a part that skips generations or lost its file
+is refused and nothing changes."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import time
 
 import pytest
 from distributed_runs import new_run, tiny_toml
@@ -14,6 +16,7 @@ from genr8_dist.distributed.actors import IslandHost
 from genr8_dist.distributed.coordinator import parse_config
 from genr8_dist.errors import StoreError
 from genr8_dist.store import TIMING_COLUMNS, RunStore
+from genr8_dist.store.runstore import TMP_STALE_SECONDS
 
 
 def _untimed(population):
@@ -35,7 +38,8 @@ def test_committed_parts_are_the_hosts_rows_and_an_orphan_is_swept(tmp_path):
     store = new_run(run_dir, tiny_toml(islands=2))
     host, rows = _host_with_generations(run_dir, 1, 2)
     part = host.flush(1)
-    assert (part.island, part.first, part.last, part.rows) == (1, 0, 2, 18)
+    assert (part.islands, part.rows) == ({"1": [0, 2]}, 18)
+    assert os.path.exists(run_dir / part.staged)
     before = store.manifest["individuals"]
     store.commit_parts([part])
     assert store.committed_generations() == {1: 2}
@@ -45,12 +49,17 @@ def test_committed_parts_are_the_hosts_rows_and_an_orphan_is_swept(tmp_path):
     # a lost epoch: generation 3 written by the host, never committed (the driver died)
     config_host, _ = _host_with_generations(run_dir, 0, 0)
     orphan = config_host.flush(0)
-    assert os.path.exists(run_dir / orphan.path)
+    assert os.path.exists(run_dir / orphan.staged)
     reopened = RunStore.open(run_dir)
     assert reopened.committed_generations() == {1: 2}          # not the run's: no manifest names it
-    assert reopened.collect_garbage() >= 1                       # what resume does before any host starts
-    assert not os.path.exists(run_dir / orphan.path)
-    assert os.path.exists(run_dir / part.path)
+    reopened.collect_garbage()
+    assert os.path.exists(run_dir / orphan.staged)              # fresh: its host may still be writing
+    old = time.time() - 2 * TMP_STALE_SECONDS
+    os.utime(run_dir / orphan.staged, (old, old))
+    assert reopened.collect_garbage() >= 1
+    assert not os.path.exists(run_dir / orphan.staged)
+    committed = [e["path"] for e in reopened.manifest["individuals"] if e["path"].endswith(part.name)]
+    assert len(committed) == 1 and os.path.exists(run_dir / committed[0])
     assert reopened.verify() == []
 
 
@@ -59,10 +68,10 @@ def test_a_part_that_skips_generations_or_lost_its_file_is_refused(tmp_path):
     store = new_run(run_dir, tiny_toml(islands=2))
     host, _ = _host_with_generations(run_dir, 0, 1)
     part = host.flush(0)
-    late = dataclasses.replace(part, first=1)
+    late = dataclasses.replace(part, islands={"0": [1, 1]})
     with pytest.raises(StoreError, match="next one to commit is 0"):
         store.commit_parts([late])
-    os.remove(run_dir / part.path)
+    os.remove(run_dir / part.staged)
     with pytest.raises(StoreError, match="missing"):
         store.commit_parts([part])
     assert RunStore.open(run_dir).committed_generations() == {}

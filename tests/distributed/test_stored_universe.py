@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
+import sys
 import tomllib
 from pathlib import Path
 
@@ -74,7 +75,7 @@ def start_plugin_run(tmp_path: Path, marker: Path | None = None) -> tuple[Path, 
     toml = configs / "run.toml"
     toml.write_text(CONFIG.format(universe="../downloads/selfsim"))
     run_dir = tmp_path / "run"
-    status, _out, err = cli("run", toml, "--run-dir", run_dir, "--quiet")
+    status, _out, err = cli("run", toml, "--run-dir", run_dir, "--quiet", "--trust-hooks")
     assert status == 0, err
     return run_dir, plugin
 
@@ -111,24 +112,78 @@ def test_a_plugin_run_outlives_its_plugin(tmp_path, ray_local, fresh_trust, monk
 
 
 @pytest.mark.slow
-def test_a_plugin_named_by_a_toml_path_runs_after_a_notice_once(tmp_path, ray_local, fresh_trust):
-    start_plugin_run(tmp_path)
-    # the notice was printed by the run above; the digest is now remembered
+def test_a_plugin_named_by_a_toml_path_runs_once_consented_then_is_trusted(tmp_path, ray_local, fresh_trust):
+    start_plugin_run(tmp_path)   # with --trust-hooks: the digest is now remembered
     assert len(fresh_trust.read_text().splitlines()) == 1
     toml = tmp_path / "configs" / "run.toml"
     status, _out, err = cli("run", toml, "--run-dir", tmp_path / "again", "--quiet")
-    assert status == 0 and "note:" not in err
+    assert status == 0 and err == ""
 
 
-def test_the_notice_names_the_code_it_runs(tmp_path, ray_local, fresh_trust):
-    plugin = make_plugin(tmp_path / "downloads")
+def test_a_plugin_named_by_a_toml_path_does_not_run_without_consent(tmp_path, fresh_trust, monkeypatch):
+    """No --trust-hooks and no terminal: one line, exit 2, its hooks.py never imported, nothing
+    remembered and no run directory made."""
+    marker = tmp_path / "MARKER"
+    plugin = make_plugin(tmp_path / "downloads", marker=marker)
     toml = tmp_path / "run.toml"
-    toml.write_text(CONFIG.format(universe="downloads/selfsim"))
-    status, _out, err = cli("run", toml, "--run-dir", tmp_path / "r", "--quiet")
-    assert status == 0, err
-    (line,) = [x for x in err.splitlines() if x]
-    assert line.startswith("genr8: note: universe 'selfsim' runs Python code (hooks.py from "
-                           f"{plugin}, sha256 ")
+    toml.write_text(CONFIG.format(universe="./downloads/selfsim"))
+    monkeypatch.setattr("sys.stdin", io.StringIO("y\n"))   # not a terminal: never asked, a yes unread
+    status, out, err = cli("run", toml, "--run-dir", tmp_path / "r", "--quiet")
+    assert status == 2 and out == ""
+    (line,) = err.splitlines()
+    assert line.startswith(f"genr8: error: universe 'selfsim' carries Python code (hooks.py from {plugin}, "
+                           "sha256 ")
+    assert line.endswith(f"that this machine has not trusted; read it, then run `genr8 run {toml} --run-dir "
+                         f"{tmp_path / 'r'} --trust-hooks` (the trust rule: docs/run-store.md)")
+    assert not marker.exists() and not (tmp_path / "r").exists()
+    assert not fresh_trust.exists()
+
+
+def test_a_yes_at_the_terminal_prompt_is_consent_and_a_no_refuses(tmp_path, fresh_trust, monkeypatch, capsys):
+    from genr8_dist.errors import UniverseError
+    from genr8_dist.grammar.discovery import consent_for_new_run, find_source
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    make_plugin(tmp_path / "downloads")
+    source, origin = find_source(str(tmp_path / "downloads" / "selfsim"))
+    assert origin == "path"
+    monkeypatch.setattr("sys.stderr", Terminal())
+    monkeypatch.setattr("sys.stdin", Terminal("n\n"))
+    with pytest.raises(UniverseError, match="has not trusted"):
+        consent_for_new_run(source, trust_flag=False)
+    assert not trust.may_run(source.code_digest) and not fresh_trust.exists()
+    monkeypatch.setattr("sys.stdin", Terminal("y\n"))
+    consent_for_new_run(source, trust_flag=False)
+    assert trust.may_run(source.code_digest)
+    assert fresh_trust.read_text().split()[0] == source.code_digest
+    assert "run it, and trust it from now on? [y/N]" in sys.stderr.getvalue()
+
+
+def test_map_and_invert_run_a_plugin_folder_given_by_a_path_only_with_consent(tmp_path, fresh_trust):
+    marker = tmp_path / "MARKER"
+    plugin = make_plugin(tmp_path / "downloads", marker=marker)
+    status, out, err = cli("map", "--universe", plugin, "--random")
+    assert status == 2 and out == "" and len(err.splitlines()) == 1
+    assert "has not trusted" in err and f"`genr8 map --universe {plugin} --trust-hooks`" in err
+    assert not marker.exists()
+    status, out, err = cli("map", "--universe", plugin, "--random", "--trust-hooks")
+    assert status in (0, 1) and out and marker.exists(), err
+    trust._CONSENTED.clear()    # a later command: the digest was trusted by that consent
+    status, out, err = cli("map", "--universe", plugin, "--random")
+    assert status in (0, 1) and out, err
+
+
+def test_a_note_is_not_consent_for_a_copied_run(tmp_path, fresh_trust):
+    """The code a run directory carries is refused for resume unless its digest was trusted by
+    consent: a refused run left nothing remembered."""
+    make_plugin(tmp_path / "downloads")
+    toml = tmp_path / "run.toml"
+    toml.write_text(CONFIG.format(universe="./downloads/selfsim"))
+    assert cli("run", toml, "--run-dir", tmp_path / "r", "--quiet")[0] == 2
+    assert not fresh_trust.exists() and trust.remembered() == set()
 
 
 @pytest.mark.slow

@@ -1,14 +1,19 @@
-"""A run of the tables plugin universe (a phenotype that is not a surface) through the whole engine:
-islands on local Ray and on a simulated 2-node cluster, kill-and-resume equality, and the history
-commands regrowing, exporting and drawing its tables."""
+"""A run of the tables plugin universe (a phenotype that is not a surface, evolved by its own genome
+and operators: Hornby & Pollack's) through the whole engine: islands on local Ray and on a simulated
+2-node cluster, interrupt-and-resume and kill-and-resume equality, and the history commands
+regrowing, exporting and drawing its tables."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import itertools
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -29,6 +34,7 @@ population = 6
 generations = 4
 tournament = 2
 elites = 2
+crossover_rate = 0.5
 
 [islands]
 count = 2
@@ -74,6 +80,9 @@ def test_a_tables_run_stores_the_voxel_criteria_and_the_negated_paper_fitness(re
         assert (r["phenotype_digest"], r["size_commands"], r["size_modules"]) == (
             table.digest(), table.commands, table.modules)
     assert any(r["size_commands"] > 0 for r in valid)
+    # the paper's variation (ea.variation = "auto"): every genome is its text's characters
+    assert all(r["genome"] == [ord(c) for c in r["text"]] for r in got)
+    assert {"mutation", "crossover"} & {r["origin"] for r in got}
     assert valid and all(r["fitness"] <= 0 for r in valid)
     for r in valid:
         paper = (r["crit_height"] * r["crit_surface"] * r["crit_stability"] / r["crit_excess"]
@@ -93,6 +102,45 @@ def test_interrupted_and_resumed_equals_uninterrupted(reference, tmp_path):
     assert first.status == "interrupted"
     second, _ = drive_to_end(run_dir)
     assert second.status == "complete"
+    assert rows(run_dir) == rows(reference)
+
+
+def test_a_killed_genr8_run_resumed_equals_the_uninterrupted_one(reference, tmp_path):
+    """``genr8 run`` in its own process, SIGKILLed once generation 2 is committed, then resumed."""
+    from genr8_dist.distributed.session import RunOptions, resume_run
+    from genr8_dist.errors import StoreError
+    from genr8_dist.store import RunStore
+
+    config, run_dir = tmp_path / "tables.toml", tmp_path / "run"
+    config.write_text(TABLES_TOML)
+    env = dict(os.environ, RAY_USAGE_STATS_ENABLED="0")
+    env.pop("RAY_ADDRESS", None)
+    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(config), "--run-dir",
+                             str(run_dir), "--cpus", "2"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env=env, start_new_session=True)
+
+    def committed() -> int:
+        try:
+            done = RunStore.open(run_dir).committed_generations()
+        except StoreError:
+            return -1
+        return min(done.values()) if len(done) == 2 else -1
+
+    try:
+        deadline = time.monotonic() + 240
+        while committed() < 2:
+            assert proc.poll() is None, proc.stderr.read()[-2000:] if proc.stderr else ""
+            assert time.monotonic() < deadline, "the run did not reach generation 2 in time"
+            time.sleep(0.05)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    finally:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    summary = resume_run(str(run_dir), RunOptions(quiet=True), out=io.StringIO())
+    assert summary.status == "complete"
     assert rows(run_dir) == rows(reference)
 
 

@@ -182,3 +182,41 @@ def test_evaluating_a_previewed_genome_measures_it(tight):
     assert not isinstance(full, Preview) and full.criteria and lazy.cache_hits == 1
     assert full.untimed() == Evaluator(tight).evaluate(g).untimed()
     assert full.map_seconds == full.grow_seconds == 0.0 and full.score_seconds > 0   # paid now: measuring
+
+
+# --- an individual nested too deep is an invalid row, not a crash -------------------------------------
+
+NESTING_UNIVERSE = '''\
+start: axiom _NL rewrite_rule _NL "Angle" "30" _NL "BranchAngle" "15" _NL
+axiom: EDGE "+" EDGE "+" EDGE
+rewrite_rule: PRED "->" successor
+successor: EDGE nest EDGE
+nest: "[" "[" "[" "[" "[" "[" "[" "[" "[" "[" nest "]" "]" "]" "]" "]" "]" "]" "]" "]" "]"
+    | "+" EDGE
+EDGE: /Edge[0-9]+/
+PRED: /Edge[0-9]+/
+_NL: "\\n"
+%ignore " "
+'''
+
+
+@pytest.mark.parametrize("levels", [500, 5000])
+def test_a_text_nested_too_deep_evaluates_to_an_invalid_individual(levels):
+    text = ("Edge1 + Edge1 + Edge1\nEdge1 -> Edge1 " + "[ " * levels + "+ Edge1 " + "] " * levels
+            + "Edge1\n")
+    result = evaluate_text(text, RunConfig.from_dict({"environment": {"steps": 2}}))
+    assert not result.valid and result.stage == "parse"
+    assert result.error is not None and "2:216: brackets nest deeper than 100 levels" in result.error
+
+
+def test_a_genome_the_universe_maps_too_deep_is_an_invalid_individual(tmp_path):
+    """A universe of ten brackets a level: at max_depth 60 a genome of zeros nests 560 brackets deep."""
+    (tmp_path / "nest.lark").write_text(NESTING_UNIVERSE)
+    config = RunConfig.from_dict({"universe": str(tmp_path / "nest.lark"), "environment": {"steps": 2},
+                                  "genome": {"max_depth": 60, "length": 400}})
+    result = evaluate_genome([0] * 400, config)
+    assert result.text is not None and result.text.count("[") == 560
+    assert not result.valid and "brackets nest deeper than 100 levels" in (result.error or "")
+    shallow = evaluate_genome([0] * 400, config.replace(genome={"max_depth": 8}))
+    assert shallow.text is not None and shallow.text.count("[") == 40
+    assert "nest deeper" not in (shallow.error or "")

@@ -7,6 +7,7 @@ import dataclasses
 import itertools
 import math
 import statistics
+from pathlib import Path
 
 import pytest
 
@@ -138,6 +139,7 @@ def test_too_many_incoming_is_refused(history):
 
 def test_identical_genomes_are_evaluated_once(history):
     config, hist = history
+    config = config.replace(ea={"unique_retries": 0})   # no offspring varied again: one evaluation each
     island = Island(config, 0)
     genome = list(hist[0][0].genome)
     island.step(hist[0], 1, injected=[genome] * 6)
@@ -252,6 +254,8 @@ def test_bushy_redraws_give_way_to_plain_ones_where_plain_draws_do_better(monkey
         return (0,) * 8
 
     monkeypatch.setattr(derivations, "bushy_genome", failing)
+    # every draw grown (none set aside from its text), so each bushy call is one bushy founder tried
+    monkeypatch.setattr(Island, "_screen", lambda self, text: (text is None, text))
     config = small_config(ea={"population": 30, "founder_retries": 2}, environment={"steps": 3})
     island = Island(config, 0)
     island.initial()
@@ -337,8 +341,9 @@ def test_offspring_still_wasted_after_the_retries_are_replaced_by_newcomers_with
 
     def wasted(gen):
         seen, count = set(), 0
-        for ind in gen:
-            if ind.origin in (*offspring, "random") and (not ind.valid or ind.phenotype_digest in seen):
+        for ind in gen:   # invalid, trivial (one region) or a repeat: what an island varies again
+            if ind.origin in (*offspring, "random") and (not ind.valid or ind.phenotype_digest in seen
+                                                         or ind.sizes.get("regions", 0) <= 1):
                 count += 1
             if ind.valid:
                 seen.add(ind.phenotype_digest)
@@ -494,3 +499,31 @@ def test_only_the_individuals_kept_are_measured_and_the_rows_are_those_measuring
     assert [[untimed(i) for i in gen] for gen in eager.run(1)] == [[untimed(i) for i in gen] for gen in hist]
     assert eager.stats == lazy.stats
     assert lazy.evaluator.growths == eager.evaluator.growths > len(kept)
+
+
+def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_never_grown(monkeypatch):
+    """No evolved generation keeps a trivial surface (one region) while the evaluations per stored
+    individual stay near one: a text that shows it is trivial is set aside before growth, and a
+    child that grows trivial is varied again from its parent (quick.toml's settings, one island)."""
+    from genr8_dist.config import load_config
+    from genr8_dist.evolution.evaluate import Evaluator
+    from genr8_dist.hemls.splitting import screen
+
+    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
+    config = load_config(quick).replace(
+        islands={"count": 1, "migrants": 0}, ea={"generations": 6})
+    grown: list[str] = []
+    develop = Evaluator._grown
+
+    def spy(self, text, defer=False):
+        grown.append(text)
+        return develop(self, text, defer)
+
+    monkeypatch.setattr(Evaluator, "_grown", spy)
+    island = Island(config, 0)
+    hist = island.run()
+    stored = sum(len(gen) for gen in hist)
+    later = [ind for gen in hist[1:] for ind in gen]
+    assert island.evaluator.evaluations / stored <= 1.3
+    assert sum(not ind.valid or ind.sizes["regions"] <= 1 for ind in later) <= 0.1 * len(later)
+    assert grown and not any(screen(text)[0] for text in grown)   # no text called trivial was grown

@@ -1,22 +1,27 @@
 """A seeded fuzz harness for the ``genr8`` command: mutated shipped files and mutated arguments.
 
-Every input is drawn from ``rng.stream(seed, "fuzz", n)``: a command (``grow``, ``score``, ``map``,
-``invert``, ``run`` with a broken configuration, the history commands, ``edit``, ``repair``) with
-arguments pulled towards the edges (negative, zero, huge, not a number, empty), and, for the commands
-that read a file, a shipped file (examples, environments, predefined rewrite systems) mutated
-(bits flipped, cut short, binary junk, a number made extreme, a line repeated, brackets nested 5,000
-deep). Each input runs ``genr8_dist.cli.main`` in a worker process (memory capped, so a runaway
-allocation shows as a failure instead of swapping the machine) and is judged:
+Every input is drawn from ``rng.stream(seed, "fuzz", n)`` alone, so input ``n`` is the same in every
+process (``--case N`` or ``GENR8_FUZZ_CASE=N`` replays it; a file of the fixture run is picked by its
+name without the store's random writer token). An input is a command (``grow``, ``score``, ``map``,
+``invert``, ``run``, the history commands, ``edit``, ``repair``) with arguments pulled towards the
+edges (negative, zero, huge, not a number, empty), and, for the commands that read a file, a shipped
+file of each kind a user gives (``KINDS``: universes ``.lark``, HEMLS rewrite systems, environment
+TOML, run TOML, genomes; and the fixture run's stored files) mutated (bits flipped, cut short, binary
+junk, a number made extreme, a line repeated, brackets nested 5,000 deep). Each input runs
+``genr8_dist.cli.main`` in a worker process (memory capped, so a runaway allocation shows as a
+failure instead of swapping the machine) and is judged:
 
 * **traceback**: an exception escaped ``main`` (or the worker died);
-* **hang**: it ran over ``HANG_SECONDS``;
+* **hang**: it ran over ``HANG_SECONDS`` of CPU time (or ``HANG_WALL`` of wall time);
 * **silent failure**: a non-zero exit status with nothing on stderr;
 * **run changed by a reader**: a history command changed a byte of the run it read;
 * **store damaged by a writer**: after ``edit`` or ``repair``, ``verify()`` finds a problem.
 
+A ``run`` whose input passes every check reaches the point where Ray starts: that is accepted (it
+would then run for as long as it asks) and is stopped there, never mistaken for a hang.
+
 ``python -m tests.fuzz.harness --inputs 1000 --seed 1`` prints the counts and each failing input;
-``tests/fuzz/test_fuzz.py`` runs it (marked slow). Universe files (``.lark``) are not mutated here:
-compiling them is the universe compiler's own bound.
+``tests/fuzz/test_fuzz.py`` runs it (marked slow).
 """
 
 from __future__ import annotations
@@ -40,7 +45,8 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
-HANG_SECONDS = 30
+HANG_SECONDS = 30       # CPU seconds of the worker: the machine's load from other work does not count
+HANG_WALL = 180         # wall-clock seconds, for an input that waits without computing
 MEMORY_LIMIT = 4 << 30  # bytes of address space a worker may use (numba's compiled kernels map ~0.5 GiB)
 READERS = ("history", "top", "lineage", "show", "query", "gallery", "report")
 EDGES = ["-1", "0", "1", "2147483648", str(2**70), "-" + str(2**70), "1e309", "nan", "inf", "", "abc",
@@ -74,12 +80,29 @@ class Outcome:
 
 # --- drawing inputs ------------------------------------------------------------------------------
 
+#: Every kind of file a user gives genr8, and where the shipped ones are (stored run files are the
+#: fixture run's, mutated by the ``repair`` family).
+KINDS = ("universe", "system", "env", "config", "genome")
+
+
 def _shipped(kind: str) -> list[Path]:
+    if kind == "universe":
+        return sorted(p for p in (ROOT / "grammars").glob("*.lark") if p.name != "hemls.lark")
     if kind == "system":
         return sorted((ROOT / "grammars" / "systems").glob("*.hemls"))
     if kind == "env":
         return sorted((ROOT / "examples" / "environments").glob("*.toml"))
+    if kind == "genome":
+        return [ROOT / "tests" / "fuzz" / "genome.txt"]
     return sorted((ROOT / "examples").glob("*.toml"))
+
+
+def _stable(path: Path, root: Path) -> str:
+    """``path`` relative to ``root`` without the store's random writer token, so that a file is picked
+    by the same number in every build of the fixture run (the tokens differ between builds)."""
+    import re
+
+    return re.sub(r"-[0-9a-f]{16}(?=\.)", "", str(path.relative_to(root)))
 
 
 def mutate(data: bytes, rng: Any) -> bytes:
@@ -139,7 +162,15 @@ def draw(n: int, seed: int, work: Path, run: Path) -> list[str]:
         return str(target)
 
     family = pick(["grow", "grow", "score", "map", "invert", "run", "reader", "reader", "reader",
-                   "edit", "repair", "args"])
+                   "edit", "repair", "args", "universe", "genome"])
+    if family == "universe":
+        universe = mutated("universe")
+        return pick([["map", "--universe", universe, "--random", "--seed", str(n)],
+                     ["invert", "--universe", universe, str(ROOT / "grammars" / "systems" / "square.hemls")],
+                     ["map", "--universe", universe, "--genome", "1,2,3,4,5,6,7,8,9"]])
+    if family == "genome":
+        genome = Path(mutated("genome")).read_bytes().decode("utf-8", "replace").replace("\x00", "")
+        return ["map", "--genome", genome, *pick([[], ["--universe", "reversible"], ["--json"]])]
     if family == "grow":
         argv = ["grow", mutated("system") if rng.random() < 0.6 else pick(["three-sided", "koch", "x"])]
         if rng.random() < 0.5:
@@ -185,7 +216,8 @@ def draw(n: int, seed: int, work: Path, run: Path) -> list[str]:
     if family == "repair":
         copy = work / f"repair-{n}"
         shutil.copytree(run, copy)
-        files = sorted(p for p in copy.rglob("*") if p.is_file() and p.name != "_running.lock")
+        files = sorted((p for p in copy.rglob("*") if p.is_file() and p.name != "_running.lock"),
+                       key=lambda p: _stable(p, copy))
         victim = pick(files)
         victim.write_bytes(mutate(victim.read_bytes(), rng))
         command = pick(["repair", "repair", "history", "top", "query"])
@@ -236,20 +268,57 @@ def _tree(path: Path) -> str:
     return digest.hexdigest()
 
 
+class _Started(BaseException):
+    """``genr8 run`` reached Ray: every check of its input passed, and the evolution would start."""
+
+
+def _run_until_it_starts(n: int, argv: list[str]) -> Outcome | None:
+    """``genr8 run`` up to the moment it would start Ray, which counts as accepted (a valid
+    configuration runs for as long as it asks, which is no hang); None when it was refused, so that
+    ``run_one`` runs it again to judge the refusal."""
+    from genr8_dist.cli import main
+    from genr8_dist.distributed import session
+
+    @contextlib.contextmanager
+    def started(*args: Any, **kwargs: Any) -> Any:
+        raise _Started()
+        yield  # pragma: no cover
+
+    real = session.connect_ray
+    session.connect_ray = started  # type: ignore[assignment]
+    try:
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            main(argv)
+    except _Started:
+        return Outcome(n, argv, "ok", 0, "accepted: the run starts")
+    except BaseException:   # judged again, with its output, by run_one
+        pass
+    finally:
+        session.connect_ray = real
+    return None
+
+
+def _answered(argv: list[str], rc: int | None, out: str) -> bool:
+    """A non-zero exit that is the command's documented answer: ``map --json`` of an invalid genome
+    (exit 1, the JSON says ``"valid": false`` and why)."""
+    if argv[:1] != ["map"] or "--json" not in argv or rc != 1:
+        return False
+    try:
+        answer = json.loads(out)
+    except json.JSONDecodeError:
+        return False
+    return isinstance(answer, dict) and answer.get("valid") is False and bool(answer.get("reason"))
+
+
 def run_one(n: int, argv: list[str], run: Path) -> Outcome:
     """Run ``genr8 argv`` in this process and judge how it ended."""
     from genr8_dist.cli import main
 
     reader = argv[0] in READERS and argv[1:2] == [str(run)]
-    if argv[0] == "run":  # a configuration that loads would start a real evolution: only check it
-        from genr8_dist.config import load_config
-        from genr8_dist.errors import Genr8Error
-
-        try:
-            load_config(argv[1])
-            return Outcome(n, argv, "ok", 0, "valid configuration (not run)")
-        except Genr8Error:
-            pass
+    if argv[0] == "run":
+        outcome = _run_until_it_starts(n, argv)
+        if outcome is not None:
+            return outcome
     before = _tree(run) if reader else ""
     out, err = io.StringIO(), io.StringIO()
 
@@ -257,7 +326,9 @@ def run_one(n: int, argv: list[str], run: Path) -> Outcome:
         raise _Hang()
 
     old = signal.signal(signal.SIGALRM, alarm)
-    signal.alarm(HANG_SECONDS)
+    old_prof = signal.signal(signal.SIGPROF, alarm)
+    signal.setitimer(signal.ITIMER_PROF, HANG_SECONDS)
+    signal.alarm(HANG_WALL)
     start = time.monotonic()
     rc: int | None = None
     try:
@@ -268,17 +339,20 @@ def run_one(n: int, argv: list[str], run: Path) -> Outcome:
         if isinstance(exc.code, str):
             err.write(exc.code)
     except _Hang:
-        return Outcome(n, argv, "hang", None, f"over {HANG_SECONDS} s", time.monotonic() - start)
+        return Outcome(n, argv, "hang", None, f"over {HANG_SECONDS} CPU s or {HANG_WALL} s",
+                       time.monotonic() - start)
     except BaseException as exc:
         lines = traceback.format_exception(type(exc), exc, exc.__traceback__)
         return Outcome(n, argv, "traceback", None, "".join(lines[-3:]).strip()[-600:],
                        time.monotonic() - start)
     finally:
         signal.alarm(0)
+        signal.setitimer(signal.ITIMER_PROF, 0)
         signal.signal(signal.SIGALRM, old)
+        signal.signal(signal.SIGPROF, old_prof)
     seconds = time.monotonic() - start
     message = err.getvalue().strip()
-    if rc != 0 and not message:
+    if rc != 0 and not message and not _answered(argv, rc, out.getvalue()):
         return Outcome(n, argv, "silent", rc, out.getvalue()[-200:], seconds)
     if reader and _tree(run) != before:
         return Outcome(n, argv, "reader-wrote", rc, message[-200:], seconds)
@@ -322,7 +396,7 @@ def build_fixture(path: Path) -> None:
     build_real_run(path)
 
 
-def fuzz(inputs: int, seed: int, *, first: int = 0, out: Any = None) -> dict[str, Any]:
+def fuzz(inputs: int, seed: int, *, first: int = 0, out: Any = None, verbose: bool = False) -> dict[str, Any]:
     """Run inputs ``first .. first + inputs - 1``; the counts of every outcome and the failing inputs."""
     out = out if out is not None else sys.stdout
     with tempfile.TemporaryDirectory(prefix="genr8-fuzz-") as tmp:
@@ -344,7 +418,7 @@ def fuzz(inputs: int, seed: int, *, first: int = 0, out: Any = None) -> dict[str
             assert proc.stdin is not None and proc.stdout is not None
             proc.stdin.write(f"{n}\n")
             proc.stdin.flush()
-            reply = _read_line(proc, HANG_SECONDS * 3)
+            reply = _read_line(proc, HANG_WALL + 60)
             if reply is None:
                 proc.kill()
                 proc.wait()
@@ -354,6 +428,9 @@ def fuzz(inputs: int, seed: int, *, first: int = 0, out: Any = None) -> dict[str
             else:
                 result = json.loads(reply)
             counts[result["kind"]] = counts.get(result["kind"], 0) + 1
+            if verbose:
+                print(f"#{n} genr8 {' '.join(map(repr, result['argv']))}\n    {result['kind']} "
+                      f"(exit {result.get('rc')}): {result['detail']}", file=out, flush=True)
             if result["kind"] not in ("ok", "error"):
                 failures.append(result)
                 args = " ".join(map(str, result["argv"]))
@@ -383,6 +460,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--inputs", type=int, default=1000)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--first", type=int, default=0, help="start at this input number")
+    parser.add_argument("--case", type=int, default=None, metavar="N",
+                        help="replay input N alone and print how it ended (also GENR8_FUZZ_CASE=N)")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--work", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--run", type=Path, help=argparse.SUPPRESS)
@@ -390,6 +469,11 @@ def main(argv: list[str] | None = None) -> int:
     if args.worker:
         worker(args.seed, args.work, args.run)
         return 0
+    case = args.case if args.case is not None else (int(os.environ["GENR8_FUZZ_CASE"])
+                                                     if os.environ.get("GENR8_FUZZ_CASE") else None)
+    if case is not None:
+        report = fuzz(1, args.seed, first=case, verbose=True)
+        return 0 if not report["failures"] else 1
     report = fuzz(args.inputs, args.seed, first=args.first)
     kinds = ["ok", "error", "traceback", "hang", "silent", "reader-wrote", "store-damaged"]
     print(f"{report['inputs']} inputs (seed {report['seed']}) in {report['seconds']} s: "

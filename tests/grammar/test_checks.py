@@ -18,6 +18,12 @@ DEFAULT = (grammars_dir() / "default.lark").read_text()
 SYSTEM = "Edge0 + Edge0 + Edge0 + Edge0\nEdge0 -> Edge0\nAngle 30\nBranchAngle 15\n"
 
 
+
+@pytest.fixture(autouse=True)
+def _own_trust_file(tmp_path, monkeypatch):
+    """--trust-hooks remembers digests: in this test's file, never the user's."""
+    monkeypatch.setenv("GENR8_TRUST_FILE", str(tmp_path / "trusted-hooks"))
+
 def variant(tmp_path: Path, old: str, new: str, name: str = "broken") -> Path:
     assert old in DEFAULT
     path = tmp_path / f"{name}.lark"
@@ -103,7 +109,7 @@ def test_a_misspelt_hook_is_named(tmp_path, capsys):
 
 def test_a_hook_that_raises_is_a_map_failure_naming_it(tmp_path, capsys):
     folder = plugin(tmp_path, "raising", "def repair(ctx):\n    raise ValueError('no luck')\n")
-    status = main(["map", "--universe", str(folder), "--random", "--seed", "1"])
+    status = main(["map", "--universe", str(folder), "--random", "--seed", "1", "--trust-hooks"])
     captured = capsys.readouterr()
     assert status == 1 and "Traceback" not in captured.err
     assert captured.err == ("genr8: invalid genome: hook repair of universe 'raising' raised ValueError: "
@@ -119,7 +125,7 @@ def test_a_hook_that_raises_is_a_map_failure_naming_it(tmp_path, capsys):
 
 def test_a_hook_that_calls_sys_exit_is_a_map_failure_not_a_silent_end(tmp_path, capsys):
     folder = plugin(tmp_path, "exiting", "import sys\n\n\ndef repair(ctx):\n    sys.exit(0)\n")
-    status = main(["map", "--universe", str(folder), "--random", "--seed", "1"])
+    status = main(["map", "--universe", str(folder), "--random", "--seed", "1", "--trust-hooks"])
     captured = capsys.readouterr()
     assert status == 1 and "Traceback" not in captured.err
     assert captured.err == "genr8: invalid genome: hook repair of universe 'exiting' raised SystemExit: 0\n"

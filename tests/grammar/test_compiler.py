@@ -80,3 +80,38 @@ def test_minimum_depths_and_edge_templates():
     assert (template.prefix, template.suffix) == ("Edge", "_i+1")
     assert template.text(7) == "Edge7_i+1"
     assert template.regex().fullmatch("Edge12_i+1").group(1) == "12"
+
+
+# --- nesting: groups deeper than MAX_NESTING refused, naming where, before Lark's loader recurses -----
+
+def _grouped(levels: int, opener: str = "(", closer: str = ")") -> str:
+    default = (Path(__file__).parents[2] / "grammars" / "default.lark").read_text()
+    return default.replace("successor: modifier* EDGE",
+                           f"successor: {opener * levels} modifier* EDGE {closer * levels}")
+
+
+@pytest.mark.parametrize("levels", [500, 5000])
+@pytest.mark.parametrize("brackets", ["()", "[]"])
+def test_groups_nested_too_deep_are_one_error_at_the_group(levels, brackets):
+    from genr8_dist.grammar.compiler import MAX_NESTING
+
+    text = _grouped(levels, *brackets)
+    line = text[:text.index("successor: ")].count("\n") + 1
+    with pytest.raises(UniverseError) as info:
+        compile_grammar(text, "deep.lark")
+    column = len("successor: ") + MAX_NESTING + 1
+    assert str(info.value).startswith(f"deep.lark:{line}:{column}: groups nest deeper than {MAX_NESTING}")
+    assert "\n" not in str(info.value)
+
+
+def test_the_deepest_grouping_allowed_compiles_and_maps():
+    from genr8_dist.grammar.compiler import MAX_NESTING
+
+    compiled = compile_grammar(_grouped(MAX_NESTING), "deep.lark")
+    assert "successor" in compiled.rules
+
+
+def test_brackets_in_strings_regular_expressions_and_comments_do_not_count():
+    text = _grouped(3).replace('EDGE: /Edge[0-9]+/', 'EDGE: /Edge[0-9]+/  // ' + "(" * 300) + \
+        "\n// " + "[" * 300 + "\n"
+    assert "successor" in compile_grammar(text, "ok.lark").rules

@@ -193,3 +193,26 @@ def test_the_manual_tiles_are_derivable_in_the_tiles_universe_only(name):
     assert tiles.map(tiles.invert(text)).text == text
     with pytest.raises(Genr8Error):
         load_universe("default").invert(text)   # default stays the thesis's Appendix A.1
+
+
+# --- texts the search would recurse too deep on: refused in one line ---------------------------------
+
+@pytest.mark.parametrize("levels", [500, 5000])
+def test_invert_refuses_brackets_nested_too_deep_naming_where(levels):
+    from genr8_dist.hemls.language import MAX_NESTING
+
+    text = ("Edge0 + Edge1 + Edge2\nEdge0 -> " + "Edge0 [ " * levels + "Edge0 " + "] Edge0 " * levels
+            + "Edge0\nAngle 30\nBranchAngle 15\n")
+    column = len("Edge0 -> ") + len("Edge0 [ ") * MAX_NESTING + len("Edge0 ") + 1
+    with pytest.raises(InversionError, match=rf"^line 2, column {column}: brackets nest deeper than "
+                                             rf"{MAX_NESTING} levels"):
+        load_universe("default").invert(text)
+
+
+def test_invert_refuses_a_text_longer_than_its_search_reads():
+    from genr8_dist.grammar.inverse import MAX_TOKENS
+
+    text = " + ".join(["Edge0"] * 30_000) + "\nEdge0 -> Edge0\nAngle 30\nBranchAngle 15\n"
+    refused = rf"^line 1, column 48001: the text has 60010 tokens; invert reads at most {MAX_TOKENS}$"
+    with pytest.raises(InversionError, match=refused):
+        load_universe("default").invert(text)

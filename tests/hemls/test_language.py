@@ -314,3 +314,44 @@ def test_thesis_appendix_b_rewrite_system_parses_and_grows_as_the_thesis_expects
     assert system.turn_angle == 30 and system.cone_angle == 75 and not system.sync
     result = grow(system, Environment(steps=4))
     assert result.surface.validate() == [] and result.surface.n_regions == 1
+
+
+# --- nesting: refused beyond MAX_NESTING, naming where, before any reader recurses -------------------
+
+def _nested(levels: int, comment: bool = False) -> str:
+    tail = " // read by Lark" if comment else ""
+    return (f"Edge1 + Edge1 + Edge1 + Edge1{tail}\n"
+            f"Edge1 -> Edge1 {'[ ' * levels}+ Edge1 {'] ' * levels}\n")
+
+
+@pytest.mark.parametrize("levels", [500, 5000])
+@pytest.mark.parametrize("comment", [False, True])   # the direct reader's text, and Lark's
+def test_brackets_nested_too_deep_are_one_parse_error_at_the_bracket(levels, comment):
+    from genr8_dist.hemls.language import MAX_NESTING
+
+    with pytest.raises(ParseError) as info:
+        parse(_nested(levels, comment), source="deep.hemls")
+    column = len("Edge1 -> Edge1 ") + 2 * MAX_NESTING + 1    # the (MAX_NESTING + 1)-th '['
+    assert (info.value.line, info.value.column) == (2, column)
+    assert str(info.value).startswith(f"deep.hemls:2:{column}: brackets nest deeper than {MAX_NESTING} "
+                                      "levels")
+    assert "\n" not in str(info.value)
+
+
+def test_the_deepest_nesting_allowed_reads_alike_and_grows_from_a_deep_stack():
+    from genr8_dist.hemls.language import MAX_NESTING
+
+    def deep(frames: int):   # a caller that has used a good part of the stack already (a Ray worker)
+        if frames:
+            return deep(frames - 1)
+        direct, lark = parse(_nested(MAX_NESTING)), parse(_nested(MAX_NESTING, comment=True))
+        return direct, lark, str(direct), direct.segment_names()
+
+    direct, lark, text, names = deep(300)
+    assert direct.rules == lark.rules
+    assert text.count("[") == MAX_NESTING and names == ("Edge1",)
+
+
+def test_brackets_inside_comments_do_not_count():
+    text = "Edge1 + Edge1 + Edge1 // " + "[" * 500 + "\nEdge1 -> Edge1 [ + Edge1 ]\n"
+    assert parse(text).rules[0].successors[0].symbols[1].symbols == ("+", parse(text).rules[0].predecessor)

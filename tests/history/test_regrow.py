@@ -130,13 +130,13 @@ def test_exports_load_back_in_trimesh(real_run, real_rows, tmp_path, suffix):
     result = history.regrow(real_run, ident)
     path = history.export(result, tmp_path / f"s.{suffix}")
     mesh = trimesh.load(path, force="mesh", process=False)
-    triangles = len(result.value.triangles())
+    triangles = len(result.value.mesh().triangles)      # the run's meshing (2: points added)
     assert len(mesh.faces) == triangles > 0
     if suffix == "stl":  # STL keeps no shared vertices: three per triangle
         assert len(mesh.vertices) == 3 * triangles
     else:
-        assert len(mesh.vertices) == len(result.value.vertices)
-        assert np.allclose(mesh.vertices, result.value.vertices, atol=1e-6)
+        assert len(mesh.vertices) == len(result.value.mesh().points)
+        assert np.allclose(mesh.vertices[:result.value.n_vertices], result.value.vertices, atol=1e-6)
 
 
 def test_3dm_export_loads_back_in_rhino3dm(real_run, real_rows, tmp_path):
@@ -149,10 +149,11 @@ def test_3dm_export_loads_back_in_rhino3dm(real_run, real_rows, tmp_path):
     meshes = [o.Geometry for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)]
     lines = [o for o in model.Objects if isinstance(o.Geometry, rhino3dm.LineCurve)]
     assert len(meshes) == 1
-    assert len(meshes[0].Vertices) == len(result.value.vertices)
-    assert len(meshes[0].Faces) == len(result.value.triangles())
+    assert len(meshes[0].Vertices) == len(result.value.mesh().points)
+    assert len(meshes[0].Faces) == len(result.value.mesh().triangles)
     assert len(lines) == len(result.value.edges)
-    assert [layer.Name for layer in model.Layers] == ["genr8 surface", "genr8 scaffold"]
+    assert [layer.Name for layer in model.Layers] == ["genr8 surface", "genr8 scaffold",
+                                                      "genr8 scaffold curves"]
     assert {o.Attributes.Name for o in model.Objects if isinstance(o.Geometry, rhino3dm.Mesh)} == {ident}
 
 

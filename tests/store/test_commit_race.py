@@ -42,8 +42,9 @@ def _committed_bytes(path: Path) -> dict[str, str]:
 
 
 def _on_disk(path: Path) -> set[str]:
+    """The run's own files (not the glob views' links: derived from manifests, store/views.py)."""
     return {str(p.relative_to(path)) for p in path.rglob("*")
-            if p.is_file() and p.parent.name != "_manifest"}
+            if p.is_file() and p.parent.name != "_manifest" and p.relative_to(path).parts[0] != "_views"}
 
 
 def _steps(path: Path, loser_op: Writer) -> int:

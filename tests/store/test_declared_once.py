@@ -57,8 +57,8 @@ def test_a_registered_criterion_is_scored_stored_shown_and_documented(tmp_path, 
         assert store.load_generation(0, 0)[0].criteria == evaluation.criteria
         # shown by top, under its heading, and rankable by it
         lines = _top_lines(run_dir, capsys)
-        assert lines[0].split()[-3:] == ["verts", "origin", "front"]
-        assert lines[1].split()[-3:] == [str(evaluation.sizes["vertices"]), "injected", "-"]
+        assert lines[0].split()[-4:] == ["verts", "origin", "front", "copies"]   # distinct forms
+        assert lines[1].split()[-4:-1] == [str(evaluation.sizes["vertices"]), "injected", "-"]
         assert "verts" in _top_lines(run_dir, capsys, "--criterion", "vertex_count")[0].split()
         # documented: the generated docs table has its row
         assert ("| `vertex_count` | the number of vertices `V` | `300.0` | `0.5` |"
@@ -98,7 +98,7 @@ def test_a_registered_column_is_stored_read_back_and_shown_by_top(tmp_path, caps
 
         top = history.top(store, 3)
         assert top.column_names[-1] == "novelty" and top["novelty"].to_pylist() == [3, 2, 1]
-        lines = _top_lines(run_dir, capsys)
+        lines = _top_lines(run_dir, capsys, "--all")   # the three rows share one form
         assert lines[0].split()[-3:] == ["origin", "front", "novel"]
         assert [line.split()[-1] for line in lines[1:]] == ["3", "2", "1"]
         # the synthetic writer fills a column it knows nothing about with the declared default (null)

@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -113,3 +114,40 @@ def test_a_request_too_large_is_refused(store):
         store.enqueue({"kind": "edit", "edit": {"inject_systems": [["big", "x" * (1 << 21)]]}})
     assert store.queued() == []
     assert json.loads(json.dumps(store.enqueue({"kind": "pause"}).request))["kind"] == "pause"
+
+
+@pytest.mark.parametrize("ending", ["finished", "failed"])
+def test_the_lock_file_goes_when_the_run_ends(store, ending):
+    """`hold_run_lock` wraps a run: finished or failed (an interrupt ends it the same way), the run
+    directory keeps no `_running.lock`."""
+    from genr8_dist.distributed.session import hold_run_lock
+
+    lock_file = Path(store.path) / "_running.lock"
+    try:
+        with hold_run_lock(store):
+            assert lock_file.exists() and store.running()["role"] == "run"
+            if ending == "failed":
+                raise RuntimeError("the run failed")
+    except RuntimeError:
+        pass
+    assert not lock_file.exists() and store.running() is None
+
+
+def test_a_lock_whose_file_its_holder_removed_is_taken_on_the_new_file(store):
+    """A command waiting while the holder lets go (and removes the file) holds the lock on the file
+    now at the path, so a third command is kept out, not let in on another file."""
+    first = store.lock("edit")
+    assert first.acquire()
+    waiter = RunStore.open(store.path).lock("edit", wait=5.0)
+    got: list[bool] = []
+    thread = threading.Thread(target=lambda: got.append(waiter.acquire()))
+    thread.start()
+    time.sleep(0.3)    # the waiter has opened the file and is retrying its flock
+    first.release()
+    thread.join()
+    lock_file = Path(store.path) / "_running.lock"
+    assert got == [True] and os.fstat(waiter._fd).st_ino == os.stat(lock_file).st_ino
+    with pytest.raises(StoreError, match="another command holds the run's lock"):
+        RunStore.open(store.path).lock("edit", wait=0.2).acquire()
+    waiter.release()
+    assert not lock_file.exists()

@@ -182,7 +182,7 @@ def test_an_old_snapshot_still_reads_after_its_files_were_compacted_away(tmp_pat
     for g in range(4, 4 + KEEP_MANIFESTS):
         store.commit(epoch(range(g, g + 1)))
     store.collect_garbage()
-    names = [p.name for p in (Path(store.path) / "individuals").iterdir()]
+    names = [p.name for p in (Path(store.path) / "_files" / "individuals").iterdir()]
     assert not [n for n in names if n.startswith("part-0000000002")]
     assert reader.load_generation(0, 1) == generation(0, 1)
     assert reader.individuals().num_rows == (4 + KEEP_MANIFESTS) * 10
@@ -292,12 +292,13 @@ def test_a_crash_between_data_and_manifest_leaves_nothing(
     with pytest.raises(OSError, match="power cut"):
         store.commit(epoch(range(2, 4)), [Event("migration", 3)])
     monkeypatch.undo()
-    data_files = os.listdir(Path(store.path) / "individuals")
+    data_files = os.listdir(Path(store.path) / "_files" / "individuals")
     assert len(data_files) == 1  # the failed commit removed the files it wrote, and only those
-    assert os.listdir(Path(store.path) / "events") == []
+    assert os.listdir(Path(store.path) / "_files" / "events") == []
     # a crash (no chance to clean) leaves its files: not part of the run, removed by the next writer
-    (Path(store.path) / "events" / "events-0000000003-0123456789abcdef.parquet").write_bytes(b"half")
-    (Path(store.path) / "events" / ".tmp-events-0000000003-999999999-01234567").write_bytes(b"half")
+    events = Path(store.path) / "_files" / "events"
+    (events / "events-0000000003-0123456789abcdef.parquet").write_bytes(b"half")
+    (events / ".tmp-events-0000000003-999999999-01234567").write_bytes(b"half")
     reopened = RunStore.open(store.path)
     assert reopened.committed_generations() == {0: 1, 1: 1}
     assert reopened.individuals().num_rows == 20
@@ -306,7 +307,7 @@ def test_a_crash_between_data_and_manifest_leaves_nothing(
     reopened.commit(epoch(range(2, 4)))
     assert reopened.individuals().num_rows == 40
     assert reopened.collect_garbage() == 2  # the orphaned events file and the dead writer's temporary
-    assert len(os.listdir(Path(store.path) / "events")) == 0
+    assert len(os.listdir(Path(store.path) / "_files" / "events")) == 0
 
 
 CHILD = textwrap.dedent("""
@@ -363,7 +364,7 @@ def test_a_truncated_file_is_named_and_repair_keeps_every_later_commit(store: Ru
     store.commit(epoch(range(3)), [Event("migration", 2)])
     store.commit(epoch(range(3, 6)), [Event("migration", 5)])
     store.commit(epoch(range(6, 9)), [Event("migration", 8)])
-    victim = named(Path(store.path) / "individuals", "part-0000000003")
+    victim = named(Path(store.path) / "_files" / "individuals", "part-0000000003")
     victim.write_bytes(victim.read_bytes()[:-100])
     reopened = RunStore.open(store.path)
     problems = reopened.verify()
@@ -373,7 +374,7 @@ def test_a_truncated_file_is_named_and_repair_keeps_every_later_commit(store: Ru
             read()
     assert reopened.repair() == problems
     assert reopened.last_repair == (
-        f"dropped individuals/{victim.name} (30 individuals: islands 0-1, generations 3..5)")
+        f"dropped _files/individuals/{victim.name} (30 individuals: islands 0-1, generations 3..5)")
     assert reopened.verify() == []
     assert reopened.committed_generations() == {0: 8, 1: 8}  # commit 4 (generations 6..8) is kept
     gens = sorted(set(reopened.individuals(columns=["generation"]).column(0).to_pylist()))
@@ -381,7 +382,7 @@ def test_a_truncated_file_is_named_and_repair_keeps_every_later_commit(store: Ru
     events = reopened.events()
     assert events.column("kind").to_pylist() == ["migration", "migration", "migration", "recovery"]
     assert victim.name in events.column("detail")[3].as_py()
-    assert "dropped individuals/" in events.column("detail")[3].as_py()
+    assert "dropped _files/individuals/" in events.column("detail")[3].as_py()
     # the run goes on after its last generation
     reopened.commit(epoch(range(9, 10)))
     assert RunStore.open(store.path).committed_generations() == {0: 9, 1: 9}
@@ -392,7 +393,7 @@ def test_repair_of_the_newest_commit_drops_it_with_its_events(store: RunStore) -
     store.commit(epoch(range(3)), [Event("migration", 2)])
     store.commit(epoch(range(3, 6)), [Event("migration", 5)])
     store.add_config(CONFIG + "x = 1\n", 6, events=[Event("intervention", 6)])
-    named(Path(store.path) / "individuals", "part-0000000003").unlink()
+    named(Path(store.path) / "_files" / "individuals", "part-0000000003").unlink()
     assert store.repair()
     assert store.committed_generations() == {0: 2, 1: 2}
     assert [c.version for c in store.configs()] == [1, 2]  # the later edit is kept
@@ -419,7 +420,7 @@ def test_a_damaged_configuration_is_restored_from_the_manifest(store: RunStore) 
 def test_a_flipped_byte_is_detected_by_its_checksum(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
-    victim = named(Path(store.path) / "individuals", "part-0000000003")
+    victim = named(Path(store.path) / "_files" / "individuals", "part-0000000003")
     data = bytearray(victim.read_bytes())
     data[len(data) // 2] ^= 0xFF
     victim.write_bytes(bytes(data))
@@ -446,7 +447,7 @@ def test_a_dataset_of_some_generations_checks_only_the_files_it_reads(store: Run
 def test_a_missing_individuals_file_is_named_by_every_reader(store: RunStore) -> None:
     store.commit(epoch(range(2)))
     store.commit(epoch(range(2, 4)))
-    victim = named(Path(store.path) / "individuals", "part-0000000003")
+    victim = named(Path(store.path) / "_files" / "individuals", "part-0000000003")
     victim.unlink()
     for read in (store.dataset, store.individuals, lambda: store.load_generation(1, 3)):
         with pytest.raises(StoreError, match=r"part-0000000003-[0-9a-f]+\.parquet: missing \(the manifest"):
@@ -458,7 +459,7 @@ def test_a_missing_events_file_is_dropped_alone(store: RunStore) -> None:
     store.record_event("start", generation=0)
     store.commit(epoch(range(2)), [Event("migration", 1)])
     store.commit(epoch(range(2, 4)), [Event("migration", 3)])
-    named(Path(store.path) / "events", "events-0000000002").unlink()
+    named(Path(store.path) / "_files" / "events", "events-0000000002").unlink()
     with pytest.raises(StoreError, match=r"events-0000000002-[0-9a-f]+.parquet: missing"):
         store.events()
     store.repair()
@@ -574,7 +575,7 @@ def test_commits_compact_by_themselves_and_old_files_go(tmp_path: Path) -> None:
         store.commit(epoch(range(g, g + 1)))
     assert len(store.individual_files()) < 4
     assert len(os.listdir(Path(store.path) / "_manifest")) <= KEEP_MANIFESTS + 1  # and HEAD
-    on_disk = len(os.listdir(Path(store.path) / "individuals"))
+    on_disk = len(os.listdir(Path(store.path) / "_files" / "individuals"))
     assert on_disk <= len(store.individual_files()) + 4 * 4
     assert store.individuals().num_rows == 3 * KEEP_MANIFESTS * 10
 
@@ -663,7 +664,65 @@ def test_a_full_disk_names_the_file_and_leaves_the_run_whole(
         store.commit(epoch(range(2, 4)))
     monkeypatch.setattr(os, "write", real_write)
     assert caught.value.errno == errno.ENOSPC
-    assert caught.value.filename.startswith(str(Path(store.path) / "individuals" / "part-0000000003-"))
+    part = Path(store.path) / "_files" / "individuals" / "part-0000000003-"
+    assert caught.value.filename.startswith(str(part))
     assert RunStore.open(store.path).verify() == []
     assert RunStore.open(store.path).committed_generations() == {0: 1, 1: 1}
     assert not [p for p in Path(store.path).rglob("*") if p.name.startswith((".tmp-", "part-0000000003"))]
+
+
+def test_garbage_collection_sets_users_files_aside_and_deletes_only_its_own(store: RunStore) -> None:
+    store.commit(epoch(range(2)))
+    root = Path(store.path)
+    (root / "configs" / "notes.txt").write_text("my notes")
+    (root / "individuals" / "mine.parquet").write_bytes(b"a user's table")
+    orphan = root / "individuals" / "part-0000000009-0123456789abcdef.parquet"
+    orphan.write_bytes(b"a crashed writer's part")
+    reopened = RunStore.open(store.path)
+    assert reopened.collect_garbage() == 1          # the orphan, the store's own name
+    assert not orphan.exists()
+    assert sorted(reopened.set_aside) == [("configs/notes.txt", "_foreign/configs/notes.txt"),
+                                          ("individuals/mine.parquet", "_foreign/individuals/mine.parquet")]
+    assert (root / "_foreign" / "configs" / "notes.txt").read_text() == "my notes"
+    assert (root / "_foreign" / "individuals" / "mine.parquet").read_bytes() == b"a user's table"
+    assert not (root / "configs" / "notes.txt").exists()
+    (root / "configs" / "notes.txt").write_text("again")        # a second one keeps the first
+    again = RunStore.open(store.path)
+    again.collect_garbage()
+    assert again.set_aside == [("configs/notes.txt", "_foreign/configs/notes.txt.1")]
+    assert again.verify() == [] and again.individuals().num_rows == 20
+    from genr8_dist.store.foreign import describe
+
+    assert describe(again.set_aside, "runs/r") == ("runs/r: set aside 1 file(s) the run did not write "
+                                                   "(configs/notes.txt) in runs/r/_foreign/")
+
+
+def test_verify_reports_a_deleted_older_manifest_and_repair_mends_it(store: RunStore) -> None:
+    for g in range(4):
+        store.commit(epoch(range(g, g + 1)))
+    root = Path(store.path) / "_manifest"
+    newest = RunStore.open(store.path).version
+    (root / f"{newest - 2:010d}.json").unlink()
+    reopened = RunStore.open(store.path)
+    assert reopened.version == newest
+    assert reopened.verify() == [f"{reopened._fs.show(f'_manifest/{newest - 2:010d}.json')}: an older "
+                                 "manifest is missing (deleted by hand?); repair drops the snapshots older "
+                                 "than it"]
+    rows = reopened.individuals().num_rows
+    reopened.repair()
+    assert reopened.verify() == [] and reopened.individuals().num_rows == rows
+
+
+@pytest.mark.parametrize("head", [b"", b"1", b"12", b"x\n"])
+def test_verify_reports_a_truncated_head_even_when_it_still_reads_as_a_number(store: RunStore, head) -> None:
+    for g in range(3):
+        store.commit(epoch(range(g, g + 1)))
+    path = Path(store.path) / "_manifest" / "HEAD"
+    assert path.read_bytes() == f"{store.version}\n".encode()
+    path.write_bytes(head)
+    reopened = RunStore.open(store.path)
+    problems = reopened.verify()
+    assert any(p.endswith("_manifest/HEAD: damaged (it should hold the newest commit's number)")
+               for p in problems), problems
+    reopened.repair()
+    assert reopened.verify() == []

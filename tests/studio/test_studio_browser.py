@@ -8,6 +8,7 @@ temporary folder)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -215,3 +216,111 @@ def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path)
     _genr8("edit", str(replay), "--hand-fitness", f"{scored}=0")
     _genr8("resume", str(replay), "--cpus", "2", "--quiet")
     assert _rows(replay) == got
+
+
+@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
+                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
+def test_the_studio_streams_generations_before_their_commit(tmp_path):
+    """A run of one long epoch (nothing committed until its end): the page never says generation -1;
+    within its first seconds it shows the founders and then each generation the islands complete,
+    drawn in 3D and marked "not yet committed", a design of it selectable; after the commit the same
+    generation is shown as durable."""
+    pytest.importorskip("selenium")
+    pytest.importorskip("PIL")
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    from genr8_dist.store import RunStore
+
+    shots = Path(os.environ.get("GENR8_STUDIO_SHOTS") or tmp_path)
+    shots.mkdir(parents=True, exist_ok=True)
+    last = 16
+    config = tmp_path / "run.toml"
+    config.write_text(CONFIG.format(generations=last).replace("migration_interval = 2",
+                                                               f"migration_interval = {last}"))
+    live = tmp_path / "live"
+    started = time.monotonic()
+    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(config),
+                             "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
+    reader.start()
+    driver = None
+    labels: list[str] = []
+    try:
+        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
+                                                    if ln.startswith("studio: http")), None), 120)
+        driver = _browser()
+        driver.get(url)
+        body = driver.find_element(By.TAG_NAME, "body")
+
+        def data(name):
+            return body.get_attribute(f"data-{name}")
+
+        def live_generation_drawn():
+            labels.append(driver.find_element(By.ID, "gen-label").text)
+            return data("durable") == "false" and int(data("surfaces") or 0) >= 1
+
+        _wait("a generation shown before its commit", live_generation_drawn, 180)
+        assert RunStore.open(live).committed_generations() == {}, "the epoch committed before the test looked"
+        time.sleep(1.0)
+        assert _canvas_is_drawn(driver, shots / "studio-first-seconds.png") > 50
+        seconds = time.monotonic() - started
+        assert "not yet committed" in driver.find_element(By.ID, "gen-view").text
+        assert not any("-1" in label for label in labels)
+        assert any("founders" in label or "committed none yet" in label for label in labels)
+        first = next(r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+                     if "invalid" not in (r.get_attribute("class") or ""))
+        ident = first.get_attribute("data-id")
+        first.click()
+        _wait("the design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
+        assert "not yet committed" in driver.find_element(By.ID, "d-origin").text
+
+        # parallel coordinates: a line per valid design; a brush along the fitness axis keeps the
+        # designs in its range, in the list and in 3D
+        driver.find_element(By.ID, "follow").click()          # hold this generation while brushing
+        _wait("every island's part of it", lambda: "2 islands" in driver.find_element(By.ID, "gen-view").text
+              or data("durable") == "true", 120)
+        time.sleep(1.5)
+        lines_drawn = driver.find_elements(By.CSS_SELECTOR, "#pc path.design")
+        valid = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
+        assert len(lines_drawn) == len(valid) >= 4
+        axis = driver.find_element(By.CSS_SELECTOR, '#pc g[data-axis="fitness"] rect.hit')
+        height = axis.size["height"]
+        ActionChains(driver).move_to_element_with_offset(axis, 0, int(height * 0.5) - 6).click_and_hold() \
+            .move_by_offset(0, -int(height * 0.35)).pause(0.2).release().perform()
+        _wait("the brush to apply", lambda: 0 < int(data("brushed") or 0) < len(valid), 20)
+        brushed = int(data("brushed"))
+        _wait("the brushed designs in 3D", lambda: 1 <= int(data("surfaces") or 0) <= brushed, 60)
+        listed = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
+        assert len(listed) == brushed
+        assert len(driver.find_elements(By.CSS_SELECTOR, "#pc path.design.out")) == len(valid) - brushed
+        time.sleep(1.0)
+        driver.save_screenshot(str(shots / "studio-parallel-coordinates.png"))
+        driver.find_element(By.ID, "pc-clear").click()
+        _wait("the brush cleared", lambda: int(data("brushed") or 0) == len(valid), 20)
+        driver.find_element(By.ID, "follow").click()
+        shown = [int(data("generation"))]
+        _wait("a later generation, still before the commit", lambda: shown.append(int(data("generation")))
+              or shown[-1] > shown[0] or RunStore.open(live).committed_generations(), 240)
+        _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
+              300)
+        _wait("the last generation, durable", lambda: data("generation") == str(last)
+              and data("durable") == "true", 60)
+        _wait("the studio to stay open", lambda: any("the studio stays open" in ln for ln in lines), 60)
+    finally:
+        if driver is not None:
+            driver.quit()
+        for _ in range(3):   # the first stops the run, the next closes the studio
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGTERM)
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    proc.wait(30)
+        if proc.poll() is None:
+            proc.kill()
+        rc = proc.wait(60)
+    assert rc == 0, "".join(lines[-20:])
+    assert not (live / "live").exists() and not (live / "_running.lock").exists()
+    print(f"first live generation drawn {seconds:.0f} s after `genr8 run` started; generations seen "
+          f"before the commit: {sorted(set(shown))}")

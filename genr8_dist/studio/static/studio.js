@@ -53,9 +53,12 @@ function showState(s) {
   $("run-id").textContent = s.run_id;
   const pill = $("status"); pill.textContent = s.status; pill.className = "pill " + s.status;
   const g = Math.max(s.generation, 0);
-  $("gen-label").innerHTML = `generation <b>${s.generation}</b> of ${s.last_generation}` +
-    ` · ${s.islands.length} island${s.islands.length > 1 ? "s" : ""} × ${s.population}`;
-  $("gen-bar").style.width = `${Math.min(100, 100 * (s.generation + 1) / (s.last_generation + 1))}%`;
+  const done = s.completed ?? s.generation, founders = s.islands.filter((i) => (i.completed ?? i.generation) >= 0).length;
+  const where = done < 0 ? `evaluating the founders · <b>${founders}</b> of ${s.islands.length} islands done` :
+    `generation <b>${done}</b> of ${s.last_generation}` +
+    (done > s.generation ? ` <span class="live" title="completed by every island; committed up to ${s.generation}">· committed ${s.generation < 0 ? "none yet" : "to " + s.generation}</span>` : "");
+  $("gen-label").innerHTML = where + ` · ${s.islands.length} island${s.islands.length > 1 ? "s" : ""} × ${s.population}`;
+  $("gen-bar").style.width = `${Math.min(100, 100 * (Math.max(done, 0) + (done < 0 ? founders / s.islands.length : 1)) / (s.last_generation + 1))}%`;
   $("rate").textContent = s.individuals_per_second ? s.individuals_per_second.toFixed(1) : "–";
   $("left").textContent = s.status === "complete" ? "done" : fmtTime(s.seconds_left);
   const bests = s.islands.map((i) => i.best).filter((b) => b !== null);
@@ -64,7 +67,7 @@ function showState(s) {
   pause.disabled = !(s.status === "running" || s.status === "paused");
   pause.textContent = s.status === "paused" ? "Continue" : "Pause";
   $("islands").innerHTML = s.islands.map((i) =>
-    `<div class="chip"><i style="background:${islandColour(i.island)}"></i>i${i.island} · g${i.generation} · ${fmt(i.best, 3)}</div>`).join("");
+    `<div class="chip${(i.completed ?? i.generation) > i.generation ? " live" : ""}" title="${(i.completed ?? i.generation) > i.generation ? "completed, not yet committed" : "committed"}"><i style="background:${islandColour(i.island)}"></i>i${i.island} · g${Math.max(i.completed ?? i.generation, i.generation)}${(i.completed ?? i.generation) > i.generation ? "*" : ""} · ${fmt(i.best, 3)}</div>`).join("");
   const filter = $("island-filter");
   if (filter.options.length !== s.islands.length + 1) {
     filter.innerHTML = `<option value="">all</option>` + s.islands.map((i) => `<option value="${i.island}">${i.island}</option>`).join("");
@@ -79,9 +82,9 @@ function showState(s) {
 const escapeHTML = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
 
 // ------------------------------------------------------------------------------------------- charts
-const SVG = "http://www.w3.org/2000/svg";
+const SVGNS = "http://www.w3.org/2000/svg";
 function el(name, attrs, parent) {
-  const e = document.createElementNS(SVG, name);
+  const e = document.createElementNS(SVGNS, name);
   for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
   if (parent) parent.appendChild(e);
   return e;
@@ -336,7 +339,7 @@ async function showDesigns(ids, generationRows) {
               polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 });
             o.userData.id = id;
           } else if (o.isLine || o.isLineSegments) {
-            o.material = new THREE.LineBasicMaterial({ color: 0x0e1116, transparent: true, opacity: 0.45 });
+            o.material = new THREE.LineBasicMaterial({ color: 0x0e1116, transparent: true, opacity: 0.6 });  // the scaffold: B-spline curves of the region outlines
           }
         });
         const box = new THREE.Box3().setFromObject(object);
@@ -417,19 +420,23 @@ async function drawArchive(g) {
 async function loadGeneration(g) {
   const data = await getJSON(`/api/generation?g=${g}`);
   ui.generation = data; ui.viewGen = data.generation;
-  $("gen-view").textContent = `generation ${data.generation}`;
+  $("gen-view").innerHTML = `generation ${data.generation}` + (data.durable === false ?
+    ` <span class="live" title="what the islands have completed; shown before its commit">· ${data.islands.length} island${data.islands.length === 1 ? "" : "s"}, not yet committed</span>` : "");
   document.body.dataset.generation = String(data.generation);
+  document.body.dataset.durable = String(data.durable !== false);
   const island = $("island-filter").value;
   const rows = data.individuals.filter((r) => island === "" || String(r.island) === island);
-  $("gen-list").innerHTML = rows.slice(0, 80).map((r) =>
+  $("gen-list").innerHTML = rows.filter((r) => !ui.brushes.size || brushed(r)).slice(0, 80).map((r) =>
     `<div data-id="${r.id}" class="${r.valid ? "" : "invalid"}${r.id === ui.selected ? " selected" : ""}">` +
     `<b><i style="color:${islandColour(r.island)}">■</i> ${r.id}${r.pareto ? ' <em title="on the Pareto front">◆</em>' : ""}</b>` +
     `<span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
   const version = rows.length ? rows[0].config_version : null;
   if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
+  ui.pcRows = rows; drawPC();
+  const pool = ui.brushes.size ? rows.filter(brushed) : rows;   // a brush on the criteria chooses the designs
   const choice = $("count").value;
-  let shown = choice === "pareto" ? rows.filter((r) => r.pareto).slice(0, 36) :
-    rows.filter((r) => r.valid).slice(0, choice === "kinds" ? 12 : Number(choice));
+  let shown = choice === "pareto" ? pool.filter((r) => r.pareto).slice(0, 36) :
+    pool.filter((r) => r.valid).slice(0, choice === "kinds" ? 12 : Number(choice));
   ui.kinds = null;
   if (choice === "kinds") {
     const kinds = await loadKinds(data.generation, island);
@@ -464,17 +471,100 @@ async function loadKinds(g, island) {
 $("kinds-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-list").addEventListener("click", (e) => { const row = e.target.closest("[data-id]"); if (row) select(row.dataset.id); });
 $("gen-prev").onclick = () => { $("follow").checked = ui.follow = false; if (ui.viewGen > 0) loadGeneration(ui.viewGen - 1); };
-$("gen-next").onclick = () => { if (ui.state && ui.viewGen < ui.state.generation) loadGeneration(ui.viewGen + 1); };
-$("follow").onchange = (e) => { ui.follow = e.target.checked; if (ui.follow && ui.state) loadGeneration(ui.state.generation); };
+$("gen-next").onclick = () => { if (ui.state && ui.viewGen < Math.max(ui.state.generation, ui.state.completed ?? -1)) loadGeneration(ui.viewGen + 1); };
+$("follow").onchange = (e) => { ui.follow = e.target.checked; if (ui.follow && ui.state) loadGeneration(Math.max(ui.state.completed ?? ui.state.generation, ui.state.generation)); };
 $("count").onchange = () => loadGeneration(ui.viewGen);
 $("island-filter").onchange = () => loadGeneration(ui.viewGen);
 $("show-env").onchange = () => loadGeneration(ui.viewGen);
 $("focus").onclick = () => { const d = ui.designs.get(ui.selected); if (d) { d.holder.updateMatrixWorld(true); frame(new THREE.Box3().setFromObject(d.object)); } };
 $("overview").onclick = frameAll;
 
+// ------------------------------------------------------------------------- parallel coordinates
+// Wallacei's view: every valid design of the generation as a line across its fitness and weighted
+// criteria (raw values; the target marked on each axis). Dragging along an axis brushes a range; the
+// designs inside every brush are the ones listed and shown in 3D. Click a line to select its design.
+ui.brushes = new Map();
+function pcAxes() {
+  const crits = (ui.state ? ui.state.criteria : []).filter((c) => c.weight);
+  return [{ key: "fitness", label: "fitness", get: (r) => r.fitness, target: null },
+    ...crits.map((c) => ({ key: c.name, label: c.name.replace("_", " "), get: (r) => (r.criteria || {})[c.name] ?? null, target: c.target }))];
+}
+function brushed(r) {
+  for (const [key, [lo, hi]] of ui.brushes) {
+    const axis = (ui.pcAxes || pcAxes()).find((a) => a.key === key);
+    const v = axis ? axis.get(r) : null;
+    if (v === null || v === undefined || !Number.isFinite(v) || v < lo || v > hi) return false;
+  }
+  return true;
+}
+function drawPC() {
+  const svg = $("pc"), panel = $("pc-panel");
+  panel.classList.toggle("hidden", !$("show-pc").checked);
+  svg.innerHTML = "";
+  const rows = (ui.pcRows || []).filter((r) => r.valid);
+  const W = svg.clientWidth || 800, H = svg.clientHeight || 196, top = 22, bottom = H - 16;
+  const axes = pcAxes(); ui.pcAxes = axes;
+  const xs = axes.map((_, i) => 60 + i * (W - 120) / Math.max(1, axes.length - 1));
+  const scales = axes.map((a) => {
+    const vs = rows.map(a.get).filter((v) => v !== null && Number.isFinite(v));
+    if (a.target !== null && a.target !== undefined) vs.push(a.target);
+    let lo = Math.min(...vs), hi = Math.max(...vs);
+    if (!vs.length) { lo = 0; hi = 1; }
+    if (hi - lo < 1e-12) { lo -= 0.5; hi += 0.5; }
+    return { lo, hi, y: (v) => bottom - (v - lo) / (hi - lo) * (bottom - top), v: (y) => lo + (bottom - y) / (bottom - top) * (hi - lo) };
+  });
+  let inside = 0;
+  const lines = el("g", {}, svg);
+  rows.forEach((r, rank) => {
+    const pts = axes.map((a, i) => { const v = a.get(r); return v === null || !Number.isFinite(v) ? null : [xs[i], scales[i].y(v)]; });
+    const d = pts.map((p, i) => p ? `${i && pts[i - 1] ? "L" : "M"}${p[0].toFixed(1)},${p[1].toFixed(1)}` : "").join("");
+    const ok = !ui.brushes.size || brushed(r);
+    inside += ok ? 1 : 0;
+    const path = el("path", { d, class: `design${ok ? "" : " out"}${r.id === ui.selected ? " selected" : ""}`,
+      stroke: rankColour(rows.length > 1 ? rank / (rows.length - 1) : 0).getStyle(), "data-id": r.id }, lines);
+    el("title", {}, path).textContent = `${r.id} · fitness ${fmt(r.fitness, 4)}`;
+    path.addEventListener("click", () => select(r.id));
+  });
+  axes.forEach((a, i) => {
+    const g = el("g", { class: "axis", "data-axis": a.key }, svg), sc = scales[i], x = xs[i];
+    el("line", { x1: x, x2: x, y1: top, y2: bottom }, g);
+    el("text", { x, y: 12, "text-anchor": "middle" }, g).textContent = a.label;
+    el("text", { x: x + 4, y: top + 4, class: "tick" }, g).textContent = fmt(sc.hi, 3);
+    el("text", { x: x + 4, y: bottom, class: "tick" }, g).textContent = fmt(sc.lo, 3);
+    if (a.target !== null && a.target !== undefined) {
+      const ty = sc.y(a.target);
+      el("line", { x1: x - 7, x2: x + 7, y1: ty, y2: ty, class: "target" }, g);
+    }
+    const b = ui.brushes.get(a.key);
+    if (b) el("rect", { x: x - 8, width: 16, y: sc.y(b[1]), height: Math.max(2, sc.y(b[0]) - sc.y(b[1])), class: "brush" }, g);
+    const hit = el("rect", { x: x - 14, width: 28, y: top - 4, height: bottom - top + 8, class: "hit" }, g);
+    hit.addEventListener("mousedown", (ev) => {
+      ev.preventDefault();
+      const box = svg.getBoundingClientRect(), y0 = ev.clientY - box.top;
+      let moved = false;
+      const move = (e) => {
+        const y1 = Math.max(top, Math.min(bottom, e.clientY - box.top)); moved = true;
+        ui.brushes.set(a.key, [Math.min(sc.v(y0), sc.v(y1)), Math.max(sc.v(y0), sc.v(y1))]); drawPC();
+      };
+      const up = () => {
+        window.removeEventListener("mousemove", move); window.removeEventListener("mouseup", up);
+        if (!moved) ui.brushes.delete(a.key);   // a click on an axis clears its brush
+        loadGeneration(ui.viewGen);
+      };
+      window.addEventListener("mousemove", move); window.addEventListener("mouseup", up);
+    });
+  });
+  $("pc-count").textContent = ui.brushes.size ? `${inside} of ${rows.length} designs brushed` : `${rows.length} designs`;
+  document.body.dataset.brushed = String(ui.brushes.size ? inside : rows.length);
+}
+$("show-pc").onchange = drawPC;
+$("pc-clear").onclick = () => { ui.brushes.clear(); loadGeneration(ui.viewGen); };
+window.addEventListener("resize", drawPC);
+
 // ------------------------------------------------------------------------------------------ design
 async function select(id) {
   ui.selected = id;
+  document.querySelectorAll("#pc path.design").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   document.querySelectorAll("#gen-list [data-id], #kinds-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   highlight();
   let d;
@@ -485,7 +575,8 @@ async function select(id) {
   $("d-fitness").textContent = fmt(d.fitness, 4);
   const parents = d.parents.length ? ` of ${d.parents.join(" × ")}` : "";
   $("d-origin").textContent = `island ${d.island} · generation ${d.generation} · ${d.origin}${parents} · config v${d.config_version}` +
-    (d.hand_fitness.length ? ` · hand fitness ${d.hand_fitness.map((h) => fmt(h.fitness, 3)).join(", ")}` : "");
+    (d.hand_fitness.length ? ` · hand fitness ${d.hand_fitness.map((h) => fmt(h.fitness, 3)).join(", ")}` : "") +
+    (d.durable === false ? " · not yet committed" : "");
   $("hand-value").value = d.fitness !== null ? Number(d.fitness).toPrecision(4) : "";
   const maxDev = Math.max(1e-9, ...d.criteria.map((c) => c.weight && c.value !== null && c.target !== null ? c.weight * Math.abs(c.value - c.target) : 0));
   $("d-criteria").innerHTML = `<tr><th>criterion</th><th style="text-align:right">value</th><th style="text-align:right">target</th><th style="text-align:right">weight</th><th></th></tr>` +
@@ -554,12 +645,19 @@ async function poll() {
     const s = await getJSON("/api/state");
     ui.state = s;
     showState(s);
-    if (s.version !== ui.version) {
+    // the newest generation every island completed (before its commit), else the founders so far
+    const target = (s.completed ?? s.generation) >= 0 ? (s.completed ?? s.generation) : ((s.live && s.live.generations.includes(0)) ? 0 : -1);
+    const reached = (g) => s.islands.filter((i) => Math.max(i.completed ?? -1, i.generation) >= g).length;
+    const stale = ui.generation && ui.generation.durable === false &&
+      (s.version !== ui.version || (ui.generation.islands || []).length < reached(ui.viewGen));
+    if (target >= 0 && (ui.viewGen < 0 || (ui.follow && target !== ui.viewGen))) loadGeneration(target);
+    else if (stale) loadGeneration(ui.viewGen);
+    const liveCurves = (s.completed ?? -1) > (curves ? curves.last : -1);
+    if (s.version !== ui.version || liveCurves) {
       ui.version = s.version;
       // the generation's designs first (a few files), the curves apart (the whole run, once)
-      if (s.generation >= 0 && (ui.viewGen < 0 || (ui.follow && s.generation !== ui.viewGen))) loadGeneration(s.generation);
       const asked = s.version;
-      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last) { curves = c; drawCurves(); } })
+      getJSON("/api/curves").then((c) => { if (!curves || c.last >= curves.last || c.live < curves.live) { curves = c; drawCurves(); } })
         .catch(() => { if (ui.version === asked) ui.version = -1; });   // asked again at the next poll
     }
   } catch (e) {

@@ -1,0 +1,413 @@
+"""Meshing: the triangle mesh a surface map is exported, drawn and shown as, by version.
+
+A surface map's regions are polygons (journal Definition 3), often non-convex, nearly planar but bent
+by the environment, their straight sides carrying runs of collinear vertices. What a designer gets
+(``genr8 grow -o``, ``genr8 show -o``, the pictures, the studio) is a triangle mesh of them, and how
+it is cut is versioned, so that a run regrows its surfaces as it stored them:
+
+- **meshing 1** (runs created before meshing was recorded): each region of ``m`` vertices cut into
+  ``m - 2`` triangles on its own vertices (``Surface.triangles``; ``surface.triangulate_polygons``).
+  Long thin regions and regions whose sides carry runs of vertices become fans of slivers.
+- **meshing 2** (new runs, ``MESHING``): each region triangulated into well-shaped triangles with
+  added points. Every map edge is first split into equal pieces no longer than the thinner of the two
+  regions beside it is wide (``_SPACING`` x twice its area over its perimeter; at most ``_MAX_SPLIT``
+  pieces), so the two regions share the same points on it and the mesh stays watertight. Each region
+  is then mapped to 2D in its best-fit plane (orthogonal projection onto the plane through its
+  centroid normal to its Newell normal) and meshed there by Shewchuk's Triangle (the ``triangle``
+  package): the constrained Delaunay triangulation of its sides, refined with points inside it until
+  no angle is below ``_MIN_ANGLE`` degrees (Ruppert's refinement, no points added on its sides: they
+  are the shared ones). Each added point is lifted back to 3D by linear (barycentric) interpolation
+  over the region's meshing-1 triangles projected into the same plane, so the mesh lies on the
+  surface meshing 1 gave. A region that is not a simple polygon in that plane (it folds over or
+  touches itself, has a side of no length, or no area), or whose added points fall outside its
+  meshing-1 triangles, is cut as meshing 1 cuts it, with the shared points on its sides.
+
+Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
+predicates and a fixed seed; everything else is numpy in a fixed order).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from genr8_dist.errors import ConfigError
+
+__all__ = ["MESHING", "MESHINGS", "Mesh", "check_meshing", "mesh_surface", "region_roundness"]
+
+MESHINGS = (1, 2)   # every meshing version a surface can be cut with
+MESHING = 2         # what new runs (and surfaces grown outside a run) use
+
+_MIN_ANGLE = 28.0   # Triangle's quality bound (degrees) inside each region
+_SPACING = 2.0      # edge pieces at most this x the thinner neighbouring region's width (2 area/perimeter)
+_MAX_SPLIT = 64     # pieces one map edge is split into, at most
+_STEINER = 8         # points Triangle may add to a region: this x its ring's points ...
+_STEINER_FLOOR = 256 # ... plus this many (a bound on the mesh's size where a region has tiny features)
+_FREE_PASSES = 1     # passes in which Triangle may split the sides (their points then shared)
+_SIMPLE_MAX = 4000  # regions of more vertices than this are cut as meshing 1 cuts them
+_TOL = 1e-9         # tolerance of orientation tests in a region's plane, scaled to unit extent
+_CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
+
+
+class Mesh(NamedTuple):
+    """A surface's triangle mesh: ``points`` (P, 3), the surface's vertices first (point i is vertex
+    i for i < V) then the points meshing added; ``triangles`` (T, 3) indices into ``points``, each
+    oriented like its region; ``regions`` (T,) the region each triangle covers, region after region;
+    ``fallback`` the regions cut on their ring alone (no point inside), as meshing 1 cuts them."""
+
+    points: np.ndarray
+    triangles: np.ndarray
+    regions: np.ndarray
+    fallback: np.ndarray   # the regions cut as meshing 1 cuts them (every region under meshing 1)
+
+
+def check_meshing(value: Any, where: str = "meshing") -> int:
+    """``value`` as a meshing version, or a ``ConfigError`` naming ``where`` and the versions."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) not in MESHINGS:
+        raise ConfigError(f"{where}: unknown meshing {value!r}; use one of "
+                          f"{', '.join(map(str, MESHINGS))}")
+    return int(value)
+
+
+def _frozen(a: np.ndarray, dtype: Any) -> np.ndarray:
+    out = np.ascontiguousarray(a, dtype=dtype)
+    out.setflags(write=False)
+    return out
+
+
+def mesh_surface(surface: Any, meshing: int = MESHING, *,
+                 cut: Callable[..., np.ndarray] | None = None) -> Mesh:
+    """The triangle mesh of ``surface``'s regions under ``meshing`` (see the module docstring); ``cut``
+    is meshing 1's cut of polygons (``surface.triangulate_polygons``, passed by ``Surface.mesh``)."""
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    offsets = np.asarray(surface.region_offsets, dtype=np.int64)
+    cycles = np.asarray(surface.region_vertices, dtype=np.int64)
+    coarse = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
+    sizes = np.diff(offsets)
+    owners = np.repeat(np.arange(len(sizes)), np.maximum(sizes - 2, 0))
+    if check_meshing(meshing) == 1 or not len(coarse):
+        return Mesh(_frozen(vertices, np.float64), _frozen(coarse, np.int64), _frozen(owners, np.int64),
+                    _frozen(np.arange(len(sizes)), np.int64))
+    if cut is None:
+        raise ValueError("mesh_surface: meshing 2 needs meshing 1's cut (Surface.mesh passes it)")
+    points, triangles, regions, fallback = _refine(vertices, offsets, cycles, coarse, owners, cut)
+    return Mesh(_frozen(points, np.float64), _frozen(triangles, np.int64), _frozen(regions, np.int64),
+                _frozen(fallback, np.int64))
+
+
+def _region_geometry(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per region: centroid (F, 3), Newell vector (F, 3: twice the vector area), perimeter (F,); per
+    side (in ``cycles`` order): the region it bounds and its end vertex."""
+    sizes = np.diff(offsets)
+    n_regions = len(sizes)
+    region_of = np.repeat(np.arange(n_regions), sizes)
+    idx = np.arange(len(cycles))
+    last = offsets[1:] - 1
+    ends = np.where(idx == last[region_of], offsets[:-1][region_of], idx + 1) if len(cycles) else idx
+    nxt = cycles[ends]
+    pos = vertices[cycles]
+    count = np.maximum(sizes, 1).astype(np.float64)
+    centroid = np.stack([np.bincount(region_of, pos[:, k], n_regions) for k in range(3)], 1) / count[:, None]
+    rel_a = pos - centroid[region_of]
+    rel_b = vertices[nxt] - centroid[region_of]
+    cross = np.cross(rel_a, rel_b)
+    newell = np.stack([np.bincount(region_of, cross[:, k], n_regions) for k in range(3)], 1)
+    side = np.linalg.norm(vertices[nxt] - pos, axis=1)
+    perimeter = np.bincount(region_of, side, n_regions)
+    return centroid, newell, perimeter, region_of, nxt
+
+
+def region_roundness(surface: Any) -> np.ndarray:
+    """(F,) each region's isoperimetric quotient ``4 pi area / perimeter**2`` in 3D (area: the length
+    of its vector area, so a region folded over itself counts less): 1 for a disc, 0.60 for an
+    equilateral triangle, near 0 for a thin strip; 0 for a region of no perimeter."""
+    vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
+    offsets = np.asarray(surface.region_offsets, dtype=np.int64)
+    cycles = np.asarray(surface.region_vertices, dtype=np.int64)
+    _, newell, perimeter, _, _ = _region_geometry(vertices, offsets, cycles)
+    area = 0.5 * np.linalg.norm(newell, axis=1)
+    return np.where(perimeter > 0, 4.0 * math.pi * area / np.where(perimeter > 0, perimeter, 1.0) ** 2, 0.0)
+
+
+def _frame(normal: np.ndarray) -> np.ndarray | None:
+    """(2, 3) orthonormal axes of the plane normal to ``normal`` (counter-clockwise about it), or None
+    for a normal of no length."""
+    length = float(np.linalg.norm(normal))
+    if not length > 1e-300:
+        return None
+    n = normal / length
+    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(n, helper)
+    e1 /= np.linalg.norm(e1)
+    return np.stack([e1, np.cross(n, e1)])
+
+
+def _simple(xy: np.ndarray) -> bool:
+    """Whether the closed polygon ``xy`` (m, 2; unit extent) is simple with some area: no side of no
+    length, no two sides that are not neighbours meeting or touching (within ``_TOL``)."""
+    m = len(xy)
+    d = np.roll(xy, -1, axis=0) - xy
+    if m < 3 or m > _SIMPLE_MAX or np.any(np.hypot(d[:, 0], d[:, 1]) <= _TOL):
+        return False
+    twice_area = float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
+    if twice_area <= _TOL:
+        return False
+    q = xy + d
+    lo, hi = np.minimum(xy, q) - _TOL, np.maximum(xy, q) + _TOL
+    rows = max(1, _CHUNK // m)
+    for start in range(0, m, rows):
+        i = np.arange(start, min(m, start + rows))[:, None]
+        j = np.arange(m)[None, :]
+        pair = (j >= i + 2) & ~((i == 0) & (j == m - 1))
+        if not pair.any():
+            continue
+        ii, jj = np.broadcast_to(i, pair.shape)[pair], np.broadcast_to(j, pair.shape)[pair]
+
+        def orient(s: np.ndarray, p: np.ndarray) -> np.ndarray:
+            return d[s, 0] * (p[:, 1] - xy[s, 1]) - d[s, 1] * (p[:, 0] - xy[s, 0])
+
+        def within(s: np.ndarray, p: np.ndarray) -> np.ndarray:
+            return np.all((p >= lo[s]) & (p <= hi[s]), axis=1)
+
+        o1, o2 = orient(ii, xy[jj]), orient(ii, q[jj])
+        o3, o4 = orient(jj, xy[ii]), orient(jj, q[ii])
+        proper = (o1 * o2 < 0) & (o3 * o4 < 0)
+        touch = ((np.abs(o1) <= _TOL) & within(ii, xy[jj])) | ((np.abs(o2) <= _TOL) & within(ii, q[jj])) \
+            | ((np.abs(o3) <= _TOL) & within(jj, xy[ii])) | ((np.abs(o4) <= _TOL) & within(jj, q[ii]))
+        if np.any(proper | touch):
+            return False
+    return True
+
+
+def _lift(new: np.ndarray, corners2: np.ndarray, corners3: np.ndarray) -> np.ndarray | None:
+    """(N, 3) the points ``new`` (N, 2) of a region's plane lifted onto its meshing-1 triangles (T, 3
+    corners, as ``corners2`` (T, 3, 2) in the plane and ``corners3`` (T, 3, 3) in space): barycentric
+    interpolation in the triangle each lies most inside; None if one lies outside them all."""
+    a, b, c = corners2[:, 0], corners2[:, 1], corners2[:, 2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    usable = np.abs(det) > _TOL * _TOL
+    if not usable.any():
+        return None
+    a, b, c, det, corners3 = a[usable], b[usable], c[usable], det[usable], corners3[usable]
+    out = np.empty((len(new), 3))
+    rows = max(1, _CHUNK // len(a))
+    for start in range(0, len(new), rows):
+        p = new[start:start + rows, None, :]
+        l1 = ((p[..., 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (p[..., 1] - a[:, 1]) * (c[:, 0] - a[:, 0])) / det
+        l2 = ((b[:, 0] - a[:, 0]) * (p[..., 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (p[..., 0] - a[:, 0])) / det
+        l0 = 1.0 - l1 - l2
+        inside = np.minimum(np.minimum(l0, l1), l2)
+        best = np.argmax(inside, axis=1)
+        rows_ = np.arange(len(best))
+        if np.any(inside[rows_, best] < -1e-7):
+            return None
+        w = np.stack([l0[rows_, best], l1[rows_, best], l2[rows_, best]], 1)
+        out[start:start + rows] = np.einsum("nk,nkd->nd", w, corners3[best])
+    return out
+
+
+class _Rings(NamedTuple):
+    """The regions' sides with the points added on the map's edges: ``points`` (the vertices, then the
+    added points edge after edge), ``ring`` and ``offsets`` (region r's ring is
+    ``ring[offsets[r]:offsets[r + 1]]``, counter-clockwise like its cycle) and ``t`` (each ring
+    entry's parameter along its side's map edge, 0 at the edge's lower-numbered vertex)."""
+
+    points: np.ndarray
+    ring: np.ndarray
+    offsets: np.ndarray
+    t: np.ndarray
+    side: np.ndarray
+
+
+def _rings(vertices: np.ndarray, cycles: np.ndarray, region_of: np.ndarray, n_regions: int, lo: np.ndarray,
+           inverse: np.ndarray, elo: np.ndarray, ehi: np.ndarray, added: np.ndarray, t_flat: np.ndarray
+           ) -> _Rings:
+    """The rings of every region when map edge e carries ``added[e]`` points at the (sorted, in (0, 1))
+    parameters ``t_flat`` (edge after edge) from its vertex ``elo[e]`` to ``ehi[e]``."""
+    n_vertices = len(vertices)
+    base = n_vertices + np.concatenate([[0], np.cumsum(added)[:-1]]).astype(np.int64)
+    edge_of_point = np.repeat(np.arange(len(added)), added)
+    t = t_flat[:, None]
+    start_of = vertices[elo[edge_of_point]]
+    on_edges = start_of + t * (vertices[ehi[edge_of_point]] - start_of)
+    points = np.concatenate([vertices, on_edges])
+    side_added = added[inverse]
+    forward = cycles == lo
+    counts = 1 + side_added
+    ring = np.empty(int(counts.sum()), dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    ring[start] = cycles
+    within = np.arange(len(ring)) - np.repeat(start, counts)              # 0 = the side's start
+    extra = within > 0
+    side = np.repeat(np.arange(len(cycles)), counts)
+    e, k = inverse[side[extra]], within[extra]
+    ring[extra] = np.where(forward[side[extra]], base[e] + k - 1, base[e] + side_added[side[extra]] - k)
+    tt = np.where(forward[side], 0.0, 1.0)
+    tt[extra] = t_flat[ring[extra] - n_vertices]
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(region_of, counts, n_regions))]).astype(np.int64)
+    return _Rings(points, ring, offsets, tt, side)
+
+
+def _boundary_params(ring_xy: np.ndarray, found: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For points ``found`` (k, 2) Triangle put on the sides of a region's ring ``ring_xy`` (n, 2): the
+    ring segment each lies on (the nearest) and how far along it (0 to 1)."""
+    d = np.roll(ring_xy, -1, axis=0) - ring_xy
+    rel = found[:, None, :] - ring_xy[None, :, :]
+    dd = np.maximum(np.einsum("sk,sk->s", d, d), 1e-300)
+    f = np.clip(np.einsum("psk,sk->ps", rel, d) / dd, 0.0, 1.0)
+    gap = rel - f[..., None] * d[None]
+    segment = np.argmin(np.einsum("psk,psk->ps", gap, gap), axis=1)
+    return segment, f[np.arange(len(found)), segment]
+
+
+def _triangulate_region(xy: np.ndarray, options: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Triangle's mesh of the simple polygon ``xy`` (n, 2): (points (n + k, 2), the input first;
+    triangles; markers, 1 for points on the polygon's sides), or None when it is not a mesh of it
+    (triangles of no area, or not covering the polygon's area)."""
+    import triangle
+
+    n = len(xy)
+    segments = np.stack([np.arange(n), np.roll(np.arange(n), -1)], 1)
+    out = triangle.triangulate({"vertices": xy, "segments": segments}, options)
+    tri = np.asarray(out.get("triangles", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+    points2 = np.asarray(out["vertices"], dtype=np.float64)
+    if len(points2) < n or not np.array_equal(points2[:n], xy) or not len(tri):
+        return None
+    p = points2[tri]
+    areas = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) \
+        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+    shoelace = float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
+    if np.any(areas <= 0) or abs(float(areas.sum()) - shoelace) > 1e-9 * abs(shoelace):
+        return None
+    markers = np.asarray(out.get("vertex_markers", np.zeros((len(points2), 1))), dtype=np.int64).reshape(-1)
+    return points2, tri, markers
+
+
+def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
+            owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Meshing 2 of checked arrays (``coarse``: the meshing-1 triangles, ``owners`` their regions):
+    points, triangles, their regions, and the regions cut as meshing 1 cuts them."""
+    n_vertices = len(vertices)
+    sizes = np.diff(offsets)
+    n_regions = len(sizes)
+    centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
+    width = np.where(perimeter > 0, np.linalg.norm(newell, axis=1) / np.where(perimeter > 0, perimeter, 1.0),
+                     0.0)                                                   # 2 area / perimeter
+    frames: list[np.ndarray | None] = [None] * n_regions
+    for r in range(n_regions):
+        frame = _frame(newell[r]) if sizes[r] >= 3 else None
+        if frame is None:
+            continue
+        xy0 = (vertices[cycles[offsets[r]:offsets[r + 1]]] - centroid[r]) @ frame.T
+        extent = float(np.abs(xy0).max())
+        if extent > 0 and _simple(xy0 / extent):
+            frames[r] = frame
+    # every map edge split into equal pieces no longer than _SPACING x its thinner region's width, but
+    # for an edge beside a region cut as meshing 1 cuts it (not simple in its plane): that keeps its own
+    lo, hi = np.minimum(cycles, nxt), np.maximum(cycles, nxt)
+    keys, first, inverse = np.unique(lo * n_vertices + hi, return_index=True, return_inverse=True)
+    spacing = np.full(len(keys), np.inf)
+    np.minimum.at(spacing, inverse, _SPACING * width[region_of])
+    simple = np.array([f is not None for f in frames], dtype=bool)
+    fixed = np.zeros(len(keys), dtype=bool)
+    np.logical_or.at(fixed, inverse, ~simple[region_of])
+    elo, ehi = lo[first], hi[first]
+    length = np.linalg.norm(vertices[ehi] - vertices[elo], axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        pieces = np.where(spacing > 0, np.ceil(length / spacing * (1.0 - 1e-9)), 1.0)
+    pieces = np.clip(np.nan_to_num(pieces, nan=1.0, posinf=_MAX_SPLIT), 1, _MAX_SPLIT).astype(np.int64)
+    added = np.where(fixed, 0, pieces - 1)
+    edge_of_point = np.repeat(np.arange(len(keys)), added)
+    step = np.arange(len(edge_of_point)) - np.repeat(np.concatenate([[0], np.cumsum(added)[:-1]]), added) + 1
+    t_flat = step / pieces[edge_of_point]
+    forward = cycles == lo
+    rings = _rings(vertices, cycles, region_of, n_regions, lo, inverse, elo, ehi, added, t_flat)
+
+    # free passes: Triangle free to split the sides; the points it puts there go on the map's edges,
+    # for both regions beside each, so the last pass (sides kept) meshes every region watertight
+    for _ in range(_FREE_PASSES):
+        found_edges: list[np.ndarray] = []
+        found_t: list[np.ndarray] = []
+        for r in range(n_regions):
+            frame = frames[r]
+            if frame is None:
+                continue
+            ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]
+            xy = (rings.points[ids] - centroid[r]) @ frame.T
+            got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}QS{_STEINER * len(ids) + _STEINER_FLOOR}")
+            if got is None:
+                continue
+            points2, _, markers = got
+            on_side = np.flatnonzero(markers[len(ids):] != 0) + len(ids)
+            if not len(on_side):
+                continue
+            segment, frac = _boundary_params(xy, points2[on_side])
+            seg_at = rings.offsets[r] + segment
+            nxt_at = np.where(segment + 1 == len(ids), rings.offsets[r], seg_at + 1)
+            s = rings.side[seg_at]
+            t0 = rings.t[seg_at]
+            # the segment's far end: the next ring entry, or its side's end vertex (t 1 up, 0 down the edge)
+            same_side = rings.side[nxt_at] == s
+            t1 = np.where(same_side, rings.t[nxt_at], np.where(forward[s], 1.0, 0.0))
+            found_edges.append(inverse[s])
+            found_t.append(t0 + frac * (t1 - t0))
+        if not found_edges:
+            break
+        e_all = np.concatenate([edge_of_point, *found_edges])
+        t_all = np.concatenate([t_flat, *found_t])
+        order = np.lexsort((t_all, e_all))
+        e_all, t_all = e_all[order], t_all[order]
+        keep = (t_all > 1e-9) & (t_all < 1.0 - 1e-9) & ~fixed[e_all]
+        e_all, t_all = e_all[keep], t_all[keep]
+        close = np.zeros(len(t_all), dtype=bool)
+        close[1:] = (e_all[1:] == e_all[:-1]) & (t_all[1:] - t_all[:-1] <= 1e-9)
+        e_all, t_all = e_all[~close], t_all[~close]
+        added = np.bincount(e_all, minlength=len(keys)).astype(np.int64)
+        rings = _rings(vertices, cycles, region_of, n_regions, lo, inverse, elo, ehi, added, t_all)
+        edge_of_point, t_flat = e_all, t_all
+
+    coarse_start = np.searchsorted(owners, np.arange(n_regions + 1))
+    meshed: list[np.ndarray | None] = [None] * n_regions
+    inside: list[np.ndarray] = []
+    next_point = len(rings.points)
+    for r in range(n_regions):
+        frame = frames[r]
+        if sizes[r] < 3:
+            meshed[r] = np.zeros((0, 3), dtype=np.int64)
+        if frame is None:
+            continue
+        ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]
+        xy = (rings.points[ids] - centroid[r]) @ frame.T
+        got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}YQS{_STEINER * len(ids) + _STEINER_FLOOR}")
+        if got is None:
+            continue
+        points2, tri, _ = got
+        new = points2[len(ids):]
+        if len(new):
+            own = coarse[coarse_start[r]:coarse_start[r + 1]]
+            lifted = _lift(new, (vertices[own] - centroid[r]) @ frame.T, vertices[own])
+            if lifted is None:
+                continue
+            inside.append(lifted)
+        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
+        next_point += len(new)
+        meshed[r] = local_ids[tri]
+    failed = np.array([r for r in range(n_regions) if meshed[r] is None], dtype=np.int64)
+    if len(failed):      # meshing 1's cut of the region's ring (its sides' shared points included)
+        parts_ = [rings.ring[rings.offsets[r]:rings.offsets[r + 1]] for r in failed]
+        fall_offsets = np.concatenate([[0], np.cumsum([len(x) for x in parts_])]).astype(np.int64)
+        fallback = triangulate_polygons(rings.points, fall_offsets, np.concatenate(parts_))
+        at = 0
+        for r, x in zip(failed, parts_, strict=True):
+            meshed[r] = fallback[at:at + len(x) - 2]
+            at += len(x) - 2
+    parts = [m for m in meshed if m is not None]
+    triangles = np.concatenate(parts) if parts else np.zeros((0, 3), dtype=np.int64)
+    regions = np.repeat(np.arange(n_regions), [len(m) if m is not None else 0 for m in meshed])
+    points = np.concatenate([rings.points, *inside]) if inside else rings.points
+    return points, triangles, regions, failed
