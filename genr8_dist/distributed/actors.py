@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import os
 import socket
+import threading
 from collections import deque
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.evolution.individual import Individual
@@ -32,10 +34,31 @@ from genr8_dist.evolution.individual import Individual
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
 
-__all__ = ["OFFERS", "IslandHost", "remote_host_class"]
+__all__ = ["OFFERS", "Generated", "IslandHost", "remote_host_class"]
 
 # The actor's concurrency group serving ``offer`` while ``advance`` runs in the default one.
 OFFERS = "offers"
+
+
+@dataclass(frozen=True, slots=True)
+class Generated:
+    """What the driver receives for one generation of one island: never its rows.
+
+    ``fitness``: every individual's fitness, by index (progress); ``emigrants``: after a migration
+    generation, the candidates ``emigrants_for`` asked for (the best ``k``, or the whole generation
+    for novel emigrants, which depend on the destination); ``part``: the part file the host wrote,
+    holding this island's generations since its last part up to this one (``None``: still buffered
+    on the host)."""
+
+    island: int
+    generation: int
+    fitness: tuple[float, ...]
+    part: Any = None
+    emigrants: tuple[Individual, ...] | None = None
+    emigrants_for: tuple[int, str] | None = None
+
+    def __len__(self) -> int:
+        return len(self.fitness)
 
 
 class IslandHost:
@@ -54,6 +77,9 @@ class IslandHost:
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
         self._evaluators: dict[int, Any] = {}   # configuration version -> Evaluator, for helping
         self._store: Any = None
+        self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
+        self._written: dict[int, Any] = {}                  # island -> the last part written
+        self._writing = threading.Lock()   # a stopping driver's flush runs beside advance
 
     def ready(self) -> dict[str, Any]:
         """Where this host runs (answers once the actor is scheduled and started)."""
@@ -109,14 +135,23 @@ class IslandHost:
         helpers: Sequence[Any] = (),
         ticket: int | None = None,
         hand: Sequence[tuple[Individual, float]] = (),
-    ) -> list[Individual]:
+        write: bool = False,
+        emigrants: tuple[int, str] | None = None,
+        live: bool = False,
+    ) -> Generated:
         """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
 
         ``config`` is the configuration version ``config_version``; the coordinator sends it once per
         host and version, and ``None`` afterwards (the host keeps it). ``helpers`` (Ray handles of idle
         hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``. ``hand``:
-        individuals with the fitness a designer gave them, parents of this generation (``Island.breed``)."""
+        individuals with the fitness a designer gave them, parents of this generation (``Island.breed``).
+        ``write``: write the island's rows not yet in a part (this generation's included) as a part
+        file; ``emigrants``: ``(k, mode)``, return the generation's emigrant candidates; ``live``: write the
+        generation to the run's live view for the studio (``store/live.py``; local runs only)."""
         model = self._island(island, config, config_version)
+        held = self._latest.get(island)
+        if held is None or held[0] != generation - 1:
+            self._unwritten.pop(island, None)   # its parents come from the store: committed already
         if generation == 0:
             births = model.breed(0)
         else:
@@ -126,7 +161,41 @@ class IslandHost:
         evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
-        return population
+        with self._writing:
+            self._unwritten.setdefault(island, []).extend(population)
+        if live:
+            self._store_of().live().write(island, generation, population)
+        candidates = None
+        if emigrants is not None:
+            from genr8_dist.distributed.migration import select_emigrants
+
+            k, mode = emigrants
+            candidates = tuple(population if mode == "novel" else select_emigrants(population, k))
+        return Generated(island, generation, tuple(float(ind.fitness) for ind in population),
+                         self.flush(island) if write else None, candidates, emigrants)
+
+    def flush(self, island: int) -> Any:
+        """Write ``island``'s rows computed since its last part as a new part file of the run and
+        return its ``Part``; with none to write, the last part written (the driver may not have
+        received it: a generation that ended an epoch as the run was stopped), or ``None``."""
+        from genr8_dist.store.parts import write_part
+        from genr8_dist.store.schema import individuals_table
+
+        with self._writing:
+            rows = self._unwritten.pop(island, None)
+            if not rows:
+                return self._written.get(island)
+            store = self._store_of()
+            table = individuals_table(rows, store.run_id, store.criteria, store.schema)
+            gens = [ind.generation for ind in rows]
+            part = self._written[island] = write_part(
+                store, table, stem=f"part-{island:06d}-{min(gens):06d}-{max(gens):06d}")
+            return part
+
+    def latest(self, island: int) -> list[Individual]:
+        """The newest generation this host computed of ``island`` (tests, and a caller that wants the
+        rows without reading the store)."""
+        return list(self._latest[island][1])
 
     def offer(self, ticket: int, helper: Any) -> bool:
         """Offer ``helper`` (an idle host) to the generation submitted with ``ticket``. Tickets grow
@@ -194,6 +263,8 @@ class IslandHost:
     def forget(self, island: int) -> None:
         """Drop what this host holds of ``island`` (it moved to another host)."""
         self._latest.pop(island, None)
+        self._unwritten.pop(island, None)
+        self._written.pop(island, None)
         for key in [k for k in self._islands if k[0] == island]:
             del self._islands[key]
 

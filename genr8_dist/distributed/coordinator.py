@@ -2,10 +2,15 @@
 
 An *epoch* takes every island from its last committed generation to the next migration generation
 (a multiple of ``islands.migration_interval``, or the run's last generation). Each island advances one
-generation per actor call, so an interrupt waits for no more than what is already complete. At the end
-of an epoch the coordinator commits all of it at once (one atomic store commit), then computes the
-migrants from each island's committed last generation (``migration.plan_migration``) and sends them
-with the first generation of the next epoch.
+generation per actor call, so an interrupt waits for no more than what is already complete. No row
+comes back to the driver: at the end of an epoch each island's host writes the epoch's rows as a part
+file (``store.parts``) and returns it with the generation's fitness values and emigrant candidates
+(``actors.Generated``); the coordinator commits all parts at once (one manifest: ``commit_parts``), then
+computes the migrants from the candidates of each island's last generation
+(``migration.plan_migration``; the stored generation after a resume or an edit of the migration
+settings) and sends them with the first generation of the next epoch. On a stop, hosts flush what
+they completed, so that it is committed. ``on_island`` sees each island's generation as it completes
+(a ``Generated``; with ``live``, the hosts also write it to the studio's live view, ``store/live.py``).
 
 Generation ``g`` uses the configuration version in effect at ``g`` (``store.config_for(g)``), and the
 individuals a user injected for ``g`` (recorded in the ``intervention`` event). Everything an island
@@ -153,7 +158,8 @@ class Coordinator:
         stop: StopRequest | None = None,
         on_generation: Callable[[Coordinator, int], None] | None = None,
         on_commit: Callable[[Coordinator, Mapping[int, int]], None] | None = None,
-        on_island: Callable[[Coordinator, int, int, list[Individual]], None] | None = None,
+        on_island: Callable[[Coordinator, int, int, Any], None] | None = None,
+        live: bool = False,
         poll_seconds: float = 0.2,
     ) -> None:
         self.store = store
@@ -162,6 +168,7 @@ class Coordinator:
         self.on_generation = on_generation
         self.on_commit = on_commit
         self.on_island = on_island
+        self.live = live   # hosts write each completed generation to the live view (store/live.py)
         self.poll_seconds = poll_seconds
         self._created = time.perf_counter()
         self.summary = RunSummary(hosts=hosts.size)
@@ -177,7 +184,9 @@ class Coordinator:
         self.paused = False
         self._migrated = {e.generation for e in history if e.kind == "migration"}
         self._completed = any(e.kind == "complete" and e.generation == self.last for e in history)
-        self._populations: dict[int, dict[int, list[Individual]]] = {}   # generation -> island -> pop
+        # generation -> island -> (the (k, mode) they were chosen for, emigrant candidates): what the
+        # next migration needs, from the hosts' answers; only the newest committed generation is kept
+        self._candidates: dict[int, dict[int, tuple[Any, tuple[Individual, ...]]]] = {}
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
         self._hand = self._load_hand(history)
@@ -276,10 +285,20 @@ class Coordinator:
             self._hand = self._load_hand(history)
 
     def _population(self, island: int, generation: int) -> list[Individual]:
-        held = self._populations.get(generation, {}).get(island)
-        if held is not None:
-            return held
         return list(self._timed_store(self.store.load_generation, island, generation))
+
+    def _emigrant_pool(self, island: int, generation: int, spec: tuple[int, str]) -> list[Individual]:
+        """What ``island``'s emigrants after ``generation`` are chosen from: the candidates its host
+        returned when they were chosen for ``spec`` (``(k, mode)``), else the stored generation."""
+        held = self._candidates.get(generation, {}).get(island)
+        if held is not None and held[0] == spec:
+            return list(held[1])
+        return self._population(island, generation)
+
+    @staticmethod
+    def emigrant_spec(config: RunConfig) -> tuple[int, str]:
+        """``(k, mode)``: how many emigrants leave each island and how they are chosen."""
+        return int(config.islands.migrants), str(config.islands.emigrants)
 
     # -- the run ----------------------------------------------------------------------------------
 
@@ -330,7 +349,8 @@ class Coordinator:
 
     def _migrants(self, generation: int, config: RunConfig) -> dict[int, list[Individual]]:
         """The migrants that move after ``generation`` (from its committed populations)."""
-        populations = {i: self._population(i, generation) for i in range(self.n_islands)}
+        spec = self.emigrant_spec(config)
+        populations = {i: self._emigrant_pool(i, generation, spec) for i in range(self.n_islands)}
         islands = config.islands
         plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
                               generation, islands.emigrants)
@@ -357,11 +377,11 @@ class Coordinator:
         finally:
             self._now = None
 
-    def _island_done(self, island: int, generation: int, population: list[Individual]) -> None:
-        """One island completed one generation (not committed yet): take the edits queued meanwhile;
-        ``on_island`` sees it (the studio's live view, ``store/live.py``)."""
+    def _island_done(self, island: int, generation: int, done: Any) -> None:
+        """One island completed one generation (``done``: the host's ``Generated``; not committed
+        yet): ``on_island`` sees it, then the edits queued meanwhile are taken."""
         if self.on_island is not None:
-            self.on_island(self, island, generation, population)
+            self.on_island(self, island, generation, done)
         self._take_during_epoch()
 
     def _take_during_epoch(self) -> None:
@@ -386,38 +406,54 @@ class Coordinator:
             with contextlib.suppress(ray.exceptions.RayError):
                 ray.get(ref)
 
-    def _show(self, generation: int, results: Mapping[int, Mapping[int, list[Individual]]]) -> None:
+    def _show(self, generation: int, results: Mapping[int, Mapping[int, Any]]) -> None:
+        """Every island has completed ``generation``: the progress line, then ``on_generation``."""
         populations = {i: r[generation] for i, r in results.items() if generation in r}
         self.summary.generations += 1
         self.progress.generation(generation, populations, remaining=self.last - generation)
         if self.on_generation is not None:
             self.on_generation(self, generation)
 
-    def _commit(self, committed: dict[int, int],
-                results: Mapping[int, Mapping[int, list[Individual]]]) -> dict[int, int]:
-        rows = [ind for i in sorted(results) for g in sorted(results[i]) for ind in results[i][g]]
-        events = list(self._pending_events)
+    def _commit(self, committed: dict[int, int], results: Mapping[int, Mapping[int, Any]]) -> dict[int, int]:
+        """Commit the part files the hosts wrote for ``results`` (island -> generation -> ``Generated``)
+        and the pending events, in one manifest; returns the committed generations after it."""
+        parts = []
         after = dict(committed)
-        for i, gens in results.items():
-            if gens:
-                after[i] = max(gens)
+        for i in sorted(results):
+            for g in sorted(results[i]):
+                part = getattr(results[i][g], "part", None)
+                if part is None:
+                    continue
+                span = part.islands.get(str(i))
+                if span is not None and span[0] == after[i] + 1:
+                    parts.append(part)
+                    after[i] = span[1]
+        events = list(self._pending_events)
         if not self._completed and min(after.values()) >= self.last:   # the run ends with this commit
             events.append(self._event("complete", self.last, None,
                                       {"committed": {str(i): g for i, g in after.items()}}))
             self._completed = True
-        if not rows and not events:
+        if not parts and not events:
             return committed
-        self._timed_store(self.store.commit, rows, events=events)
+        self._timed_store(self.store.commit_parts, parts, events=events)
         self._pending_events.clear()
-        self.summary.individuals += len(rows)
-        # Keep only what the next migration needs in memory: each island's newest generation.
-        self._populations = {}
+        self.summary.individuals += sum(p.rows for p in parts)
+        # Keep only what the next migration needs in memory: the newest generation's candidates.
+        self._candidates = {}
         for i, gens in results.items():
-            if gens:
-                self._populations.setdefault(max(gens), {})[i] = gens[max(gens)]
+            done = gens.get(after[i])
+            if done is not None and after[i] > committed[i] and getattr(done, "emigrants", None) is not None:
+                self._candidates.setdefault(after[i], {})[i] = (done.emigrants_for, done.emigrants)
         if self.on_commit is not None:
             self.on_commit(self, after)
         return after
+
+
+def _with_part(done: Any, part: Any) -> Any:
+    """``done`` (a ``Generated``) with ``part``, the file holding it and the generations before it."""
+    import dataclasses
+
+    return dataclasses.replace(done, part=part)
 
 
 class Epoch:
@@ -457,13 +493,17 @@ class Epoch:
             migrants = self.migrants_after[g - 1][island]
         injected = run._injections.get((g, island), ())
         hand = run._hand.get((g, island), ())
+        emigrants = None
+        if is_migration_generation(g, run.interval) and g < run.last:
+            emigrants = run.emigrant_spec(run.config_for(g + 1)[1])
         host = run.hosts.host_of(island)
         send = (id(host), version) not in run._sent
         run._sent.add((id(host), version))
         helpers = self.free()
         ticket = next(_TICKETS)
         ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                  [run.hosts.handle(n) for n in helpers], ticket, hand)
+                                  [run.hosts.handle(n) for n in helpers], ticket, hand, g == self.end,
+                                  emigrants, bool(getattr(run, "live", False)))
         self.pending[ref] = (island, g)
         self.tickets[ref] = ticket
         self.lent.update(dict.fromkeys(helpers, ref))
@@ -504,9 +544,9 @@ class Epoch:
             if self.cursor[isl] < self.end:
                 self.submit(isl)
 
-    def receive(self, island: int, g: int, population: list[Individual]) -> None:
-        """Generation ``g`` of ``island`` is done: keep it, ask for the next one, and show every
-        generation all islands have now reached."""
+    def receive(self, island: int, g: int, population: Any) -> None:
+        """Generation ``g`` of ``island`` is done (``population``: the host's ``Generated``): keep it,
+        ask for the next one, and show every generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
         self.run_._island_done(island, g, population)
@@ -552,5 +592,26 @@ class Epoch:
                     self.receive(island, g, population)
         finally:
             run._settle(self.offers)
+            if run.stop:
+                self.flush()
             committed = run._commit(self.committed, self.results)
         return committed
+
+    def flush(self) -> None:
+        """Stopping mid-epoch: each island's host writes the generations it completed since its
+        last part (served beside a generation under way), so that what is complete is committed."""
+        import ray
+
+        asked = {}
+        for island, gens in self.results.items():
+            if gens and getattr(gens[max(gens)], "part", None) is None:
+                host = self.run_.hosts.host_of(island)
+                asked[island] = host.flush.options(concurrency_group=OFFERS).remote(island)
+        for island, ref in asked.items():
+            try:
+                part = ray.get(ref)
+            except ray.exceptions.RayError:   # its host is gone: those generations are recomputed
+                continue
+            if part is not None:   # it may hold a generation completed since (then committed too)
+                newest = max(self.results[island])
+                self.results[island][newest] = _with_part(self.results[island][newest], part)

@@ -16,9 +16,7 @@ import statistics
 import sys
 import time
 from collections.abc import Mapping, Sequence
-from typing import TextIO
-
-from genr8_dist.evolution.individual import Individual
+from typing import Any, TextIO
 
 __all__ = ["ProgressDisplay", "format_duration", "format_fitness"]
 
@@ -44,6 +42,14 @@ def format_fitness(value: float) -> str:
     return f"{value:.4g}"
 
 
+def _fitness_of(population: Any) -> Sequence[float]:
+    """The fitness values of an island's generation: a host's report, or the individuals'."""
+    reported = getattr(population, "fitness", None)
+    if reported is not None:
+        return list(reported)
+    return [ind.fitness for ind in population]
+
+
 def _median(values: Sequence[float]) -> float:
     finite = [v for v in values if not math.isnan(v)]
     return statistics.median_low(finite) if finite else math.inf
@@ -67,19 +73,19 @@ class ProgressDisplay:
         if not self.quiet:
             print(text, file=self.out, flush=True)
 
-    def generation(self, generation: int, populations: Mapping[int, Sequence[Individual]],
-                   *, remaining: int) -> str:
-        """Record that every island completed ``generation``; print and return its line."""
+    def generation(self, generation: int, populations: Mapping[int, Any], *, remaining: int) -> str:
+        """Record that every island completed ``generation``; print and return its line.
+        ``populations``: island -> its individuals, or what its host reported (``fitness`` values)."""
+        fitness = {i: _fitness_of(pop) for i, pop in populations.items()}
         self._generations += 1
-        self._individuals += sum(len(p) for p in populations.values())
+        self._individuals += sum(len(f) for f in fitness.values())
         elapsed = max(self._clock() - self._started, 1e-9)
         rate = self._individuals / elapsed
         left = elapsed / self._generations * remaining
-        everyone = [ind.fitness for pop in populations.values() for ind in pop]
+        everyone = [f for values in fitness.values() for f in values]
         islands = "  ".join(
-            f"i{i} {format_fitness(min((x.fitness for x in pop), default=math.inf))}"
-            f"/{format_fitness(_median([x.fitness for x in pop]))}"
-            for i, pop in sorted(populations.items())
+            f"i{i} {format_fitness(min(values, default=math.inf))}/{format_fitness(_median(values))}"
+            for i, values in sorted(fitness.items())
         )
         width = len(str(self.total_generations))
         line = (

@@ -417,10 +417,7 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
     stop = stop if stop is not None else StopRequest()
-    live = store.live()
-
-    def island_done(coordinator: Coordinator, island: int, generation: int, population: Any) -> None:
-        live.write(island, generation, population)   # the studio's live view
+    live = store.live()   # the hosts write each island's completed generation there (advance's live)
 
     def committed(coordinator: Coordinator, after: Any) -> None:
         live.drop_committed(after)
@@ -429,7 +426,7 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
 
     try:
         coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
-                                  on_island=island_done, progress=None)
+                                  live=True, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
         with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):

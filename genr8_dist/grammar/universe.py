@@ -102,10 +102,11 @@ def build_universe(source: UniverseSource, *, origin: str | None = None, path: P
     """
     origin = origin if origin is not None else source.origin or "stored"
     key = (source.digest, source.name, origin)
-    source.check_hook_names()
-    modules = load_modules(source)   # refuses code this process has not consented to, cached or not
     with _BUILT_LOCK:
         universe = _BUILT.get(key)
+    if universe is None:   # built before: its hooks' names passed (parsing them costs ~6 ms a call)
+        source.check_hook_names()
+    modules = load_modules(source)   # refuses code this process has not consented to, cached or not
     if universe is None:
         path = path if path is not None else Path(source.where(source.grammar_file))
         universe = Universe(source.name, origin, path, source.grammar_text, modules.get("hooks"),

@@ -995,7 +995,8 @@ class RunStore:
         for om in older:
             for e in om.get(kind, []):
                 if (isinstance(e, dict) and e.get("path") != entry["path"] and "commits" in e
-                        and lo <= e["commits"][0] and e["commits"][1] <= hi):
+                        and lo <= e["commits"][0] and e["commits"][1] <= hi
+                        and _within(e.get("islands", {}), entry.get("islands", {}))):
                     candidates.setdefault(e["path"], e)
         chosen, end = [], lo - 1
         for e in sorted(candidates.values(), key=lambda x: (x["commits"][0], -x["commits"][1])):
@@ -1469,6 +1470,12 @@ def _describe(kind: str, entry: dict[str, Any]) -> str:
     if kind == "configs":
         return f"{path} (configuration version {entry['version']})"
     return f"{path} ({kind})"
+
+
+def _within(islands: dict[str, list[int]], outer: dict[str, list[int]]) -> bool:
+    """Whether every island's generations in ``islands`` lie in ``outer``'s (a commit holds one part
+    per island when the hosts write them: a replacement must be of the same islands)."""
+    return all(i in outer and outer[i][0] <= lo and hi <= outer[i][1] for i, (lo, hi) in islands.items())
 
 
 def _islands_of(entry: dict[str, Any]) -> set[int]:

@@ -23,17 +23,22 @@ def test_a_new_host_rebuilds_an_island_from_the_store(tmp_path):
     store = new_run(run_dir, tiny_toml(islands=2))
     config = parse_config(tiny_toml(islands=2), "tiny")
     host = IslandHost(str(run_dir))
-    gen0 = host.advance(1, 0, config, 1)
+    done = host.advance(1, 0, config, 1, write=True)   # the host writes generation 0's part itself
+    gen0 = host.latest(1)
     assert [ind.id for ind in gen0] == [f"1-0-{i}" for i in range(6)]
-    store.commit(gen0)
-    gen1 = host.advance(1, 1, None, 1)            # the host kept the configuration and generation 0
+    assert done.fitness == tuple(ind.fitness for ind in gen0)
+    assert (done.part.islands, done.part.rows) == ({"1": [0, 0]}, 6)
+    store.commit_parts([done.part])                     # the driver's commit: the manifest alone
+    assert _untimed(store.load_generation(1, 0)) == _untimed(gen0)
+    assert host.advance(1, 1, None, 1).part is None     # the host kept the configuration and generation 0
+    gen1 = host.latest(1)
     assert {ind.generation for ind in gen1} == {1}
 
     fresh = IslandHost(str(run_dir))              # lost everything: reads generation 0 from the store
     with pytest.raises(RuntimeError, match="configuration version 1"):
         fresh.advance(1, 1, None, 1)
-    again = fresh.advance(1, 1, config, 1)
-    assert _untimed(again) == _untimed(gen1)
+    fresh.advance(1, 1, config, 1)
+    assert _untimed(fresh.latest(1)) == _untimed(gen1)
     assert RunStore.open(run_dir).committed_generations() == {1: 0}
 
 
@@ -55,15 +60,17 @@ def test_a_helper_evaluates_half_of_a_generation_and_changes_nothing(two_hosts, 
     run_dir, (owner, helper) = two_hosts
     config = parse_config(tiny_toml(islands=2), "tiny")
     alone = IslandHost(str(run_dir))
-    gen0 = alone.advance(0, 0, config, 1)
+    alone.advance(0, 0, config, 1)
+    gen0 = alone.latest(0)
     assert len({ind.genome for ind in gen0}) == 6
-    shared = ray_local.get(owner.advance.remote(0, 0, config, 1, (), (), [helper]))
-    assert _untimed(shared) == _untimed(gen0)
+    ray_local.get(owner.advance.remote(0, 0, config, 1, (), (), [helper]))
+    assert _untimed(ray_local.get(owner.latest.remote(0))) == _untimed(gen0)
     assert ray_local.get(helper.helped.remote()) == 3          # 6 new genomes, an interleaved half each
 
     ray_local.kill(helper, no_restart=True)                     # a dead helper: the owner does it all
-    gen1 = ray_local.get(owner.advance.remote(0, 1, None, 1, (), (), [helper]))
-    assert _untimed(gen1) == _untimed(alone.advance(0, 1, None, 1))
+    ray_local.get(owner.advance.remote(0, 1, None, 1, (), (), [helper]))
+    alone.advance(0, 1, None, 1)
+    assert _untimed(ray_local.get(owner.latest.remote(0))) == _untimed(alone.latest(0))
 
 
 def test_an_offer_helps_its_own_generation_only(two_hosts, ray_local):

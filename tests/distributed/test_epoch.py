@@ -54,7 +54,8 @@ def _run(n_islands: int = 2, interval: int = 10):
         _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
         _pending_events=[], _event=Coordinator._event,
         progress=SimpleNamespace(message=messages.append),
-        _show=lambda g, results: shown.append(g), _island_done=lambda island, g, population: None)
+        _show=lambda g, results: shown.append(g), _island_done=lambda island, g, done: None,
+        last=1000, emigrant_spec=lambda config: (2, "best"))
     return run, shown, messages
 
 

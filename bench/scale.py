@@ -1,0 +1,209 @@
+"""A cluster simulator: what the engine itself costs per island, per row and per epoch as a run grows.
+
+    python bench/scale.py --islands 256 --population 50 --cpus 64 --nodes 4 --generations 20 \\
+        --interval 5 --json out.json
+    python bench/scale.py --islands 4 --population 50 --cpus 16 --generations 10
+    python bench/scale.py --islands 64 --population 20 --cpus 32 --nodes 4 --generations 5 --scale 0.5
+
+A run of the ``waits`` universe (bench/plugins/waits): developing an individual waits a time drawn from
+the measured per-individual evaluation time distribution of the default universe (heavy tail included,
+a function of the text, so deterministic) instead of computing. Waiting costs no CPU, so hundreds of
+islands on tens of simulated hosts run on a 2-core machine: Ray gets ``--cpus`` logical CPUs over
+``--nodes`` nodes (``ray.cluster_utils.Cluster``, several raylets on this machine), and what is left
+to measure is the engine's own cost: breeding, traffic, commits, scheduling, the barrier.
+
+It prints, and with ``--json`` writes one JSON object with: ``islands``, ``cpus``, ``nodes``, ``rows``
+(committed in the run), ``epochs`` (commits), ``wall_s`` (the coordinator's run, from its creation to its
+last commit; Ray's and the hosts' start-up are ``startup_s``), ``ideal_s`` (the seconds waited by every
+evaluation the run stored, divided by the CPUs), ``efficiency`` (ideal / wall), ``coordinator_share``
+(the driver's time outside waiting for hosts, / wall; ``coordinator_cpu_share``: the driver's CPU
+seconds / wall), ``commit_p50_s``, ``commit_p99_s`` (the driver's commit of an epoch), ``commit_max_s``,
+``driver_bytes_per_row`` (bytes of the objects the driver received from hosts, pickled, per row),
+``driver_peak_rss_mb`` (the driver process's peak resident memory), ``rows_per_epoch``, and the
+machine's load average before and after (the machine may be shared: the waits are wall time, so
+another process's load shows as lost efficiency).
+
+The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
+driver's time.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import io  # noqa: E402
+import json  # noqa: E402
+import pickle  # noqa: E402
+import resource  # noqa: E402
+import shutil  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent
+PLUGINS = ROOT / "plugins"
+
+
+def _percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    if not ordered:
+        return 0.0
+    k = min(len(ordered) - 1, max(0, round(q * (len(ordered) - 1))))
+    return ordered[k]
+
+
+def config_toml(args: argparse.Namespace) -> str:
+    """The run configuration of the simulated run."""
+    return f"""
+universe = "waits"
+seed = {args.seed}
+
+[genome]
+length = {args.genome_length}
+
+[ea]
+population = {args.population}
+generations = {args.generations}
+
+[islands]
+count = {args.islands}
+migration_interval = {args.interval}
+migrants = 2
+topology = "ring"
+"""
+
+
+class Instruments:
+    """Timings and bytes the bench records in the driver, by wrapping the coordinator's methods."""
+
+    def __init__(self) -> None:
+        self.commits: list[float] = []
+        self.received_bytes = 0
+        self.overhead = 0.0
+
+    def install(self) -> None:
+        from genr8_dist.distributed import coordinator
+
+        instruments = self
+        commit = coordinator.Coordinator._commit
+
+        def timed_commit(self: Any, *a: Any, **k: Any) -> Any:
+            t = time.perf_counter()
+            try:
+                return commit(self, *a, **k)
+            finally:
+                instruments.commits.append(time.perf_counter() - t)
+
+        coordinator.Coordinator._commit = timed_commit  # type: ignore[method-assign]
+        receive = coordinator.Epoch.receive
+
+        def counted_receive(self: Any, island: int, g: int, population: Any, *a: Any, **k: Any) -> Any:
+            t = time.perf_counter()
+            instruments.received_bytes += len(pickle.dumps(population, protocol=5))
+            instruments.overhead += time.perf_counter() - t
+            return receive(self, island, g, population, *a, **k)
+
+        coordinator.Epoch.receive = counted_receive  # type: ignore[method-assign]
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """One simulated run; returns the figures."""
+    os.environ["GENR8_PLUGINS"] = str(PLUGINS)
+    os.environ["GENR8_WAITS_SCALE"] = repr(args.scale)
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from genr8_dist.distributed.session import RunOptions, start_run
+    from genr8_dist.store import RunStore
+
+    work = Path(tempfile.mkdtemp(prefix="genr8-scale-", dir=args.tmp))
+    config_path = work / "scale.toml"
+    config_path.write_text(config_toml(args))
+    run_dir = work / "run"
+    load_before = os.getloadavg()
+    t0 = time.perf_counter()
+    per_node = args.cpus / args.nodes
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": per_node})
+    instruments = Instruments()
+    instruments.install()
+    try:
+        for _ in range(args.nodes - 1):
+            cluster.add_node(num_cpus=per_node)
+        cluster.wait_for_nodes()
+        ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
+        cpu0 = time.process_time()
+        summary = start_run(config_path, str(run_dir), RunOptions(quiet=True, schedule_timeout=600.0),
+                            out=io.StringIO())
+        driver_cpu = time.process_time() - cpu0
+        total = time.perf_counter() - t0
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    load_after = os.getloadavg()
+    store = RunStore.open(str(run_dir))
+    table = store.individuals(columns=["crit_wait", "grow_seconds"])
+    waits = table.column("crit_wait").to_pylist()
+    grown = table.column("grow_seconds").to_pylist()
+    waited = sum(w for w, g in zip(waits, grown, strict=True) if w is not None and g > 0) * args.scale
+    rows = table.num_rows
+    shutil.rmtree(work, ignore_errors=True)
+    wall = summary.wall_seconds
+    ideal = waited / args.cpus
+    driver_busy = max(0.0, wall - summary.wait_seconds - instruments.overhead)
+    commits = instruments.commits
+    return {
+        "islands": args.islands, "population": args.population, "cpus": args.cpus, "nodes": args.nodes,
+        "generations": args.generations, "interval": args.interval, "scale": args.scale,
+        "hosts": summary.hosts, "rows": rows, "epochs": len(commits),
+        "rows_per_epoch": rows / len(commits) if commits else 0.0,
+        "wall_s": wall, "startup_s": total - wall, "ideal_s": ideal,
+        "efficiency": ideal / wall if wall > 0 else 0.0,
+        "coordinator_share": driver_busy / wall if wall > 0 else 0.0,
+        "coordinator_cpu_share": max(0.0, driver_cpu - instruments.overhead) / wall if wall > 0 else 0.0,
+        "store_s": summary.store_seconds,
+        "commit_p50_s": statistics.median(commits) if commits else 0.0,
+        "commit_p99_s": _percentile(commits, 0.99), "commit_max_s": max(commits, default=0.0),
+        "driver_bytes_per_row": instruments.received_bytes / rows if rows else 0.0,
+        "driver_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in load_after],
+        "status": summary.status,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--islands", type=int, default=16)
+    parser.add_argument("--population", type=int, default=50)
+    parser.add_argument("--cpus", type=int, default=16, help="Ray's logical CPUs, all nodes together")
+    parser.add_argument("--nodes", type=int, default=1, help="Ray nodes (raylets) on this machine")
+    parser.add_argument("--generations", type=int, default=10, help="the run's last generation")
+    parser.add_argument("--interval", type=int, default=5, help="islands.migration_interval")
+    parser.add_argument("--scale", type=float, default=1.0,
+                        help="multiplies every wait (1: the measured distribution)")
+    parser.add_argument("--genome-length", type=int, default=20)
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")
+    parser.add_argument("--json", default=None, help="write the figures to this file as one JSON object")
+    args = parser.parse_args(argv)
+    if args.cpus < 1 or args.nodes < 1 or args.cpus < args.nodes:
+        parser.error("--cpus and --nodes must be at least 1, and --cpus at least --nodes")
+    figures = run(args)
+    width = max(len(k) for k in figures)
+    for key, value in figures.items():
+        shown = f"{value:.4g}" if isinstance(value, float) else value
+        print(f"{key:<{width}}  {shown}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
