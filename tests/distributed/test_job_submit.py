@@ -68,9 +68,9 @@ def test_a_plugin_run_submitted_as_a_ray_job(tmp_path):
     make_plugin(job / "plugins")
     (job / "run.toml").write_text(CONFIG)
     local = subprocess.run([sys.executable, "-m", "genr8_dist.cli", "run", "run.toml", "--run-dir",
-                            str(tmp_path / "local"), "--cpus", "2", "--quiet"],
+                            str(tmp_path / "local"), "--cpus", "2", "--quiet", "--trust-hooks"],
                            cwd=job, env=env, capture_output=True, text=True, timeout=300)
-    assert local.returncode == 0, local.stderr[-2000:]
+    assert local.returncode == 0, local.stderr[-2000:]   # the user's consent, remembered for the job
 
     started = subprocess.run(["bash", str(SCRIPT), "start", "1"], env=env, capture_output=True, text=True,
                              timeout=300)
