@@ -75,24 +75,14 @@ def write_part(store: RunStore, table: pa.Table, *, stem: str = "part") -> Part:
 def island_spans(table: pa.Table) -> dict[str, list[int]]:
     """Each island's first and last generation in ``table``; ``StoreError`` if an id appears twice or an
     island's generations do not follow one another."""
-    import numpy as np
+    from genr8_dist.store.schema import island_generations
 
-    island = table.column("island").to_numpy()
-    gen = table.column("generation").to_numpy()
-    index = table.column("index").to_numpy()
-    order = np.lexsort((index, gen, island))
-    si, sg, sx = island[order], gen[order], index[order]
-    dup = (si[1:] == si[:-1]) & (sg[1:] == sg[:-1]) & (sx[1:] == sx[:-1])
-    if dup.any():
-        k = int(np.argmax(dup))
-        raise StoreError(f"individual {si[k]}-{sg[k]}-{sx[k]} appears twice in one part")
     spans: dict[str, list[int]] = {}
-    for isl in np.unique(si):
-        gens = np.unique(sg[si == isl])
+    for isl, gens in island_generations(table, "one part"):
         if int(gens[-1]) - int(gens[0]) + 1 != len(gens):
             raise StoreError(f"island {isl}: the part's generations {gens.tolist()[:8]} do not follow "
                              "one another")
-        spans[str(int(isl))] = [int(gens[0]), int(gens[-1])]
+        spans[str(isl)] = [int(gens[0]), int(gens[-1])]
     return spans
 
 

@@ -72,6 +72,7 @@ from genr8_dist.store.schema import (
     individuals_from_table,
     individuals_schema,
     individuals_table,
+    island_generations,
     reading_schema,
     run_columns,
     sizes_of,
@@ -281,6 +282,15 @@ class RenamedDataset:
 
 def _manifest_rel(version: int) -> str:
     return f"{MANIFEST_DIR}/{version:010d}.json"
+
+
+def _checked_events(events: Sequence[Event]) -> list[Event]:
+    """``events`` as a list; ``StoreError`` if one is not an ``Event`` record."""
+    out = list(events)
+    for event in out:
+        if not isinstance(event, Event):
+            raise StoreError(f"events must be Event records, got {type(event).__name__}")
+    return out
 
 
 def _generations(entries: list[dict[str, Any]]) -> dict[str, int]:
@@ -537,27 +547,18 @@ class RunStore:
         """``commit`` for rows already in an Arrow table of ``self.schema`` (bulk writers)."""
         table = self._checked_rows(table)
         islands = self._island_ranges(table)
-        events = list(events)
-        for event in events:
-            if not isinstance(event, Event):
-                raise StoreError(f"events must be Event records, got {type(event).__name__}")
+        events = _checked_events(events)
         if table.num_rows == 0 and not events and add is None:
             return self.version
-        with self._transaction():
-            version = self._next_version()
-            manifest = copy.deepcopy(self._m)
-            if table.num_rows:
-                entry = self._write_parquet(f"individuals/part-{version:010d}", table)
-                entry.update(commits=[version, version], islands=islands)
-                manifest["individuals"].append(entry)
-            self._add_events(manifest, events, version)
-            if add is not None:
-                add(manifest, version)
-            manifest["generations"] = _generations(manifest["individuals"])
-            self._publish(manifest, version)
-        if self.compact_every and self._small_files() >= self.compact_every:
-            self.compact()
-        return version
+
+        def written(version: int) -> list[dict[str, Any]]:
+            if not table.num_rows:
+                return []
+            entry = self._write_parquet(f"individuals/part-{version:010d}", table)
+            entry.update(commits=[version, version], islands=islands)
+            return [entry]
+
+        return self._commit_entries(written, events, add)
 
     def commit_parts(self, parts: Sequence[Part], events: Sequence[Event] = (),
                      *, add: AddFiles | None = None) -> int:
@@ -566,16 +567,20 @@ class RunStore:
         parts must follow its last committed one. Returns the commit number."""
         from genr8_dist.store.parts import take_parts
 
-        events = list(events)
-        for event in events:
-            if not isinstance(event, Event):
-                raise StoreError(f"events must be Event records, got {type(event).__name__}")
+        events = _checked_events(events)
         if not parts and not events and add is None:
             return self.version
+        return self._commit_entries(lambda version: take_parts(self, list(parts), version), events, add)
+
+    def _commit_entries(self, entries: Callable[[int], list[dict[str, Any]]], events: list[Event],
+                        add: AddFiles | None) -> int:
+        """One commit: the individuals files ``entries(version)`` writes or takes in (inside the
+        commit's transaction, so a failure removes them), ``events`` and what ``add`` adds, in one
+        new manifest; then compaction when enough small files have gathered."""
         with self._transaction():
             version = self._next_version()
             manifest = copy.deepcopy(self._m)
-            manifest["individuals"].extend(take_parts(self, list(parts), version))
+            manifest["individuals"].extend(entries(version))
             self._add_events(manifest, events, version)
             if add is not None:
                 add(manifest, version)
@@ -1278,30 +1283,19 @@ class RunStore:
         return table
 
     def _island_ranges(self, table: pa.Table) -> dict[str, list[int]]:
-        import numpy as np
-
         if table.num_rows == 0:
             return {}
-        island = table.column("island").to_numpy()
-        gen = table.column("generation").to_numpy()
-        index = table.column("index").to_numpy()
-        order = np.lexsort((index, gen, island))
-        si, sg, sx = island[order], gen[order], index[order]
-        dup = (si[1:] == si[:-1]) & (sg[1:] == sg[:-1]) & (sx[1:] == sx[:-1])
-        if dup.any():
-            k = int(np.argmax(dup))
-            raise StoreError(f"individual {si[k]}-{sg[k]}-{sx[k]} appears twice in one commit")
+        spans = island_generations(table, "one commit")
         done = self.committed_generations()
         ranges: dict[str, list[int]] = {}
-        for isl in np.unique(si):
-            gens = np.unique(sg[si == isl])
-            start = done.get(int(isl), -1) + 1
+        for isl, gens in spans:
+            start = done.get(isl, -1) + 1
             if gens[0] != start or int(gens[-1]) - int(gens[0]) + 1 != len(gens):
                 raise StoreError(
                     f"island {isl}: the commit holds generations {gens.tolist()[:8]}, but the next one "
                     f"to commit is {start} and a commit's generations must follow one another"
                 )
-            ranges[str(int(isl))] = [int(gens[0]), int(gens[-1])]
+            ranges[str(isl)] = [int(gens[0]), int(gens[-1])]
         return ranges
 
     def _small_files(self) -> int:

@@ -29,6 +29,7 @@ from genr8_dist.evolution.individual import (
 )
 
 if TYPE_CHECKING:
+    import numpy as np
     import pyarrow as pa
 
 __all__ = [
@@ -44,6 +45,7 @@ __all__ = [
     "individuals_from_table",
     "individuals_schema",
     "individuals_table",
+    "island_generations",
     "listed_columns",
     "run_columns",
     "size_column",
@@ -403,3 +405,20 @@ def events_table(events: Sequence[Event], run_id: str, first_seq: int, time_us: 
         ],
         schema=schema,
     )
+
+
+def island_generations(table: pa.Table, where: str) -> list[tuple[int, np.ndarray]]:
+    """Each island of ``table`` with its distinct generations, ascending; ``StoreError`` naming
+    ``where`` ("one part", "one commit") if an individual's id appears twice."""
+    import numpy as np
+
+    island = table.column("island").to_numpy()
+    gen = table.column("generation").to_numpy()
+    index = table.column("index").to_numpy()
+    order = np.lexsort((index, gen, island))
+    si, sg, sx = island[order], gen[order], index[order]
+    dup = (si[1:] == si[:-1]) & (sg[1:] == sg[:-1]) & (sx[1:] == sx[:-1])
+    if dup.any():
+        k = int(np.argmax(dup))
+        raise StoreError(f"individual {si[k]}-{sg[k]}-{sx[k]} appears twice in {where}")
+    return [(int(isl), np.unique(sg[si == isl])) for isl in np.unique(si)]
