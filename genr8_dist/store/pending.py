@@ -37,7 +37,7 @@ from genr8_dist.store._fs import RunFS
 if TYPE_CHECKING:
     from genr8_dist.store.lease import Lease
 
-__all__ = ["LOCK_NAME", "QUEUE_DIR", "Queued", "RunLock", "enqueue", "lock_holder", "queued"]
+__all__ = ["LOCK_NAME", "QUEUE_DIR", "LockAndQueue", "Queued", "RunLock", "enqueue", "lock_holder", "queued"]
 
 LOCK_NAME = "_running.lock"
 QUEUE_DIR = "queue"
@@ -227,3 +227,38 @@ def enqueue(rfs: RunFS, request: dict[str, Any]) -> Queued:
 def dequeue(rfs: RunFS, item: Queued) -> None:
     """Remove a request once it is recorded in the run store (or refused)."""
     rfs.delete(f"{QUEUE_DIR}/{item.name}")
+
+
+class LockAndQueue:
+    """A store's lock and queue (mixed into ``RunStore``, which sets the attributes)."""
+
+    _fs: RunFS
+    writer_lock: RunLock | None   # checked before each manifest (a lease on S3)
+
+    def lock(self, role: str, *, wait: float = 10.0) -> RunLock:
+        """The run's lock for ``role`` (``"run"``: the evolution's driver; ``"edit"``: one edit); this
+        store's commits check it first (on S3, that its lease is still theirs)."""
+        self.writer_lock = RunLock(self._fs, role, wait=wait)
+        return self.writer_lock
+
+    def running(self) -> dict[str, Any] | None:
+        """Who runs the run now (role, pid, host, since), or None when no process holds its lock."""
+        return lock_holder(self._fs)
+
+    def enqueue(self, request: dict[str, Any]) -> Queued:
+        """Queue an intervention for the running run's next epoch (plain JSON data)."""
+        return enqueue(self._fs, request)
+
+    def live(self) -> Any:
+        """The live view of the running run (``store/live.py``): what it has completed, not committed."""
+        from genr8_dist.store import live
+
+        return live.LiveView(self._fs)
+
+    def queued(self) -> list[Queued]:
+        """The pending interventions, in the order the coordinator takes them."""
+        return queued(self._fs)
+
+    def dequeue(self, item: Queued) -> None:
+        """Remove a pending intervention that has been recorded (only the run's writer does this)."""
+        dequeue(self._fs, item)

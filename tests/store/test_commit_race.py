@@ -17,7 +17,7 @@ from test_runstore import CONFIG, epoch
 from genr8_dist.errors import StoreError
 from genr8_dist.store import Event, RunStore
 from genr8_dist.store._fs import resolve
-from genr8_dist.store.runstore import _list_manifests, _read_manifest, file_entries
+from genr8_dist.store.manifest import file_entries, list_manifests, read_manifest
 
 STEPS = ("write_new", "write_exclusive", "write_atomic", "delete")
 
@@ -116,8 +116,8 @@ def test_the_loser_never_touches_the_winners_bytes_at_any_step(
             # every byte the winner committed is still there, unchanged
             assert _committed_bytes(run) == after_winner, f"step {step}"
         rfs = resolve(str(run))
-        referenced = {e["path"] for version in _list_manifests(rfs)
-                      if (m := _read_manifest(rfs, version)) is not None for _, e in file_entries(m)}
+        referenced = {e["path"] for version in list_manifests(rfs)
+                      if (m := read_manifest(rfs, version)) is not None for _, e in file_entries(m)}
         leftovers = _on_disk(run) - referenced
         if not loser_won:
             assert leftovers == set(), f"step {step}: the loser left {leftovers}"

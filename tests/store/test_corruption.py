@@ -23,7 +23,7 @@ from test_runstore import CONFIG, epoch
 
 from genr8_dist.cli import main
 from genr8_dist.store import Event, RunStore
-from genr8_dist.store.runstore import file_entries
+from genr8_dist.store.manifest import file_entries
 
 READERS = (["history"], ["top", "-k", "50"], ["query", "select island, generation, count(*), sum(fitness) "
                                                "from individuals group by all order by all"],

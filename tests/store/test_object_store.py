@@ -98,7 +98,7 @@ def test_a_manifest_number_is_created_once_and_the_loser_changes_nothing(s3_serv
 
 def test_a_manifest_put_is_conditional_even_when_the_check_before_it_missed(s3_server, monkeypatch):
     """The window check-then-PUT left open: both writers pick the same number; the server refuses one."""
-    import genr8_dist.store.runstore as runstore
+    import genr8_dist.store.transactions as transactions
 
     bucket = s3_server.bucket()
     uri = s3_server.uri(bucket, "runs/window")
@@ -107,8 +107,8 @@ def test_a_manifest_put_is_conditional_even_when_the_check_before_it_missed(s3_s
     rows = _next_epoch(second, 1, 2, 6)
     number = first.version + 1
     first.commit_table(_next_epoch(first, 1, 2, 6))
-    monkeypatch.setattr(runstore, "_list_manifests", lambda rfs: [v for v in range(1, number)])
-    monkeypatch.setattr(runstore, "_read_head", lambda rfs: number - 1)
+    monkeypatch.setattr(transactions, "list_manifests", lambda rfs: [v for v in range(1, number)])
+    monkeypatch.setattr(transactions, "read_head", lambda rfs: number - 1)
     with pytest.raises(StoreError, match=f"committed manifest {number} at the same time"):
         second.commit_table(rows)
     monkeypatch.undo()

@@ -139,12 +139,12 @@ def test_open_names_the_path_when_missing_or_not_a_run(tmp_path: Path) -> None:
 def test_open_refuses_a_run_written_by_a_newer_schema(store: RunStore, tmp_path: Path) -> None:
     import json
 
-    from genr8_dist.store.runstore import _encode_manifest
+    from genr8_dist.store.manifest import encode_manifest
 
     path = tmp_path / "run" / "_manifest" / "0000000001.json"
     manifest = json.loads(path.read_text())
     manifest["schema_version"] = 99
-    path.write_bytes(_encode_manifest(manifest))
+    path.write_bytes(encode_manifest(manifest))
     with pytest.raises(StoreError, match="schema version 99 is newer"):
         RunStore.open(tmp_path / "run")
 
@@ -527,7 +527,7 @@ def test_damage_to_an_older_manifest_is_reported(store: RunStore) -> None:
 def test_a_manifest_naming_a_file_outside_the_run_is_not_followed(store: RunStore, tmp_path: Path) -> None:
     import json
 
-    from genr8_dist.store.runstore import _encode_manifest
+    from genr8_dist.store.manifest import encode_manifest
 
     store.commit(epoch(range(2)))
     outside = tmp_path / "secret.parquet"
@@ -537,7 +537,7 @@ def test_a_manifest_naming_a_file_outside_the_run_is_not_followed(store: RunStor
         manifest = json.loads(path.read_text())
         manifest["individuals"][0]["path"] = evil
         newest = Path(store.path) / "_manifest" / "0000000003.json"
-        newest.write_bytes(_encode_manifest(dict(manifest, version=3)))
+        newest.write_bytes(encode_manifest(dict(manifest, version=3)))
         with pytest.raises(StoreError, match=r"0000000003\.json: the newest manifest is torn or altered"):
             RunStore.open(store.path).individuals()
 

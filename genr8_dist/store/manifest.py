@@ -1,0 +1,213 @@
+"""The run directory's format: its folders and its numbered manifests (docs/run-store.md).
+
+A manifest (``_manifest/0000000001.json``) is a complete snapshot of a run: what the run is (run id,
+criteria, sizes, columns, meshing, schema version, layout), every committed file with its rows, size
+and sha256 (``configs``, ``individuals``, ``events``, and any list a later feature adds the same way),
+each island's last committed generation and the next event ``seq``. It is JSON with a checksum over
+its body: one that is torn, altered or not a run manifest reads as None. ``_manifest/HEAD`` holds the
+newest commit's number. How commits publish manifests: ``store/transactions.py``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+from datetime import UTC, datetime
+from typing import Any
+
+from genr8_dist.errors import StoreError
+from genr8_dist.store import views
+from genr8_dist.store._fs import RunFS
+from genr8_dist.store.schema import SCHEMA_VERSION
+
+__all__ = [
+    "DATA_FOLDERS",
+    "FORMAT",
+    "HEAD",
+    "KEEP_MANIFESTS",
+    "LAYOUT_FOLDERS",
+    "MANIFEST_DIR",
+    "REL_PATH",
+    "decode_manifest",
+    "encode_manifest",
+    "file_entries",
+    "first_commit",
+    "is_int",
+    "last_generations",
+    "list_manifests",
+    "load_state",
+    "manifest_rel",
+    "read_head",
+    "read_manifest",
+    "utc_now",
+]
+FORMAT = "genr8-run"
+MANIFEST_DIR = "_manifest"
+KEEP_MANIFESTS = 16          # manifests kept for concurrent readers and for repair()
+HEAD = f"{MANIFEST_DIR}/HEAD"   # the newest commit's number, written after its manifest is linked
+_MANIFEST_NAME = re.compile(r"^(\d{10})\.json$")
+REL_PATH = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._-]{0,200}(/[A-Za-z0-9_][A-Za-z0-9._-]{0,200}){1,3}$")
+_SHA256 = re.compile(r"^[0-9a-f]{64}$")
+LAYOUT_FOLDERS = {MANIFEST_DIR, "configs", "individuals", "events"}
+DATA_FOLDERS = ("individuals", "events", f"{views.FILES}/individuals", f"{views.FILES}/events")
+
+
+def utc_now() -> datetime:
+    return datetime.now(UTC)
+
+
+def _body_digest(body: dict[str, Any]) -> str:
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def encode_manifest(m: dict[str, Any]) -> bytes:
+    body = {k: v for k, v in m.items() if k != "checksum"}
+    out = dict(body, checksum=_body_digest(body))
+    return (json.dumps(out, sort_keys=True, indent=1) + "\n").encode()
+
+
+def decode_manifest(data: bytes) -> dict[str, Any] | None:
+    """The manifest in ``data``, or None when it is torn, altered or not a run manifest."""
+    try:
+        m = json.loads(data)
+    except (ValueError, UnicodeDecodeError):
+        return None
+    if not isinstance(m, dict) or m.get("format") != FORMAT:
+        return None
+    body = {k: v for k, v in m.items() if k != "checksum"}
+    if m.get("checksum") != _body_digest(body):
+        return None
+    try:
+        _check_manifest(m)
+    except (ValueError, TypeError, KeyError, AttributeError):
+        return None
+    return m
+
+
+def is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _check_range(value: Any) -> None:
+    if not (isinstance(value, list) and len(value) == 2 and all(is_int(v) for v in value)
+            and value[0] <= value[1]):
+        raise ValueError(f"not a range: {value!r}")
+
+
+def file_entries(manifest: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """Every file a manifest names, as ``(kind, entry)``: the kind is the manifest key listing it
+    (``configs``, ``individuals``, ``events``, or any list a later feature adds the same way)."""
+    out: list[tuple[str, dict[str, Any]]] = []
+    for key, value in manifest.items():
+        if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
+            out.extend((key, e) for e in value)
+    return out
+
+
+def _check_manifest(m: dict[str, Any]) -> None:
+    """Raise ``ValueError`` unless ``m`` is well formed and names only files inside the run."""
+    if not is_int(m["version"]) or not is_int(m["next_seq"]) or not isinstance(m["run_id"], str):
+        raise ValueError("header")
+    if not (isinstance(m["criteria"], list) and all(isinstance(c, str) for c in m["criteria"])):
+        raise ValueError("criteria")
+    for key in ("configs", "individuals", "events"):
+        if not isinstance(m[key], list):
+            raise ValueError(key)
+    for kind, e in file_entries(m):
+        path = e["path"]
+        if (not isinstance(path, str) or not REL_PATH.match(path) or path.startswith(MANIFEST_DIR + "/")
+                or not is_int(e["bytes"]) or e["bytes"] < 0 or not isinstance(e["sha256"], str)
+                or not _SHA256.match(e["sha256"])):
+            raise ValueError(f"{kind} entry {path!r}")
+        if kind == "configs":
+            if not (is_int(e["version"]) and is_int(e["effective_generation"]) and is_int(e["commit"])
+                    and isinstance(e["created"], str)):
+                raise ValueError("config entry")
+        elif kind in ("individuals", "events"):
+            if not is_int(e["rows"]):
+                raise ValueError("rows")
+            _check_range(e["commits"])
+            if kind == "events":
+                _check_range(e["seq"])
+            else:
+                if not isinstance(e["islands"], dict):
+                    raise ValueError("islands")
+                for island, span in e["islands"].items():
+                    int(island)
+                    _check_range(span)
+    if not isinstance(m["generations"], dict):
+        raise ValueError("generations")
+    for island, g in m["generations"].items():
+        int(island)
+        if not is_int(g):
+            raise ValueError("generations")
+
+
+def manifest_rel(version: int) -> str:
+    return f"{MANIFEST_DIR}/{version:010d}.json"
+
+
+def last_generations(entries: list[dict[str, Any]]) -> dict[str, int]:
+    last: dict[str, int] = {}
+    for e in entries:
+        for island, (_, gmax) in e["islands"].items():
+            last[island] = max(last.get(island, -1), gmax)
+    return dict(sorted(last.items(), key=lambda kv: int(kv[0])))
+
+
+def first_commit(entry: dict[str, Any]) -> int:
+    return int(entry["commits"][0]) if "commits" in entry else int(entry["commit"])
+
+
+def list_manifests(rfs: RunFS) -> list[int]:
+    return sorted(int(m.group(1)) for n in rfs.listdir(MANIFEST_DIR) if (m := _MANIFEST_NAME.match(n)))
+
+
+def read_manifest(rfs: RunFS, version: int) -> dict[str, Any] | None:
+    try:
+        data = rfs.read_bytes(manifest_rel(version))
+    except OSError:
+        return None
+    manifest = decode_manifest(data)
+    if manifest is not None and manifest.get("version") != version:
+        return None
+    return manifest
+
+
+def read_head(rfs: RunFS) -> int | None:
+    """The commit number ``_manifest/HEAD`` records, or None (absent: a run written before it was
+    kept; unreadable: damaged, which ``verify`` reports)."""
+    try:
+        text = rfs.read_bytes(HEAD).decode().strip()
+    except (OSError, UnicodeDecodeError):
+        return None
+    return int(text) if text.isdigit() and len(text) <= 10 else None
+
+
+def load_state(rfs: RunFS) -> tuple[dict[str, Any] | None, str | None]:
+    """The highest-numbered intact manifest (None when there is none) and, when the newest manifest
+    is lost or damaged, a line saying so. Refuses runs written by a newer schema."""
+    head = read_head(rfs)  # read before listing: a writer links its manifest before writing HEAD
+    skipped: list[int] = []
+    for version in sorted(list_manifests(rfs), reverse=True):
+        manifest = read_manifest(rfs, version)
+        if manifest is None:
+            if rfs.size(manifest_rel(version)) is not None:  # not merely pruned by a writer
+                skipped.append(version)
+            continue
+        found = manifest.get("schema_version")
+        if not isinstance(found, int) or not is_int(found) or found > SCHEMA_VERSION:
+            raise StoreError(
+                f"{rfs.show(manifest_rel(version))}: schema version {found!r} is newer than this "
+                f"genr8_dist reads ({SCHEMA_VERSION}); upgrade genr8_dist"
+            )
+        if skipped:
+            return manifest, (f"{rfs.show(manifest_rel(max(skipped)))}: the newest manifest is torn or "
+                              f"altered; the run would read as commit {version}")
+        if head is not None and head > version:
+            return manifest, (f"{rfs.show(manifest_rel(head))}: the newest manifest (commit {head}, "
+                              f"recorded in {HEAD}) is missing; the run would read as commit {version}")
+        return manifest, None
+    return None, None
