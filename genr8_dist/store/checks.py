@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import hashlib
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
-from genr8_dist.store.manifest import file_entries
+from genr8_dist.store.manifest import Entry, Manifest, file_entries
 from genr8_dist.store.snapshot import Snapshot
 
 if TYPE_CHECKING:
@@ -21,7 +21,7 @@ __all__ = ["FileChecks"]
 class FileChecks(Snapshot):
     """A store's checks of the files its manifest names."""
 
-    def read_file(self, entry: dict[str, Any]) -> bytes:
+    def read_file(self, entry: Entry) -> bytes:
         """The bytes of a file a manifest entry names, checked against its size and sha256 first
         (``StoreError`` naming it when they differ)."""
         self._require_current()
@@ -32,7 +32,7 @@ class FileChecks(Snapshot):
         self._verified[(entry["path"], entry["sha256"])] = self._stamp(entry["path"])
         return data
 
-    def _verify_files(self, entries: list[dict[str, Any]]) -> None:
+    def _verify_files(self, entries: list[Entry]) -> None:
         """Check each file against its manifest entry (size, sha256, Parquet rows) the first time
         this store reads it; ``StoreError`` naming the first damaged one."""
         todo = []
@@ -60,7 +60,7 @@ class FileChecks(Snapshot):
         except OSError:
             return None, None
 
-    def _read_whole(self, entry: dict[str, Any]) -> pa.Table:
+    def _read_whole(self, entry: Entry) -> pa.Table:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
@@ -70,11 +70,11 @@ class FileChecks(Snapshot):
         data = self._fs.read_bytes(entry["path"])
         return pq.read_table(pa.BufferReader(data))
 
-    def _read_error(self, entry: dict[str, Any], exc: BaseException) -> StoreError:
+    def _read_error(self, entry: Entry, exc: BaseException) -> StoreError:
         problem = self._check_entry(entry, deep=True) or f"{self._fs.show(entry['path'])}: unreadable ({exc})"
         return StoreError(f"{problem}; {self._repair_hint()}")
 
-    def _check_entry(self, entry: dict[str, Any], *, deep: bool) -> str | None:
+    def _check_entry(self, entry: Entry, *, deep: bool) -> str | None:
         """What is wrong with a committed file, or None. ``deep`` also checks its sha256."""
         import pyarrow as pa
         import pyarrow.parquet as pq
@@ -109,8 +109,8 @@ class FileChecks(Snapshot):
             return f"{where}: holds {meta.num_rows} rows, the manifest recorded {entry['rows']}"
         return None
 
-    def _bad_entries(self, manifest: dict[str, Any], cache: dict[tuple[str, str], str | None]
-                     ) -> list[tuple[str, dict[str, Any], str]]:
+    def _bad_entries(self, manifest: Manifest, cache: dict[tuple[str, str], str | None]
+                     ) -> list[tuple[str, Entry, str]]:
         bad = []
         for kind, e in file_entries(manifest):
             k = (e["path"], e["sha256"])

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, cast
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.store.compaction import COMPACT_TARGET_ROWS
-from genr8_dist.store.manifest import last_generations
+from genr8_dist.store.manifest import Entry, Manifest, last_generations
 from genr8_dist.store.schema import Event, individuals_table, island_generations
 from genr8_dist.store.transactions import Transactions
 
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
     from genr8_dist.store.runstore import RunStore
 
 __all__ = ["AddFiles", "Commits"]
-AddFiles = Callable[[dict[str, Any], int], None]
+AddFiles = Callable[[Manifest, int], None]
 """``add(manifest, version)``: writes files with ``RunStore.write_file`` and lists their entries in
 ``manifest`` (a list under a key of its own), as part of commit ``version``."""
 
@@ -59,11 +59,11 @@ class Commits(Transactions):
         if table.num_rows == 0 and not events and add is None:
             return self.version
 
-        def written(version: int) -> list[dict[str, Any]]:
+        def written(version: int) -> list[Entry]:
             if not table.num_rows:
                 return []
             entry = self._write_parquet(f"individuals/part-{version:010d}", table)
-            entry.update(commits=[version, version], islands=islands)
+            entry["commits"], entry["islands"] = [version, version], islands
             return [entry]
 
         return self._commit_entries(written, events, add)
@@ -78,10 +78,14 @@ class Commits(Transactions):
         events = _checked_events(events)
         if not parts and not events and add is None:
             return self.version
-        store = cast("RunStore", self)
-        return self._commit_entries(lambda version: take_parts(store, list(parts), version), events, add)
+        store = cast("RunStore", self)   # parts.py's functions take the whole store
 
-    def _commit_entries(self, entries: Callable[[int], list[dict[str, Any]]], events: list[Event],
+        def taken(version: int) -> list[Entry]:   # parts.py gives the entries as plain dicts
+            return cast("list[Entry]", take_parts(store, list(parts), version))
+
+        return self._commit_entries(taken, events, add)
+
+    def _commit_entries(self, entries: Callable[[int], list[Entry]], events: list[Event],
                         add: AddFiles | None) -> int:
         """One commit: the individuals files ``entries(version)`` writes or takes in (inside the
         commit's transaction, so a failure removes them), ``events`` and what ``add`` adds, in one

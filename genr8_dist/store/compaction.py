@@ -5,10 +5,11 @@ in one atomic commit; rows and their order unchanged.
 from __future__ import annotations
 
 import copy
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
-from genr8_dist.store.manifest import first_commit
+from genr8_dist.store import views
+from genr8_dist.store.manifest import Entry, first_commit
 from genr8_dist.store.transactions import Transactions
 
 __all__ = ["COMPACT_EVERY", "COMPACT_TARGET_ROWS", "Compaction"]
@@ -33,8 +34,9 @@ class Compaction(Transactions):
         before = len(manifest["individuals"]) + len(manifest["events"])
         version = None
         with self._transaction():
-            for key, prefix in (("individuals", "individuals/compact"), ("events", "events/compact")):
-                merged: list[dict[str, Any]] = []
+            for key in views.TABLES:
+                prefix = f"{key}/compact"
+                merged: list[Entry] = []
                 for group in _plan_compaction(manifest[key], target_rows):
                     if len(group) == 1:
                         merged.append(group[0])
@@ -67,10 +69,10 @@ class Compaction(Transactions):
         return before - len(manifest["individuals"]) - len(manifest["events"])
 
 
-def _plan_compaction(entries: list[dict[str, Any]], target_rows: int) -> list[list[dict[str, Any]]]:
+def _plan_compaction(entries: list[Entry], target_rows: int) -> list[list[Entry]]:
     """Groups of consecutive entries, each a file to keep (one entry) or to merge (several)."""
-    groups: list[list[dict[str, Any]]] = []
-    run: list[dict[str, Any]] = []
+    groups: list[list[Entry]] = []
+    run: list[Entry] = []
     rows = 0
     for e in entries:
         if e["rows"] >= target_rows:

@@ -9,10 +9,10 @@ import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import ConfigError, StoreError
-from genr8_dist.store.manifest import utc_now
+from genr8_dist.store.manifest import Entry, utc_now
 from genr8_dist.store.schema import Event
 from genr8_dist.store.transactions import Transactions
 
@@ -157,7 +157,7 @@ class Configs(Transactions):
         self._config_cache[number] = toml_text
         return number
 
-    def _config(self, entry: dict[str, Any]) -> ConfigVersion:
+    def _config(self, entry: Entry) -> ConfigVersion:
         number = entry["version"]
         text = self._config_cache.get(number)
         if text is None:

@@ -13,7 +13,6 @@ from genr8_dist.store._fs import TMP_PREFIX
 from genr8_dist.store.audit import below_gap
 from genr8_dist.store.foreign import is_store_name, set_aside
 from genr8_dist.store.manifest import (
-    DATA_FOLDERS,
     MANIFEST_DIR,
     file_entries,
     list_manifests,
@@ -41,7 +40,7 @@ class Garbage(Snapshot):
         from genr8_dist.store.parts import clear_stale_parts
 
         referenced: set[str] = set()
-        folders = {"configs", *DATA_FOLDERS}
+        folders = {"configs", *views.DATA_FOLDERS}
         deleted = 0
         for version in list_manifests(self._fs):
             m = read_manifest(self._fs, version)

@@ -14,21 +14,23 @@ import hashlib
 import json
 import re
 from datetime import UTC, datetime
-from typing import Any
+from typing import Any, NotRequired, TypedDict, cast
 
 from genr8_dist.errors import StoreError
-from genr8_dist.store import views
 from genr8_dist.store._fs import RunFS
 from genr8_dist.store.schema import SCHEMA_VERSION
 
 __all__ = [
-    "DATA_FOLDERS",
     "FORMAT",
     "HEAD",
     "KEEP_MANIFESTS",
     "LAYOUT_FOLDERS",
     "MANIFEST_DIR",
     "REL_PATH",
+    "Entry",
+    "Manifest",
+    "add_entries",
+    "as_json",
     "decode_manifest",
     "encode_manifest",
     "file_entries",
@@ -50,25 +52,79 @@ _MANIFEST_NAME = re.compile(r"^(\d{10})\.json$")
 REL_PATH = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9._-]{0,200}(/[A-Za-z0-9_][A-Za-z0-9._-]{0,200}){1,3}$")
 _SHA256 = re.compile(r"^[0-9a-f]{64}$")
 LAYOUT_FOLDERS = {MANIFEST_DIR, "configs", "individuals", "events"}
-DATA_FOLDERS = ("individuals", "events", f"{views.FILES}/individuals", f"{views.FILES}/events")
+
+
+class Entry(TypedDict):
+    """One file a manifest names: ``path`` (inside the run), ``bytes`` and ``sha256``, whatever list
+    names it; the other keys belong to the lists said."""
+
+    path: str
+    bytes: int
+    sha256: str
+    rows: NotRequired[int]                      # individuals, events: the Parquet file's rows
+    commits: NotRequired[list[int]]             # individuals, events: the first and last commit held
+    islands: NotRequired[dict[str, list[int]]]  # individuals: each island's first and last generation
+    seq: NotRequired[list[int]]                 # events: the first and last event seq held
+    version: NotRequired[int]                   # configs: the configuration version
+    effective_generation: NotRequired[int]      # configs: the generation it is in force from
+    created: NotRequired[str]                   # configs: when it was recorded (ISO 8601)
+    commit: NotRequired[int]                    # configs: the commit that recorded it
+    toml: NotRequired[str]                      # configs: its text, which repair() restores it from
+
+
+class Manifest(TypedDict):
+    """A run's committed state, as ``_manifest/NNNNNNNNNN.json`` holds it. A key marked "absent" is
+    missing from runs written before it was kept. A feature's own list of files is one more key
+    (``add_entries``), read through ``as_json``."""
+
+    format: str                                 # FORMAT
+    schema_version: int                         # the store schema the run was created with
+    layout: NotRequired[int]                    # 2: data files in _files/ (absent: layout 1)
+    run_id: str
+    criteria: list[str]
+    sizes: NotRequired[list[str]]               # absent: a run of schema 1 or 2
+    columns: NotRequired[list[list[str | bool]]]  # [name, type, nullable]; absent: schema 1
+    meshing: NotRequired[int]                   # absent: meshing 1
+    created: NotRequired[str]
+    version: int                                # the commit number
+    written: NotRequired[str]                   # when this commit was published
+    upgraded: NotRequired[dict[str, int]]       # repair --upgrade: from_layout, at_commit
+    checksum: NotRequired[str]                  # sha256 of the rest (on disk only)
+    configs: list[Entry]
+    individuals: list[Entry]
+    events: list[Entry]
+    generations: dict[str, int]                 # each island's last committed generation
+    next_seq: int                               # the next event's seq
+
+
+def as_json(manifest: Manifest) -> dict[str, Any]:
+    """``manifest`` as the JSON object it is (the same object), for code that walks every key: the
+    lists of files a feature adds are keys the type does not declare."""
+    return cast(dict[str, Any], manifest)
+
+
+def add_entries(manifest: Manifest, key: str, entries: list[Entry]) -> None:
+    """List ``entries`` (from ``RunStore.write_file``) under the feature's own ``key`` of ``manifest``
+    (in ``add(manifest, version)`` of a commit): verify, repair and garbage collection know them."""
+    as_json(manifest).setdefault(key, []).extend(entries)
 
 
 def utc_now() -> datetime:
     return datetime.now(UTC)
 
 
-def _body_digest(body: dict[str, Any]) -> str:
+def _body_digest(body: dict[str, object]) -> str:
     text = json.dumps(body, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def encode_manifest(m: dict[str, Any]) -> bytes:
+def encode_manifest(m: Manifest) -> bytes:
     body = {k: v for k, v in m.items() if k != "checksum"}
     out = dict(body, checksum=_body_digest(body))
     return (json.dumps(out, sort_keys=True, indent=1) + "\n").encode()
 
 
-def decode_manifest(data: bytes) -> dict[str, Any] | None:
+def decode_manifest(data: bytes) -> Manifest | None:
     """The manifest in ``data``, or None when it is torn, altered or not a run manifest."""
     try:
         m = json.loads(data)
@@ -83,7 +139,7 @@ def decode_manifest(data: bytes) -> dict[str, Any] | None:
         _check_manifest(m)
     except (ValueError, TypeError, KeyError, AttributeError):
         return None
-    return m
+    return cast(Manifest, m)
 
 
 def is_int(value: Any) -> bool:
@@ -96,10 +152,10 @@ def _check_range(value: Any) -> None:
         raise ValueError(f"not a range: {value!r}")
 
 
-def file_entries(manifest: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+def file_entries(manifest: Manifest) -> list[tuple[str, Entry]]:
     """Every file a manifest names, as ``(kind, entry)``: the kind is the manifest key listing it
     (``configs``, ``individuals``, ``events``, or any list a later feature adds the same way)."""
-    out: list[tuple[str, dict[str, Any]]] = []
+    out: list[tuple[str, Entry]] = []
     for key, value in manifest.items():
         if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
             out.extend((key, e) for e in value)
@@ -115,7 +171,7 @@ def _check_manifest(m: dict[str, Any]) -> None:
     for key in ("configs", "individuals", "events"):
         if not isinstance(m[key], list):
             raise ValueError(key)
-    for kind, e in file_entries(m):
+    for kind, e in file_entries(cast(Manifest, m)):
         path = e["path"]
         if (not isinstance(path, str) or not REL_PATH.match(path) or path.startswith(MANIFEST_DIR + "/")
                 or not is_int(e["bytes"]) or e["bytes"] < 0 or not isinstance(e["sha256"], str)
@@ -149,7 +205,7 @@ def manifest_rel(version: int) -> str:
     return f"{MANIFEST_DIR}/{version:010d}.json"
 
 
-def last_generations(entries: list[dict[str, Any]]) -> dict[str, int]:
+def last_generations(entries: list[Entry]) -> dict[str, int]:
     last: dict[str, int] = {}
     for e in entries:
         for island, (_, gmax) in e["islands"].items():
@@ -157,7 +213,7 @@ def last_generations(entries: list[dict[str, Any]]) -> dict[str, int]:
     return dict(sorted(last.items(), key=lambda kv: int(kv[0])))
 
 
-def first_commit(entry: dict[str, Any]) -> int:
+def first_commit(entry: Entry) -> int:
     return int(entry["commits"][0]) if "commits" in entry else int(entry["commit"])
 
 
@@ -165,7 +221,7 @@ def list_manifests(rfs: RunFS) -> list[int]:
     return sorted(int(m.group(1)) for n in rfs.listdir(MANIFEST_DIR) if (m := _MANIFEST_NAME.match(n)))
 
 
-def read_manifest(rfs: RunFS, version: int) -> dict[str, Any] | None:
+def read_manifest(rfs: RunFS, version: int) -> Manifest | None:
     try:
         data = rfs.read_bytes(manifest_rel(version))
     except OSError:
@@ -186,7 +242,7 @@ def read_head(rfs: RunFS) -> int | None:
     return int(text) if text.isdigit() and len(text) <= 10 else None
 
 
-def load_state(rfs: RunFS) -> tuple[dict[str, Any] | None, str | None]:
+def load_state(rfs: RunFS) -> tuple[Manifest | None, str | None]:
     """The highest-numbered intact manifest (None when there is none) and, when the newest manifest
     is lost or damaged, a line saying so. Refuses runs written by a newer schema."""
     head = read_head(rfs)  # read before listing: a writer links its manifest before writing HEAD

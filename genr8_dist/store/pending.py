@@ -36,6 +36,7 @@ from genr8_dist.store._fs import RunFS
 
 if TYPE_CHECKING:
     from genr8_dist.store.lease import Lease
+    from genr8_dist.store.live import LiveView
 
 __all__ = ["LOCK_NAME", "QUEUE_DIR", "LockAndQueue", "Queued", "RunLock", "enqueue", "lock_holder", "queued"]
 
@@ -249,7 +250,7 @@ class LockAndQueue:
         """Queue an intervention for the running run's next epoch (plain JSON data)."""
         return enqueue(self._fs, request)
 
-    def live(self) -> Any:
+    def live(self) -> LiveView:
         """The live view of the running run (``store/live.py``): what it has completed, not committed."""
         from genr8_dist.store import live
 

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.store.checks import FileChecks
+from genr8_dist.store.manifest import Entry
 from genr8_dist.store.schema import events_schema, individuals_from_table, reading_schema, stored_schema
 
 if TYPE_CHECKING:
@@ -84,7 +85,7 @@ class Reads(FileChecks):
             table = table.drop_columns(["index"])
         return table
 
-    def _entries_holding(self, island: str, generation: int) -> list[dict[str, Any]]:
+    def _entries_holding(self, island: str, generation: int) -> list[Entry]:
         return [
             e for e in self._m["individuals"]
             if island in e["islands"] and e["islands"][island][0] <= generation <= e["islands"][island][1]
@@ -139,7 +140,7 @@ class Reads(FileChecks):
         renamed = self.renamed
         return RenamedDataset(data, renamed) if renamed else data
 
-    def _entries_between(self, lo: int, hi: int) -> list[dict[str, Any]]:
+    def _entries_between(self, lo: int, hi: int) -> list[Entry]:
         """The individuals files holding some island's generation in ``lo..hi``."""
         return [e for e in self._m["individuals"]
                 if any(a <= hi and b >= lo for a, b in e["islands"].values())]
@@ -166,7 +167,7 @@ class Reads(FileChecks):
             return events_schema().empty_table()
         return pa.concat_tables(tables).sort_by("seq")
 
-    def _read_entries(self, entries: list[dict[str, Any]], *, columns: Sequence[str] | None,
+    def _read_entries(self, entries: list[Entry], *, columns: Sequence[str] | None,
                       filter: pc.Expression | None) -> pa.Table:
         import pyarrow as pa
         import pyarrow.dataset as ds

@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import copy
 import hashlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store import views
 from genr8_dist.store.audit import describe_missing, head_damaged, missing_manifests
 from genr8_dist.store.manifest import (
     HEAD,
+    Entry,
+    Manifest,
+    as_json,
     file_entries,
     first_commit,
     last_generations,
@@ -96,15 +99,15 @@ class Repair(Transactions):
         self.collect_garbage()
         return problems
 
-    def _mended(self, bad: list[tuple[str, dict[str, Any], str]], cache: dict[tuple[str, str], str | None]
-                ) -> tuple[dict[str, Any], list[str], list[str]]:
+    def _mended(self, bad: list[tuple[str, Entry, str]], cache: dict[tuple[str, str], str | None]
+                ) -> tuple[Manifest, list[str], list[str]]:
         """The manifest with every damaged file restored, replaced or dropped; what was dropped and
         what was restored, each as short phrases."""
         m = copy.deepcopy(self._m)
         dropped: list[str] = []
         restored: list[str] = []
         damaged = {(e["path"], e["sha256"]) for _, e, _ in bad}
-        older = []
+        older: list[Manifest] = []
         for version in sorted(list_manifests(self._fs), reverse=True):
             if version < self.version and (om := read_manifest(self._fs, version)) is not None:
                 older.append(om)
@@ -129,9 +132,11 @@ class Repair(Transactions):
                     dropped.append(_describe(kind, entry))
             m = _prefix(m, cut)
             break
+        lists = as_json(m)   # every list of files, a feature's own included
+        tails: list[Entry] = []
         for kind in [k for k, v in m.items() if isinstance(v, list) and k != "configs"]:
-            kept = []
-            for e in m[kind]:
+            kept: list[Any] = []
+            for e in lists[kind]:
                 if not isinstance(e, dict) or (e.get("path"), e.get("sha256")) not in damaged:
                     kept.append(e)
                     continue
@@ -142,11 +147,11 @@ class Repair(Transactions):
                 else:
                     dropped.append(_describe(kind, e))
                     if kind == "individuals":
-                        m.setdefault("_tails", []).append(e)
-            m[kind] = kept
+                        tails.append(e)
+            lists[kind] = kept
         # events of a commit whose individuals were the newest of their islands describe generations
         # the run will make again: dropped with them, or a resumed run would record them twice
-        for e in m.pop("_tails", []):
+        for e in tails:
             newer = any(k["islands"][i][1] > span[1] for k in m["individuals"]
                         for i, span in e["islands"].items() if i in k["islands"])
             if newer:
@@ -157,20 +162,21 @@ class Repair(Transactions):
             dropped.extend(_describe("events", x) for x in gone)
         return m, dropped, restored
 
-    def _replacement(self, kind: str, entry: dict[str, Any], older: list[dict[str, Any]],
-                     cache: dict[tuple[str, str], str | None]) -> list[dict[str, Any]]:
+    def _replacement(self, kind: str, entry: Entry, older: list[Manifest],
+                     cache: dict[tuple[str, str], str | None]) -> list[Entry]:
         """Intact files older manifests name that hold exactly ``entry``'s commits, or []."""
         if "commits" not in entry or "rows" not in entry:
             return []
         lo, hi = entry["commits"]
-        candidates: dict[str, dict[str, Any]] = {}
+        candidates: dict[str, Entry] = {}
         for om in older:
-            for e in om.get(kind, []):
+            for e in as_json(om).get(kind, []):
                 if (isinstance(e, dict) and e.get("path") != entry["path"] and "commits" in e
                         and lo <= e["commits"][0] and e["commits"][1] <= hi
                         and _within(e.get("islands", {}), entry.get("islands", {}))):
-                    candidates.setdefault(e["path"], e)
-        chosen, end = [], lo - 1
+                    candidates.setdefault(e["path"], cast(Entry, e))
+        chosen: list[Entry] = []
+        end = lo - 1
         for e in sorted(candidates.values(), key=lambda x: (x["commits"][0], -x["commits"][1])):
             if e["commits"][0] <= end:
                 continue
@@ -185,7 +191,7 @@ class Repair(Transactions):
         return chosen
 
 
-def _describe(kind: str, entry: dict[str, Any]) -> str:
+def _describe(kind: str, entry: Entry) -> str:
     """A dropped file in a few words: which commits, islands, generations, rows or events it held."""
     path = entry["path"]
     if kind == "individuals":
@@ -208,10 +214,11 @@ def _within(islands: dict[str, list[int]], outer: dict[str, list[int]]) -> bool:
     return all(i in outer and outer[i][0] <= lo and hi <= outer[i][1] for i, (lo, hi) in islands.items())
 
 
-def _prefix(manifest: dict[str, Any], first_bad: int) -> dict[str, Any]:
+def _prefix(manifest: Manifest, first_bad: int) -> Manifest:
     """The state of ``manifest`` before commit ``first_bad`` (commits only append, so it is a prefix)."""
     out = copy.deepcopy(manifest)
+    lists = as_json(out)
     for key, value in manifest.items():
         if isinstance(value, list) and value and all(isinstance(e, dict) and "path" in e for e in value):
-            out[key] = [e for e in out[key] if first_commit(e) < first_bad]
+            lists[key] = [e for e in lists[key] if first_commit(e) < first_bad]
     return out

@@ -35,7 +35,7 @@ from __future__ import annotations
 import os
 import re
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store import views
@@ -47,11 +47,11 @@ from genr8_dist.store.garbage import TMP_STALE_SECONDS as TMP_STALE_SECONDS
 from genr8_dist.store.garbage import Garbage
 from genr8_dist.store.live import LIVE_DIR
 from genr8_dist.store.manifest import (
-    DATA_FOLDERS,
     FORMAT,
     KEEP_MANIFESTS,
     LAYOUT_FOLDERS,
     MANIFEST_DIR,
+    Manifest,
     load_state,
     utc_now,
 )
@@ -134,7 +134,7 @@ class RunStore(Reads, Configs, Commits, Repair, Compaction, Garbage, LockAndQueu
                     f"{rfs.show()}: holds a damaged run (data files but no intact manifest in "
                     f"{MANIFEST_DIR}/); a new run needs a new or empty directory"
                 )
-            for folder in (MANIFEST_DIR, "configs", *DATA_FOLDERS):  # a creation that stopped half-way
+            for folder in (MANIFEST_DIR, "configs", *views.DATA_FOLDERS):  # a creation that stopped half-way
                 if rfs.local_root is not None and os.path.islink(rfs._local(folder)):
                     continue
                 for name in rfs.listdir(folder):
@@ -156,11 +156,12 @@ class RunStore(Reads, Configs, Commits, Repair, Compaction, Garbage, LockAndQueu
             criteria = own_criteria if criteria is None else criteria
             sizes = own_sizes if sizes is None else sizes
         names, sized = list(criteria), list(sizes)
-        columns = [list(c) for c in run_columns(names, sizes=sized)]
+        columns: list[list[str | bool]] = [[n, kind, null]
+                                           for n, kind, null in run_columns(names, sizes=sized)]
         for folder in (MANIFEST_DIR, "configs", f"{views.FILES}/individuals", f"{views.FILES}/events"):
             rfs.makedirs(folder)
         created = utc_now().isoformat()
-        manifest: dict[str, Any] = {
+        manifest: Manifest = {
             "format": FORMAT,
             "schema_version": SCHEMA_VERSION,
             "layout": views.LAYOUT,
@@ -230,5 +231,5 @@ def half_created(rfs: RunFS) -> str:
         return "run"
     if [n for n in names if n not in _NAMES | {LOCK_NAME, QUEUE_DIR, LIVE_DIR}]:
         return "foreign"
-    data = [n for f in DATA_FOLDERS for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
+    data = [n for f in views.DATA_FOLDERS for n in rfs.listdir(f) if not n.startswith(TMP_PREFIX)]
     return "damaged" if data else "half-created"

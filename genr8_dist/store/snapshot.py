@@ -7,12 +7,13 @@ Every other part of the store (``checks``, ``transactions``, ``commits``, ``read
 from __future__ import annotations
 
 import copy
-from typing import TYPE_CHECKING, Any, Self
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Self
 
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import SCHEMA_2_NAMES
 from genr8_dist.store._fs import RunFS
-from genr8_dist.store.manifest import MANIFEST_DIR, load_state
+from genr8_dist.store.manifest import MANIFEST_DIR, Manifest, load_state
 from genr8_dist.store.schema import individuals_schema, reading_schema, run_columns, sizes_of
 
 if TYPE_CHECKING:
@@ -29,7 +30,7 @@ class Snapshot:
     """A run's committed state as one store reads it; reads use this snapshot, ``refresh()`` loads the
     newest."""
 
-    def __init__(self, rfs: RunFS, manifest: dict[str, Any], *, compact_every: int | None,
+    def __init__(self, rfs: RunFS, manifest: Manifest, *, compact_every: int | None,
                  stale: str | None = None) -> None:
         self._fs = rfs
         self._m = manifest
@@ -94,7 +95,7 @@ class Snapshot:
     def schema(self) -> pa.Schema:
         """The individuals table's schema for this run: the columns its manifest records, or (a run of
         schema version 1) the columns of that version."""
-        columns = self._m.get("columns")
+        columns: Sequence[Sequence[str | bool]] | None = self._m.get("columns")
         if columns is None:
             columns = run_columns(self.criteria, version=self.schema_version)
         return individuals_schema(columns=columns, version=self.schema_version)
@@ -126,7 +127,7 @@ class Snapshot:
         return f"RunStore({self.path!r}, run_id={self.run_id!r}, version={self.version})"
 
     @property
-    def manifest(self) -> dict[str, Any]:
+    def manifest(self) -> Manifest:
         """A copy of the manifest this store reads (the committed state)."""
         return copy.deepcopy(self._m)
 

@@ -9,7 +9,7 @@ import contextlib
 import hashlib
 import secrets
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store import views
@@ -20,6 +20,8 @@ from genr8_dist.store.manifest import (
     LAYOUT_FOLDERS,
     MANIFEST_DIR,
     REL_PATH,
+    Entry,
+    Manifest,
     encode_manifest,
     list_manifests,
     manifest_rel,
@@ -38,7 +40,7 @@ __all__ = ["Transactions"]
 class Transactions(FileChecks):
     """Writing a commit's files and publishing its manifest."""
 
-    def write_file(self, stem: str, suffix: str, data: bytes | memoryview) -> dict[str, Any]:
+    def write_file(self, stem: str, suffix: str, data: bytes | memoryview) -> Entry:
         """Write one data file of the commit being made and return its manifest entry (``path``,
         ``bytes``, ``sha256``); add it to a list in the manifest (``add`` of ``commit``) and readers,
         ``verify``, ``repair`` and garbage collection know it. The file is named ``stem``, a random
@@ -90,7 +92,7 @@ class Transactions(FileChecks):
         head = read_head(self._fs) or 0
         return max([self.version, head, *listed]) + 1
 
-    def _publish(self, manifest: dict[str, Any], version: int) -> None:
+    def _publish(self, manifest: Manifest, version: int) -> None:
         manifest["version"] = version
         manifest["written"] = utc_now().isoformat()
         if self.writer_lock is not None:
@@ -115,7 +117,7 @@ class Transactions(FileChecks):
             if old <= version - KEEP_MANIFESTS:
                 self._fs.delete(manifest_rel(old))
 
-    def _add_events(self, manifest: dict[str, Any], events: list[Event], version: int) -> None:
+    def _add_events(self, manifest: Manifest, events: list[Event], version: int) -> None:
         if not events:
             return
         first = manifest["next_seq"]
@@ -123,11 +125,11 @@ class Transactions(FileChecks):
         time_us = int(now.timestamp()) * 1_000_000 + now.microsecond
         table = events_table(events, self.run_id, first, time_us)
         entry = self._write_parquet(f"events/events-{version:010d}", table)
-        entry.update(commits=[version, version], seq=[first, first + len(events) - 1])
+        entry["commits"], entry["seq"] = [version, version], [first, first + len(events) - 1]
         manifest["events"].append(entry)
         manifest["next_seq"] = first + len(events)
 
-    def _write_parquet(self, stem: str, table: pa.Table) -> dict[str, Any]:
+    def _write_parquet(self, stem: str, table: pa.Table) -> Entry:
         import pyarrow as pa
         import pyarrow.parquet as pq
 

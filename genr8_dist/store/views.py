@@ -27,9 +27,10 @@ import ctypes.util
 import os
 import secrets
 import shutil
-from typing import Any
+from typing import Literal
 
 from genr8_dist.store._fs import TMP_PREFIX, RunFS
+from genr8_dist.store.manifest import Manifest
 
 __all__ = [
     "CURRENT",
@@ -49,7 +50,9 @@ FILES = "_files"        # where committed data files (and a commit's files befor
 STAGING = "_staging"    # parts written by other processes (island hosts) before a commit takes them
 VIEWS = "_views"
 CURRENT = "_current"
-TABLES = ("individuals", "events")
+Table = Literal["individuals", "events"]
+TABLES: tuple[Table, ...] = ("individuals", "events")
+DATA_FOLDERS = (*TABLES, f"{FILES}/individuals", f"{FILES}/events")   # data files, either layout
 
 
 def view_rel(version: int) -> str:
@@ -69,7 +72,7 @@ def current_view(rfs: RunFS) -> int | None:
     return int(name) if name.isdigit() else None
 
 
-def publish_view(rfs: RunFS, manifest: dict[str, Any]) -> bool:
+def publish_view(rfs: RunFS, manifest: Manifest) -> bool:
     """Make ``individuals/`` and ``events/`` show exactly the files ``manifest`` names (a layout 2 run
     on a local filesystem); whether it did. Idempotent: a writer calls it after every commit point, and
     ``repair``/``resume`` after a crash left the view one commit behind."""
@@ -97,7 +100,7 @@ def _target(rfs: RunFS) -> str | None:
         return None
 
 
-def view_problems(rfs: RunFS, manifest: dict[str, Any]) -> list[str]:
+def view_problems(rfs: RunFS, manifest: Manifest) -> list[str]:
     """What is wrong with the glob view of ``manifest`` (a layout 2 run on a local filesystem): it
     shows another commit, or a table's folder does not list exactly its files; empty when right."""
     if rfs.local_root is None or manifest.get("layout") != LAYOUT:
@@ -128,7 +131,7 @@ def view_problems(rfs: RunFS, manifest: dict[str, Any]) -> list[str]:
     return out
 
 
-def rebuild_view(rfs: RunFS, manifest: dict[str, Any]) -> None:
+def rebuild_view(rfs: RunFS, manifest: Manifest) -> None:
     """Publish ``manifest``'s view anew (the current one was altered), under a fresh folder name."""
     assert rfs.local_root is not None
     rel = f"{view_rel(int(manifest['version']))}.{secrets.token_hex(4)}"
@@ -147,7 +150,7 @@ def _same(a: str, b: str) -> bool:
         return False
 
 
-def _build(rfs: RunFS, manifest: dict[str, Any], folder: str) -> None:
+def _build(rfs: RunFS, manifest: Manifest, folder: str) -> None:
     assert rfs.local_root is not None
     for table in TABLES:
         os.makedirs(os.path.join(folder, table))
