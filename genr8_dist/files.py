@@ -1,7 +1,9 @@
 """Writing the files users ask for (meshes, pictures, tables, reports) as every Unix tool does.
 
-The run store has its own durable writer (``store._fs``: fsync, filesystems other than local); this
-is the one for everything written beside it. What a path names decides how it is written:
+Every atomic write in the package goes through this module: a temporary name beside the target
+(``temp_beside``), then one rename onto it (``replace_atomically``). The run store adds durability
+(``store._fs``: the bytes and the folder fsynced, and filesystems other than local); ``replacing`` is
+the writer for everything written beside it. What a path names decides how it is written:
 
 - ``-`` is standard output;
 - a device, a FIFO or a socket (``/dev/stdout``, ``/dev/null``, a named pipe) is written through, in
@@ -20,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import secrets
 import shutil
 import stat
 import sys
@@ -28,9 +31,55 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["STDOUT", "is_stdout", "is_stream", "replacing"]
+__all__ = [
+    "STDOUT",
+    "TMP_PREFIX",
+    "is_stdout",
+    "is_stream",
+    "replace_atomically",
+    "replacing",
+    "sync_folder",
+    "temp_beside",
+]
 
 STDOUT = "-"
+TMP_PREFIX = ".tmp-"   # every temporary file's name starts so (the run store's collector knows them)
+
+
+def temp_beside(path: str | os.PathLike[str]) -> str:
+    """A new temporary name in ``path``'s folder, ``.tmp-<name>-<pid>-<8 hex digits>``: no other writer
+    uses it, and the pid tells whether its writer is still alive (``store/garbage.py``)."""
+    folder, name = os.path.split(os.fspath(path))
+    return os.path.join(folder, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
+
+
+def replace_atomically(tmp: str | os.PathLike[str], target: str | os.PathLike[str], *,
+                       durable: bool = False) -> None:
+    """Rename ``tmp`` (a file or a symlink) onto ``target`` in one step: readers see the old one or the
+    new. If the rename fails ``tmp`` is removed. ``durable``: the folder is fsynced after, so that the
+    rename outlives a crash."""
+    try:
+        os.replace(tmp, target)
+    except OSError:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    if durable:
+        sync_folder(os.path.dirname(os.fspath(target)) or ".")
+
+
+def sync_folder(folder: str | os.PathLike[str]) -> None:
+    """fsync ``folder`` where the system allows it (a rename or link inside it is then on disk)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def is_stdout(path: str | os.PathLike[str]) -> bool:
@@ -84,13 +133,12 @@ def replacing(path: str | os.PathLike[str]) -> Iterator[Path]:
         mode = stat.S_IMODE(os.stat(target).st_mode)
     except FileNotFoundError:
         mode = 0o666 & ~_umask()
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=folder)
-    os.close(fd)
-    tmp = Path(name)
+    tmp = Path(temp_beside(folder / target.name))
+    tmp.open("xb").close()
     try:
         yield tmp
         os.chmod(tmp, mode)
-        os.replace(tmp, target)
+        replace_atomically(tmp, target)
     finally:
         if tmp.exists():
             tmp.unlink()

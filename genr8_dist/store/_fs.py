@@ -1,7 +1,8 @@
 """File access for a run directory on a local disk or any pyarrow filesystem.
 
 On a local disk (``LocalFileSystem``, or a ``SubTreeFileSystem`` over one) a file is written to a
-temporary name in the same folder, fsynced, then renamed into place, and the folder is fsynced: a
+temporary name in the same folder, fsynced, then renamed into place, and the folder is fsynced (the
+name and the rename are ``genr8_dist.files``'s, as every atomic write in the package): a
 crash leaves the old file or the new one, never half of one. Manifests are *linked* into place, which
 fails if the name exists, so two writers cannot both commit the same version. On other filesystems
 (object stores) a write is one PUT, which is atomic there; readers never trust a file the manifest
@@ -15,10 +16,11 @@ from __future__ import annotations
 import contextlib
 import os
 import posixpath
-import secrets
 from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
+from genr8_dist.files import TMP_PREFIX as TMP_PREFIX
+from genr8_dist.files import replace_atomically, sync_folder, temp_beside
 
 if TYPE_CHECKING:
     import pyarrow.fs as pafs
@@ -26,8 +28,6 @@ if TYPE_CHECKING:
     from genr8_dist.store._s3 import ObjectStore
 
 __all__ = ["RunFS", "resolve"]
-
-TMP_PREFIX = ".tmp-"
 
 
 def resolve(path_or_uri: str | os.PathLike[str], filesystem: pafs.FileSystem | None = None) -> RunFS:
@@ -141,9 +141,7 @@ class RunFS:
             with self.fs.open_output_stream(self.full(rel)) as fh:
                 fh.write(data)
             return
-        tmp = self._write_temp(rel, data)
-        os.replace(tmp, self._local(rel))
-        self._sync_dir(rel)
+        replace_atomically(self._write_temp(rel, data), self._local(rel), durable=True)
 
     def write_new(self, rel: str, data: bytes | memoryview) -> None:
         """Put ``data`` at ``rel``, a name no other writer uses (it holds a writer token); like
@@ -209,9 +207,7 @@ class RunFS:
                 self.fs.delete_file(self.full(rel))
 
     def _write_temp(self, rel: str, data: bytes | memoryview) -> str:
-        folder, name = posixpath.split(rel)
-        tmp_rel = posixpath.join(folder, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
-        tmp = self._local(tmp_rel)
+        tmp = temp_beside(self._local(rel))
         try:
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         except OSError as exc:
@@ -234,14 +230,4 @@ class RunFS:
         return tmp
 
     def _sync_dir(self, rel: str) -> None:
-        folder = self._local(posixpath.dirname(rel))
-        try:
-            fd = os.open(folder, os.O_RDONLY)
-        except OSError:
-            return
-        try:
-            os.fsync(fd)
-        except OSError:
-            pass
-        finally:
-            os.close(fd)
+        sync_folder(self._local(posixpath.dirname(rel)))

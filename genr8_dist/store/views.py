@@ -29,6 +29,7 @@ import secrets
 import shutil
 from typing import Literal
 
+from genr8_dist.files import replace_atomically, sync_folder, temp_beside
 from genr8_dist.store._fs import TMP_PREFIX, RunFS
 from genr8_dist.store.manifest import Manifest
 
@@ -157,8 +158,8 @@ def _build(rfs: RunFS, manifest: Manifest, folder: str) -> None:
         for entry in manifest.get(table, []):
             src = os.path.join(rfs.local_root, *entry["path"].split("/"))
             os.link(src, os.path.join(folder, table, entry["path"].rsplit("/", 1)[-1]))
-        _fsync(os.path.join(folder, table))
-    _fsync(folder)
+        sync_folder(os.path.join(folder, table))
+    sync_folder(folder)
 
 
 def prune_views(rfs: RunFS, oldest_kept: int) -> None:
@@ -188,12 +189,7 @@ def clear_stale_links(rfs: RunFS) -> int:
         match = re.match(rf"^{re.escape(TMP_PREFIX)}(?:{names})-(\d+)-[0-9a-f]{{8}}", name)
         if not match or _alive(int(match.group(1))):
             continue
-        path = os.path.join(rfs.local_root, name)
-        if os.path.isdir(path) and not os.path.islink(path):
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
-                os.unlink(path)
+        _remove(os.path.join(rfs.local_root, name))
         removed += 1
     return removed
 
@@ -210,26 +206,11 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _fsync(path: str) -> None:
-    with contextlib.suppress(OSError):
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
-
-
 def _replace_symlink(root: str, name: str, target: str) -> None:
     """Point ``root/name`` at ``target`` in one rename (readers see the old target or the new)."""
-    tmp = os.path.join(root, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
+    tmp = temp_beside(os.path.join(root, name))
     os.symlink(target, tmp)
-    try:
-        os.replace(tmp, os.path.join(root, name))
-    except OSError:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    _fsync(root)
+    replace_atomically(tmp, os.path.join(root, name), durable=True)
 
 
 def _ensure_link(root: str, name: str, target: str) -> None:
@@ -244,18 +225,23 @@ def _ensure_link(root: str, name: str, target: str) -> None:
     if not os.path.lexists(path):
         _replace_symlink(root, name, target)
         return
-    tmp = os.path.join(root, f"{TMP_PREFIX}{name}-{os.getpid()}-{secrets.token_hex(4)}")
+    tmp = temp_beside(path)
     os.symlink(target, tmp)
     if not _exchange(tmp, path):
         os.rename(path, tmp + "-old")
         os.rename(tmp, path)
         tmp = tmp + "-old"
-    _fsync(root)
-    if os.path.isdir(tmp) and not os.path.islink(tmp):
-        shutil.rmtree(tmp, ignore_errors=True)
+    sync_folder(root)
+    _remove(tmp)
+
+
+def _remove(path: str) -> None:
+    """Remove ``path``, a real folder (with what it holds) or a file or link; gone already is fine."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path, ignore_errors=True)
     else:
         with contextlib.suppress(OSError):
-            os.unlink(tmp)
+            os.unlink(path)
 
 
 def _exchange(a: str, b: str) -> bool:
