@@ -12,7 +12,7 @@ import threading
 
 import pytest
 
-from genr8_dist.files import is_stdout, is_stream, replacing
+from genr8_dist.files import TMP_PREFIX, is_stdout, is_stream, replace_atomically, replacing, temp_beside
 
 QUERY = "select id, fitness from individuals order by id limit 4"
 
@@ -154,3 +154,26 @@ def test_gallery_and_report_write_to_standard_output(run_dir):
     assert done.stdout.lstrip().lower().startswith(b"<!doctype html")
     assert done.stdout.rstrip().endswith(b"</html>")
     assert b"wrote -" in done.stderr
+
+
+def test_a_failed_rename_removes_its_temporary_and_leaves_the_target(tmp_path):
+    """The one rename every atomic write uses (the store's too): a temporary named for the store's
+    collector, gone again when the rename fails."""
+    target = tmp_path / "taken"
+    target.mkdir()
+    (target / "inside").write_text("kept")
+    tmp = temp_beside(target)
+    assert os.path.dirname(tmp) == str(tmp_path)
+    assert os.path.basename(tmp).startswith(f"{TMP_PREFIX}taken-{os.getpid()}-")
+    with open(tmp, "wb") as fh:
+        fh.write(b"new")
+    with pytest.raises(OSError):
+        replace_atomically(tmp, target, durable=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"]
+    assert (target / "inside").read_text() == "kept"
+    done = tmp_path / "file"
+    tmp = temp_beside(done)
+    with open(tmp, "wb") as fh:
+        fh.write(b"new")
+    replace_atomically(tmp, done, durable=True)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "taken"] and done.read_bytes() == b"new"

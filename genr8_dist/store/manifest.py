@@ -142,11 +142,11 @@ def decode_manifest(data: bytes) -> Manifest | None:
     return cast(Manifest, m)
 
 
-def is_int(value: Any) -> bool:
+def is_int(value: object) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
 
-def _check_range(value: Any) -> None:
+def _check_range(value: object) -> None:
     if not (isinstance(value, list) and len(value) == 2 and all(is_int(v) for v in value)
             and value[0] <= value[1]):
         raise ValueError(f"not a range: {value!r}")

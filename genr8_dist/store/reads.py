@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import Individual
@@ -45,7 +45,7 @@ class RenamedDataset:
     def count_rows(self, filter: pc.Expression | None = None) -> int:
         return int(self.stored.count_rows(filter=filter))
 
-    def get_fragments(self, filter: pc.Expression | None = None) -> Iterator[Any]:
+    def get_fragments(self, filter: pc.Expression | None = None) -> Iterator[ds.Fragment]:
         return iter(self.stored.get_fragments(filter=filter))
 
 
