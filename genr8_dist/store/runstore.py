@@ -23,8 +23,9 @@ of the newest manifest is seen rather than silently serving the one before. The 
 and so that ``repair`` can replace a damaged compacted file by the files it was merged from.
 
 Any feature that stores a new kind of file does it through ``RunStore.write_file`` inside a commit
-(``commit(..., add=...)``) and lists the entries under a manifest key of its own: unique names,
-verification, repair and garbage collection then apply to it unchanged.
+(``commit(..., add=...)``) and lists the entries under a manifest key of its own
+(``manifest.add_entries``): unique names, verification, repair and garbage collection then apply to it
+unchanged.
 
 One writer per run: the process that runs the evolution (the coordinator) or an edit. Any number of
 readers (history queries, DuckDB) may read at the same time.
