@@ -33,6 +33,7 @@ from genr8_dist.evolution.individual import Individual
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
+    from genr8_dist.store import RunStore
 
 __all__ = ["OFFERS", "Generated", "IslandHost", "remote_host_class"]
 
@@ -76,7 +77,7 @@ class IslandHost:
         self._configs: dict[int, Any] = {}
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
         self._evaluators: dict[int, Any] = {}   # configuration version -> Evaluator, for helping
-        self._store: Any = None
+        self._store: RunStore | None = None
         self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
         self._written: dict[int, Any] = {}                  # island -> the last part written
         self._writing = threading.Lock()   # a stopping driver's flush runs beside advance

@@ -73,7 +73,7 @@ def dataset(store: RunStore, generations: tuple[int, int] | None = None) -> pads
     return data
 
 
-def run_label(store: Any) -> str:
+def run_label(store: RunStore) -> str:
     """A short name for ``store`` in messages (its path)."""
     return _label(store)
 

@@ -9,7 +9,7 @@ and rewrite-system texts are read only for the rows that are shown.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
@@ -29,6 +29,9 @@ from genr8_dist.history._run import (
     targets_by_version,
 )
 from genr8_dist.store.schema import criterion_column, listed_columns, size_column, sizes_of
+
+if TYPE_CHECKING:
+    from genr8_dist.store import RunStore
 
 __all__ = [
     "configs",
@@ -264,7 +267,7 @@ def top(run: RunLike, k: int = 10, *, generation: int | None = None, island: int
     return rows
 
 
-def rescored(store: Any, table: pa.Table, crits: list[str], version: int) -> np.ndarray:
+def rescored(store: RunStore, table: pa.Table, crits: list[str], version: int) -> np.ndarray:
     """The total fitness of each row of ``table`` (valid rows with their ``crit_<name>`` columns) under
     configuration ``version``'s targets and weights: ``sum w * |raw - target| / unit``, as the run
     scores (``FitnessSpec.evaluate``); ``inf`` where a weighted raw value is missing. A universe whose

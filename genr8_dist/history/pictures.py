@@ -9,13 +9,16 @@ import json
 import math
 import os
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pyarrow as pa
 
 from genr8_dist.errors import Genr8Error
 from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
+
+if TYPE_CHECKING:
+    from genr8_dist.store import RunStore
 
 __all__ = [
     "curves_figure",
@@ -129,7 +132,7 @@ def _short_detail(detail: str, limit: int = 38) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
-def curves_figure(store: Any, table: pa.Table | None = None) -> Any:
+def curves_figure(store: RunStore, table: pa.Table | None = None) -> Any:
     """The fitness-curve figure: best (solid) and median (dashed) total fitness per island over the
     generations, migrations as ticks along the bottom, interventions and resumptions as vertical lines;
     below, each criterion's value closest to its target per island, the target dashed."""
@@ -345,7 +348,7 @@ def gallery_figure(tiles: Sequence[tuple[str, Any]], *, title: str, columns: int
     return fig
 
 
-def _best_ids(store: Any, k: int, generation: int | None, island: int | None,
+def _best_ids(store: RunStore, k: int, generation: int | None, island: int | None,
               distinct: bool) -> list[str]:
     """The ids of the ``k`` best valid individuals; with ``distinct``, only the best individual of
     each form (``_tables.form_ids``: an elite and its copies, or mirror images, are one design)."""
@@ -445,7 +448,7 @@ def png_bytes(fig: Any, dpi: int = 100) -> bytes:
 # The search modes' pictures: Pareto front, MAP-Elites archive, clusters.
 
 
-def _noun(store: Any, config: Any) -> str:
+def _noun(store: RunStore, config: Any) -> str:
     """What one design of the run is called (its phenotype's ``noun``; "design" when unknown)."""
     from genr8_dist.history._run import phenotype_for
 
@@ -455,7 +458,7 @@ def _noun(store: Any, config: Any) -> str:
         return "design"
 
 
-def _regrown_tiles(store: Any, table: Any, label: Any) -> list[tuple[str, Any]]:
+def _regrown_tiles(store: RunStore, table: Any, label: Any) -> list[tuple[str, Any]]:
     from genr8_dist.history._regrow import regrow
 
     tiles = []

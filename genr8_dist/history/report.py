@@ -17,12 +17,15 @@ import math
 import os
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import Genr8Error
 from genr8_dist.history._regrow import export_formats
 from genr8_dist.history._run import RunLike, atomic_write, criteria_of, open_run, run_label
 from genr8_dist.store.schema import criterion_column
+
+if TYPE_CHECKING:
+    from genr8_dist.store import RunStore
 
 __all__ = ["report_html", "write_report"]
 
@@ -102,7 +105,7 @@ def _section(title: str, body: str) -> str:
     return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
 
 
-def _phenotype(store: Any, configs: list) -> Any:
+def _phenotype(store: RunStore, configs: list) -> Any:
     """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
     from genr8_dist.history._run import phenotype_for
     from genr8_dist.phenotype import SURFACES
@@ -247,7 +250,7 @@ def _figure_section(title: str, draw: Any, dpi: int, note: Any, failed: str = ""
     return _section(title, _img(pictures.png_bytes(fig, dpi=dpi), info) + note(info))
 
 
-def _search_sections(store: Any, label: str, noun: str) -> list[str]:
+def _search_sections(store: RunStore, label: str, noun: str) -> list[str]:
     """The search modes' sections: the Pareto front (``pareto`` mode), the MAP-Elites archive
     (``map-elites`` mode), and in every mode the kinds of form the run found (12 clusters)."""
     from genr8_dist.history import pictures

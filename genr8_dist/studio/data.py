@@ -19,10 +19,13 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError, Genr8Error, StoreError
 from genr8_dist.store.schema import criterion_column, size_column, size_of
+
+if TYPE_CHECKING:
+    from genr8_dist.store import RunStore
 
 __all__ = ["MAX_FACES", "RunView"]
 
@@ -47,10 +50,10 @@ class RunView:
 
     def __init__(self, run_dir: str) -> None:
         self.run_dir = run_dir
-        self._store: Any = None
+        self._store: RunStore | None = None
         self._lock = threading.RLock()
         self._curves_lock = threading.Lock()
-        self._curves_store: Any = None
+        self._curves_store: RunStore | None = None
         self._curves: dict[str, Any] | None = None
         self._curves_version = -1
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
@@ -337,7 +340,7 @@ class RunView:
                     self._generations.popitem(last=False)
         return {"generation": g, "newest": newest, "individuals": rows}
 
-    def _live_generation(self, store: Any, g: int, committed: dict[int, int],
+    def _live_generation(self, store: RunStore, g: int, committed: dict[int, int],
                          live: dict[int, list[dict[str, Any]]], newest: int) -> dict[str, Any]:
         """Generation ``g`` as far as the islands have completed it: committed islands' rows from the
         store, the others' from the live view (``durable: false``)."""
@@ -583,7 +586,7 @@ class RunView:
         }
 
 
-def _add_generations(curves: dict[str, Any], store: Any) -> None:
+def _add_generations(curves: dict[str, Any], store: RunStore) -> None:
     """Extend ``curves`` with the generations every island committed after ``curves["last"]``: one
     read of five columns and Arrow's hash aggregation (a million rows in well under a second)."""
     import numpy as np
