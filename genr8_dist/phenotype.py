@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from genr8_dist.errors import UniverseError
+from genr8_dist.export import SURFACE_FORMATS, export_surface
 
 __all__ = ["SURFACES", "Developed", "Phenotype", "SurfacePhenotype", "phenotype_of"]
 
@@ -154,8 +155,7 @@ class SurfacePhenotype(Phenotype):
     stage = "grow"
     sizes = ("vertices", "edges", "regions")
     trivial_from_sizes = True
-    # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
-    export_formats = ("obj", "ply", "stl", "glb", "3dm")
+    export_formats = tuple(SURFACE_FORMATS)   # genr8_dist.export's table of surface formats
     smooths = True      # export takes smooth=N (Loop subdivision steps: genr8 show --smooth)
 
     def parse(self, text: str) -> Any:
@@ -215,14 +215,11 @@ class SurfacePhenotype(Phenotype):
 
     def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "",
                smooth: int = 0) -> Path:
-        """The surface as a triangle mesh by its run's meshing (.obj .ply .stl .glb: every vertex in
-        order, then the points meshing added) or as a Rhino .3dm file (the mesh, named ``name``, the
-        scaffold's edges as lines and its lines as NURBS curves); ``smooth`` subdivision steps."""
-        from genr8_dist.export import export_3dm, export_mesh
-
-        if Path(path).suffix.lower() == ".3dm":
-            return export_3dm(developed.value, path, name=name or "genr8 surface", smooth=smooth)
-        return export_mesh(developed.value, path, smooth=smooth)
+        """The surface in a format of ``genr8_dist.export.SURFACE_FORMATS`` by its run's meshing: a
+        triangle mesh (.obj .ply .stl .glb: every vertex in order, then the points meshing added) or
+        a Rhino .3dm file (the mesh, named ``name``, the scaffold's edges as lines and its lines as
+        NURBS curves); ``smooth`` subdivision steps."""
+        return export_surface(developed.value, path, name=name, smooth=smooth)
 
     def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
         """The shaded surface in the run's environment (boundaries, attractors, repellers, gravity)."""
