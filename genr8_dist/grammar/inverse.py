@@ -18,15 +18,29 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterable, Iterator
+from typing import Any, Protocol
 
 from genr8_dist.errors import InversionError
+from genr8_dist.grammar.compiler import CompiledGrammar
 from genr8_dist.grammar.hooks import rule_predecessors
-from genr8_dist.grammar.mapper import eligible
+from genr8_dist.grammar.mapper import CompiledMapper, MapResult, eligible
 
-if TYPE_CHECKING:
-    from genr8_dist.grammar.universe import Universe
+
+class Universe(Protocol):
+    """What inversion reads of a universe (``genr8_dist.grammar.universe.Universe``, which calls
+    this module from its ``invert``)."""
+
+    name: str
+    grammar: CompiledGrammar
+
+    def mapper(self, max_depth: int = ...) -> CompiledMapper: ...
+
+    def map(self, genome: Iterable[int], max_depth: int = ..., max_wraps: int = ...) -> MapResult: ...
+
+    def label_of(self, token: str) -> int | None: ...
+
+    def parser(self) -> Any: ...
 
 __all__ = ["invert", "normalize"]
 

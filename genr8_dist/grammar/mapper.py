@@ -26,12 +26,28 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from genr8_dist.grammar.compiler import CompiledGrammar
 
-__all__ = ["CompiledMapper", "build_source", "compile_mapper", "eligible"]
+__all__ = ["CompiledMapper", "MapResult", "build_source", "compile_mapper", "eligible"]
 
 _PRESIZE = 256
+
+
+class MapResult(NamedTuple):
+    """The outcome of mapping one genome (an immutable record; a named tuple because it is made
+    tens of thousands of times a second).
+
+    ``text`` is the rewrite system (``None`` when invalid), ``reason`` says why a genome is invalid,
+    ``codons_used`` counts codons read (wrapping included) and ``wraps`` how often the genome wrapped.
+    """
+
+    text: str | None
+    valid: bool
+    reason: str | None
+    codons_used: int
+    wraps: int
 
 
 def eligible(cg: CompiledGrammar, alts: tuple, depth: int, max_depth: int) -> tuple[int, ...]:
