@@ -239,7 +239,8 @@ def smooth_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     for k in range(3):
         np.add.at(normal, faces[:, k], face)
     length = np.linalg.norm(normal, axis=1, keepdims=True)
-    return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    result: np.ndarray = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    return result
 
 
 def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float = 0.15,
@@ -254,10 +255,11 @@ def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float
     colours = cmap(low + span_ * level)
     colours[:, :3] *= (dark + (1.0 - dark) * lambert)[:, None]
     colours[:, 3] = 1.0
-    return colours
+    result: np.ndarray = colours
+    return result
 
 
-def _drawn(surface: Any) -> tuple[np.ndarray, np.ndarray]:
+def _drawn(surface: SurfaceLike) -> tuple[np.ndarray, np.ndarray]:
     """The points and triangles a picture draws: the surface's mesh, or its meshing-1 triangles when
     the mesh is too large to draw quickly."""
     points, _, faces = _arrays(surface)
@@ -267,7 +269,7 @@ def _drawn(surface: Any) -> tuple[np.ndarray, np.ndarray]:
     return points, faces
 
 
-def _add_surface(ax: Any, surface: Any, plt: Any, *, low: float, span: float, dark: float,
+def _add_surface(ax: Any, surface: SurfaceLike, plt: Any, *, low: float, span: float, dark: float,
                  curve_width: float, zorder: float | None = None) -> None:
     """The shaded mesh (triangle edges hidden: drawn in the face colour, hairline, to close seams)
     and the scaffold as B-spline curves (``genr8_dist.scaffold``)."""
@@ -436,7 +438,7 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
     return path
 
 
-def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
+def draw_surface(ax: Any, surface: SurfaceLike, *, elev: float = 32.0, azim: float = -58.0) -> None:
     """Draw ``surface`` on the 3D axes ``ax``: its mesh shaded by height and lit from above through
     smooth normals (no triangle edge drawn), its scaffold as B-spline curves, equal scale on every
     axis, no axis clutter."""

@@ -93,7 +93,8 @@ def _reflect(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.nda
     still = b.violation(mirrored) > 0.0
     if np.any(still):
         mirrored[still] = b.project(mirrored[still], extent)
-    return mirrored
+    result: np.ndarray = mirrored
+    return result
 
 
 #: Every boundary behaviour by name (the ``behaviour`` key of a boundary's table); an unknown name is
@@ -222,7 +223,8 @@ class Boundary(abc.ABC):
             bad = self.violation(start + mid[:, None] * delta) > 0.0
             hi = np.where(bad, mid, hi)
             lo = np.where(bad, lo, mid)
-        return start + lo[:, None] * delta
+        result: np.ndarray = start + lo[:, None] * delta
+        return result
 
     def to_dict(self) -> dict[str, Any]:
         """The TOML table of this boundary (``kind`` first; ``inside`` only when given)."""
@@ -258,11 +260,14 @@ class PlaneBoundary(Boundary):
         object.__setattr__(self, "normal", tuple(float(v) for v in normal / length))
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
-        return (np.asarray(points, dtype=np.float64) - np.asarray(self.point)) @ np.asarray(self.normal)
+        offsets = np.asarray(points, dtype=np.float64) - np.asarray(self.point)
+        result: np.ndarray = offsets @ np.asarray(self.normal)
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
-        return points - self.outside_distance(points)[:, None] * np.asarray(self.normal)
+        result: np.ndarray = points - self.outside_distance(points)[:, None] * np.asarray(self.normal)
+        return result
 
     def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
         """A 7 x 7 grid of lines in the plane, ``size`` each way around ``centre``'s foot on it."""
@@ -307,7 +312,8 @@ class BoxBoundary(Boundary):
         q = np.abs(points - centre) - half
         outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
         inside = np.minimum(np.max(q, axis=1), 0.0)
-        return outside + inside
+        result: np.ndarray = outside + inside
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
@@ -324,7 +330,8 @@ class BoxBoundary(Boundary):
             snapped = p.copy()
             snapped[np.arange(len(p)), axis] = value
             out[inner] = snapped
-        return out
+        result: np.ndarray = out
+        return result
 
     def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
         """The box's 12 edges."""
@@ -354,7 +361,8 @@ class SphereBoundary(Boundary):
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
-        return np.linalg.norm(points - np.asarray(self.centre), axis=1) - self.radius
+        result: np.ndarray = np.linalg.norm(points - np.asarray(self.centre), axis=1) - self.radius
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)

@@ -33,6 +33,7 @@ from genr8_dist.evolution.variation import map_genome
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
+    from genr8_dist.grammar.universe import Universe
 
 __all__ = [
     "Evaluation",
@@ -60,7 +61,7 @@ class Preview(Evaluation):
         return Preview(**values)
 
 
-def universe_for(config: Any) -> Any:
+def universe_for(config: RunConfig | str) -> Universe:
     """The universe of ``config`` (a ``RunConfig``), built from the files it carries (once per process),
     never looked up again by name: a Ray host on any machine builds the driver's universe. A plain
     name is looked up (the Python API's shorthand)."""
@@ -73,7 +74,7 @@ def universe_for(config: Any) -> Any:
 
 
 @lru_cache(maxsize=16)
-def _named_universe(name: str) -> Any:
+def _named_universe(name: str) -> Universe:
     from genr8_dist.grammar import load_universe
 
     return load_universe(name)

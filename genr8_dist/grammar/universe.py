@@ -14,12 +14,16 @@ from collections.abc import Callable, Iterable
 from operator import length_hint
 from pathlib import Path
 from types import ModuleType
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import GenomeError, UniverseError, located
 from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
 from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
 from genr8_dist.grammar.mapper import CompiledMapper, MapResult, _walk, compile_mapper
 from genr8_dist.grammar.source import UniverseSource, load_modules
+
+if TYPE_CHECKING:
+    from lark import Lark
 
 __all__ = ["MapResult", "Universe", "build_universe", "check_genome"]
 
@@ -146,9 +150,10 @@ class Universe:
                              for alt in alts for n in _walk(alt))
         self._edge_res = [t.regex() for t in templates]
         self._labels: dict[str, int | None] = {}
-        self._parser = None
+        self._parser: Lark | None = None
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable[[UniverseSource, str, str], Universe],
+                                  tuple[UniverseSource, str, str]]:
         """Pickle by source (the universe's files as text): compiled code is rebuilt where it lands,
         which needs no file of the plugin there (a Ray host on another machine)."""
         if self.hooks is not None and self.source.text("hooks.py") is None:
@@ -372,7 +377,7 @@ class Universe:
 
     # ----------------------------------------------------------------------------- inverse
 
-    def parser(self):
+    def parser(self) -> Lark:
         """A Lark Earley parser for this universe's rewrite systems (built once)."""
         if self._parser is None:
             from lark import Lark
