@@ -248,18 +248,18 @@ def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, hig
 
 
 # Readers of the search settings that are more than a number or a choice (``setting(read=...)``).
-def _objectives(value: Any, path: str, search: Any) -> tuple[str, ...]:
+def _objectives(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
     names = _names(value, path, None, 0, 100)
     if search.mode == "pareto" and len(names) == 1:
         raise _fail(path, "a Pareto search needs at least 2 objectives")
     return names
 
 
-def _descriptors(value: Any, path: str, search: Any) -> tuple[str, ...]:
+def _descriptors(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
     return _names(value, path, None, 1, 3)
 
 
-def _ranges(value: Any, path: str, search: Any) -> tuple[tuple[float, float], ...]:
+def _ranges(value: Any, path: str, search: SearchSettings) -> tuple[tuple[float, float], ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one [low, high] per descriptor ({n}), got {value!r}")
@@ -275,14 +275,14 @@ def _ranges(value: Any, path: str, search: Any) -> tuple[tuple[float, float], ..
     return tuple(ranges)
 
 
-def _bins(value: Any, path: str, search: Any) -> tuple[int, ...]:
+def _bins(value: Any, path: str, search: SearchSettings) -> tuple[int, ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one count per descriptor ({n}), got {value!r}")
     return tuple(read_int(b, "", f"{path}[{i}]", minimum=1, maximum=1000) for i, b in enumerate(value))
 
 
-def _offspring(value: Any, path: str, search: Any) -> float:
+def _offspring(value: Any, path: str, search: SearchSettings) -> float:
     share = read_rate(value, "", path)
     if share <= 0.0:
         raise _fail(path, "must be above 0: a generation needs new offspring")
@@ -575,7 +575,7 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
+def _read_environment(value: Any, source: str, base_dir: Path | None) -> Environment:
     if isinstance(value, str):
         path = Path(value)
         if not path.is_absolute():
