@@ -25,9 +25,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from genr8_dist.environment import Environment, load_environment
 from genr8_dist.errors import ConfigError, Genr8Error
 from genr8_dist.fields import check_settings, fail, read_float, read_int, read_rate, setting, settings_table
 from genr8_dist.fitness import SURFACE, FitnessSpec
+from genr8_dist.grammar.source import UniverseSource
+from genr8_dist.run_universe import check_source, phenotype_kind, resolve_universe
+from genr8_dist.run_universe import run_phenotype as run_phenotype  # the store's import of it
 from genr8_dist.tomlfile import read_toml
 
 __all__ = [
@@ -244,18 +248,18 @@ def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, hig
 
 
 # Readers of the search settings that are more than a number or a choice (``setting(read=...)``).
-def _objectives(value: Any, path: str, search: Any) -> tuple[str, ...]:
+def _objectives(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
     names = _names(value, path, None, 0, 100)
     if search.mode == "pareto" and len(names) == 1:
         raise _fail(path, "a Pareto search needs at least 2 objectives")
     return names
 
 
-def _descriptors(value: Any, path: str, search: Any) -> tuple[str, ...]:
+def _descriptors(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
     return _names(value, path, None, 1, 3)
 
 
-def _ranges(value: Any, path: str, search: Any) -> tuple[tuple[float, float], ...]:
+def _ranges(value: Any, path: str, search: SearchSettings) -> tuple[tuple[float, float], ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one [low, high] per descriptor ({n}), got {value!r}")
@@ -271,14 +275,14 @@ def _ranges(value: Any, path: str, search: Any) -> tuple[tuple[float, float], ..
     return tuple(ranges)
 
 
-def _bins(value: Any, path: str, search: Any) -> tuple[int, ...]:
+def _bins(value: Any, path: str, search: SearchSettings) -> tuple[int, ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one count per descriptor ({n}), got {value!r}")
     return tuple(read_int(b, "", f"{path}[{i}]", minimum=1, maximum=1000) for i, b in enumerate(value))
 
 
-def _offspring(value: Any, path: str, search: Any) -> float:
+def _offspring(value: Any, path: str, search: SearchSettings) -> float:
     share = read_rate(value, "", path)
     if share <= 0.0:
         raise _fail(path, "must be above 0: a generation needs new offspring")
@@ -372,77 +376,6 @@ def _section(cls: type, data: Any, name: str) -> Any:
     return cls(**data)
 
 
-def _default_environment() -> Any:
-    from genr8_dist.environment import Environment
-
-    return Environment()
-
-
-def _resolve_universe(name: Any, base_dir: Path | None) -> tuple[str, Any]:
-    """The universe ``name`` (a name, or a path resolved against ``base_dir``) read into a source and
-    checked (no plugin code runs): ``(its name, its UniverseSource)``."""
-    if not isinstance(name, str) or not name:
-        raise _fail("universe", f"must be a universe name or path, got {name!r}")
-    from genr8_dist.grammar.discovery import find_source
-
-    try:
-        source, _origin = find_source(name, base_dir)
-        _check_source(source)
-        if not source.code_digest:  # code-free: parse a sample of derivations now (no code runs)
-            from genr8_dist.grammar.universe import build_universe
-
-            build_universe(source, check=True)
-    except Genr8Error as exc:
-        raise _fail("universe", str(exc)) from None
-    return source.name, source
-
-
-def _check_source(source: Any) -> None:
-    """Compile the grammar and check the hook names of ``source`` (cached per digest; runs no code)."""
-    from genr8_dist.grammar.compiler import compile_grammar
-
-    if source.digest in _CHECKED:
-        return
-    source.check_hook_names()
-    compile_grammar(source.grammar_text, source.where(source.grammar_file))
-    _CHECKED.add(source.digest)
-
-
-_CHECKED: set[str] = set()
-
-
-def run_phenotype(source: Any) -> Any:
-    """The phenotype (``genr8_dist.phenotype.Phenotype``) the universe ``source`` (a
-    ``UniverseSource``; ``None``: the default universe) develops into: the built-in surfaces for HEMLS.
-
-    Only a universe's code can say, and code runs only where the trust rule lets it
-    (:mod:`genr8_dist.grammar.trust`): an installed plugin's or a remembered digest is consented to
-    here; other code is not run and the phenotype read as the built-in surfaces (``genr8 run`` reads
-    its file again once the user's universe is consented to)."""
-    from genr8_dist.phenotype import SURFACES
-
-    digest = getattr(source, "code_digest", "") if source is not None else ""
-    if not digest:
-        return SURFACES
-    from genr8_dist.grammar.discovery import installed_code_digest
-    from genr8_dist.grammar.trust import consent, may_run, remembered
-
-    if not may_run(digest):
-        if installed_code_digest(source.name) != digest and digest not in remembered():
-            return SURFACES
-        consent(digest)
-    from genr8_dist.grammar.universe import build_universe
-    from genr8_dist.phenotype import phenotype_of
-
-    return phenotype_of(build_universe(source, check=False))
-
-
-def phenotype_kind(source: Any) -> str:
-    """The name of the phenotype ``source`` develops into (``run_phenotype``), under which its
-    criteria are registered: ``surface`` for HEMLS."""
-    return str(run_phenotype(source).name)
-
-
 @dataclass(frozen=True, slots=True)
 class RunConfig:
     """Everything a run needs: universe, genome, EA, fitness, environment, islands and seed."""
@@ -453,27 +386,25 @@ class RunConfig:
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
     fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
-    environment: Any = None      # a genr8_dist.environment.Environment (None: the default one)
+    environment: Environment = None  # type: ignore[assignment]  # None: the default one
     islands: IslandSettings = field(default_factory=IslandSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
-    universe_source: Any = None  # the universe's files (a grammar.UniverseSource; None: look it up)
+    universe_source: UniverseSource = None  # type: ignore[assignment]  # its files; None: look it up
 
     def __post_init__(self) -> None:
         source = self.universe_source
         if source is None:
-            name, source = _resolve_universe(self.universe, None)
+            name, source = resolve_universe(self.universe, None)
             _set(self, "universe", name)
             _set(self, "universe_source", source)
         else:
-            from genr8_dist.grammar.source import UniverseSource
-
             if not isinstance(source, UniverseSource):
                 raise _fail("stored_universe", f"must be a UniverseSource, got {type(source).__name__}")
             if self.universe != source.name:
                 raise _fail("universe", f"names {self.universe!r} but the stored universe is "
                                         f"{source.name!r}")
             try:
-                _check_source(source)
+                check_source(source)
             except Genr8Error as exc:
                 raise _fail("stored_universe", str(exc)) from None
         _set(self, "seed", read_int(self.seed, "", "seed", minimum=0, maximum=2**63 - 1))
@@ -490,10 +421,8 @@ class RunConfig:
         elif not isinstance(self.fitness, FitnessSpec):
             raise _fail("fitness", f"must be a table, got {self.fitness!r}")
         if self.environment is None:
-            _set(self, "environment", _default_environment())
+            _set(self, "environment", Environment())
         elif isinstance(self.environment, Mapping):
-            from genr8_dist.environment import Environment
-
             _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
         elif not hasattr(self.environment, "to_dict"):
             raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
@@ -556,8 +485,6 @@ class RunConfig:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
         kwargs: dict[str, Any] = {k: data[k] for k in ("seed", "meshing") if k in data}
         if "stored_universe" in data:
-            from genr8_dist.grammar.source import UniverseSource
-
             try:
                 stored = UniverseSource.from_dict(data["stored_universe"], f"{source} [stored_universe]")
             except Genr8Error as exc:
@@ -565,7 +492,7 @@ class RunConfig:
             kwargs["universe"] = data.get("universe", stored.name)
             kwargs["universe_source"] = stored
         elif "universe" in data:
-            kwargs["universe"], kwargs["universe_source"] = _resolve_universe(data["universe"], base_dir)
+            kwargs["universe"], kwargs["universe_source"] = resolve_universe(data["universe"], base_dir)
         for name, section in _SECTIONS.items():
             if name in data:
                 kwargs[name] = _section(section, data[name], name)
@@ -615,8 +542,6 @@ class RunConfig:
             elif key == "fitness" and isinstance(value, Mapping):
                 kwargs[key] = current.replace(value)
             elif key == "environment" and isinstance(value, Mapping):
-                from genr8_dist.environment import Environment
-
                 merged = _deep_merge(current.to_dict(), value)
                 kwargs[key] = Environment.from_dict(merged, source="[environment]")
             else:
@@ -650,9 +575,7 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _read_environment(value: Any, source: str, base_dir: Path | None) -> Any:
-    from genr8_dist.environment import Environment, load_environment
-
+def _read_environment(value: Any, source: str, base_dir: Path | None) -> Environment:
     if isinstance(value, str):
         path = Path(value)
         if not path.is_absolute():

@@ -17,13 +17,15 @@ renamed, so a crash or a bad argument never leaves half a file.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from genr8_dist.errors import ConfigError
+from genr8_dist.errors import ConfigError, Genr8Error
 from genr8_dist.files import is_stream, replacing
 
 if TYPE_CHECKING:
@@ -32,19 +34,22 @@ if TYPE_CHECKING:
 __all__ = [
     "MESH_FORMATS",
     "SCAFFOLD_FORMATS",
+    "SURFACE_FORMATS",
+    "SurfaceFormat",
     "SurfaceLike",
     "draw_surface",
     "export_3dm",
     "export_mesh",
     "export_scaffold",
+    "export_surface",
     "mesh_of",
+    "pyplot",
     "render_png",
     "save_png",
+    "surface_bytes",
     "write_mesh",
 ]
 
-MESH_FORMATS = ("obj", "ply", "stl", "glb")
-SCAFFOLD_FORMATS = ("obj", "ply", "dxf")
 
 
 class SurfaceLike(Protocol):
@@ -170,6 +175,13 @@ def _scaffold_dxf(vertices: np.ndarray, edges: np.ndarray, labels: np.ndarray) -
     return "\n".join(out) + "\n"
 
 
+#: The scaffold formats by suffix: each one's text from (vertices, edges, labels).
+_SCAFFOLD_WRITERS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray], str]] = {
+    "obj": _scaffold_obj, "ply": _scaffold_ply, "dxf": _scaffold_dxf,
+}
+SCAFFOLD_FORMATS: tuple[str, ...] = tuple(_SCAFFOLD_WRITERS)
+
+
 def export_scaffold(surface: SurfaceLike, path: str | Path) -> Path:
     """Write the map's edges as polylines to ``path`` (OBJ lines, PLY edges, or DXF); returns the path."""
     path = Path(path)
@@ -179,23 +191,20 @@ def export_scaffold(surface: SurfaceLike, path: str | Path) -> Path:
     labels = np.asarray(surface.labels).reshape(-1)
     if len(labels) != len(edges):
         labels = np.zeros(len(edges), dtype=np.int64)
-    labels = labels.astype(np.int64)
-    if kind == "obj":
-        _write_bytes(path, _scaffold_obj(vertices, edges, labels))
-    elif kind == "ply":
-        _write_bytes(path, _scaffold_ply(vertices, edges, labels))
-    else:
-        _write_bytes(path, _scaffold_dxf(vertices, edges, labels))
+    _write_bytes(path, _SCAFFOLD_WRITERS[kind](vertices, edges, labels.astype(np.int64)))
     return path
 
 
 # -- pictures ------------------------------------------------------------------------------------------
 
-def _pyplot() -> Any:
+def pyplot(needs: str = "PNG previews", error: type[Genr8Error] = ConfigError) -> Any:
+    """``matplotlib.pyplot`` on the headless Agg backend; without matplotlib (the ``viz`` extra), an
+    ``error`` saying that ``needs`` it and how to install it. Every picture of genr8_dist draws
+    through this."""
     try:
         import matplotlib
     except ImportError:
-        raise ConfigError("PNG previews need matplotlib: pip install 'genr8-dist[viz]'") from None
+        raise error(f"{needs} need matplotlib: pip install 'genr8-dist[viz]'") from None
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
@@ -205,7 +214,7 @@ def _pyplot() -> Any:
 def save_png(fig: Any, path: str | Path, *, dpi: int = 120) -> Path:
     """Save a matplotlib figure as the PNG ``path`` atomically and close it; returns the path."""
     path = Path(path)
-    plt = _pyplot()
+    plt = pyplot()
     try:
         if path.suffix.lower() != ".png" and not is_stream(path):
             raise ConfigError(f"{path}: a preview is a .png file")
@@ -230,7 +239,8 @@ def smooth_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     for k in range(3):
         np.add.at(normal, faces[:, k], face)
     length = np.linalg.norm(normal, axis=1, keepdims=True)
-    return np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    result: np.ndarray = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
+    return result
 
 
 def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float = 0.15,
@@ -245,10 +255,11 @@ def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float
     colours = cmap(low + span_ * level)
     colours[:, :3] *= (dark + (1.0 - dark) * lambert)[:, None]
     colours[:, 3] = 1.0
-    return colours
+    result: np.ndarray = colours
+    return result
 
 
-def _drawn(surface: Any) -> tuple[np.ndarray, np.ndarray]:
+def _drawn(surface: SurfaceLike) -> tuple[np.ndarray, np.ndarray]:
     """The points and triangles a picture draws: the surface's mesh, or its meshing-1 triangles when
     the mesh is too large to draw quickly."""
     points, _, faces = _arrays(surface)
@@ -258,7 +269,7 @@ def _drawn(surface: Any) -> tuple[np.ndarray, np.ndarray]:
     return points, faces
 
 
-def _add_surface(ax: Any, surface: Any, plt: Any, *, low: float, span: float, dark: float,
+def _add_surface(ax: Any, surface: SurfaceLike, plt: Any, *, low: float, span: float, dark: float,
                  curve_width: float, zorder: float | None = None) -> None:
     """The shaded mesh (triangle edges hidden: drawn in the face colour, hairline, to close seams)
     and the scaffold as B-spline curves (``genr8_dist.scaffold``)."""
@@ -282,46 +293,15 @@ def _add_surface(ax: Any, surface: Any, plt: Any, *, low: float, span: float, da
 
 def _draw_environment(ax: Any, env: Environment, lo: np.ndarray, hi: np.ndarray,
                       vertices: np.ndarray | None = None) -> None:
-    """Boundaries as light wireframes, attractors (green dots) and repellers (red crosses)."""
-    from genr8_dist.environment import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
+    """Boundaries as light wireframes (each its own ``outline``), attractors (green dots) and
+    repellers (red crosses)."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-    style = {"color": "0.45", "linewidth": 0.5, "alpha": 0.6, "zorder": 0}
+    middle, size = (lo + hi) / 2, 0.6 * float(np.max(hi - lo))
     for b in env.boundaries:
-        if isinstance(b, SphereBoundary):
-            u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
-            c, r = np.asarray(b.centre), b.radius
-            ax.plot_wireframe(c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
-                              c[2] + r * np.cos(v), **style)
-        elif isinstance(b, BoxBoundary):
-            x0, y0, z0 = b.min
-            x1, y1, z1 = b.max
-            corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
-            for i in range(8):
-                for j in range(i + 1, 8):
-                    if np.sum(corners[i] != corners[j]) == 1:
-                        ax.plot(*corners[[i, j]].T, **style)
-        elif isinstance(b, PlaneBoundary):
-            n = np.asarray(b.normal)
-            helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-            e1 = np.cross(n, helper)
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(n, e1)
-            size = 0.6 * float(np.max(hi - lo))
-            middle = (lo + hi) / 2
-            centre = middle - n * float(np.dot(middle - np.asarray(b.point), n))
-            s = np.linspace(-size, size, 7)
-            for t in s:
-                ax.plot(*np.array([centre + e1 * t - e2 * size, centre + e1 * t + e2 * size]).T, **style)
-                ax.plot(*np.array([centre + e2 * t - e1 * size, centre + e2 * t + e1 * size]).T, **style)
-        elif isinstance(b, MeshBoundary):
-            tri = b.triangles
-            if len(tri) > 4000:
-                tri = tri[:: int(np.ceil(len(tri) / 4000))]
-            from mpl_toolkits.mplot3d.art3d import Line3DCollection
-
-            segments = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
-            ax.add_collection3d(Line3DCollection(segments, colors="0.55", linewidths=0.3, alpha=0.5,
-                                                 zorder=0))
+        style = ({"colors": "0.55", "linewidths": 0.3, "alpha": 0.5} if b.faint
+                 else {"colors": "0.45", "linewidths": 0.5, "alpha": 0.6})
+        ax.add_collection3d(Line3DCollection(b.outline(middle, size), zorder=0, **style))
     for force, colour, marker in ([(a, "tab:green", "o") for a in env.attractors]
                                   + [(r, "tab:red", "X") for r in env.repellers]):
         where = np.asarray(force.position)
@@ -369,22 +349,18 @@ def _perimeter(surface: SurfaceLike) -> np.ndarray:
 
 
 def _scene_bounds(env: Environment, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The surface's bounding box grown to show nearby attractors, repellers and sphere boundaries.
+    """The surface's bounding box grown to show nearby attractors, repellers and boundaries (their
+    ``reach``).
 
     Things further than twice the surface's size away are cut off at that distance (a huge enclosing
     box would otherwise shrink the surface to a dot).
     """
-    from genr8_dist.environment import BoxBoundary, SphereBoundary
-
     size = max(float(np.max(hi - lo)), 1e-9)
     middle = (lo + hi) / 2
     limit_lo, limit_hi = middle - 2.0 * size, middle + 2.0 * size
     points = [np.asarray(f.position) for f in (*env.attractors, *env.repellers)]
     for b in env.boundaries:
-        if isinstance(b, SphereBoundary):
-            points += [np.asarray(b.centre) - b.radius, np.asarray(b.centre) + b.radius]
-        elif isinstance(b, BoxBoundary):
-            points += [np.asarray(b.min), np.asarray(b.max)]
+        points += list(b.reach())
     new_lo, new_hi = lo.copy(), hi.copy()
     for point in points:
         clipped = np.clip(point, limit_lo, limit_hi)
@@ -405,7 +381,7 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ConfigError(f"{path}: a preview is a .png file")
-    plt = _pyplot()
+    plt = pyplot()
     vertices = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     edges = np.asarray(surface.edges, dtype=np.int64).reshape(-1, 2)
     faces = np.asarray(surface.triangles(), dtype=np.int64).reshape(-1, 3)
@@ -462,11 +438,11 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
     return path
 
 
-def draw_surface(ax: Any, surface: Any, *, elev: float = 32.0, azim: float = -58.0) -> None:
+def draw_surface(ax: Any, surface: SurfaceLike, *, elev: float = 32.0, azim: float = -58.0) -> None:
     """Draw ``surface`` on the 3D axes ``ax``: its mesh shaded by height and lit from above through
     smooth normals (no triangle edge drawn), its scaffold as B-spline curves, equal scale on every
     axis, no axis clutter."""
-    plt = _pyplot()
+    plt = pyplot()
     v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     lo, hi = v.min(axis=0), v.max(axis=0)
     centre = (lo + hi) / 2.0
@@ -532,3 +508,54 @@ def export_3dm(surface: SurfaceLike, path: str | Path, *, name: str, smooth: int
         if not model.Write(str(tmp), 7):
             raise OSError(5, "rhino3dm could not write the file", str(path))
     return path
+
+
+# -- the surface formats ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SurfaceFormat:
+    """One file format a surface is exported in: its ``suffix``; ``write(surface, path, name,
+    smooth)`` writing it; whether it is a triangle ``mesh`` through trimesh (``write_mesh`` writes
+    those for a plugin's meshes too); the studio's ``label`` and ``media`` type for a download, and
+    whether the studio offers it (``download``)."""
+
+    suffix: str
+    write: Callable[[SurfaceLike, Path, str, int], Path]
+    label: str
+    media: str = "application/octet-stream"
+    mesh: bool = False
+    download: bool = True
+
+
+def _trimesh_format(surface: SurfaceLike, path: Path, name: str, smooth: int) -> Path:
+    return export_mesh(surface, path, smooth=smooth)
+
+
+def _rhino_format(surface: SurfaceLike, path: Path, name: str, smooth: int) -> Path:
+    return export_3dm(surface, path, name=name or "genr8 surface", smooth=smooth)
+
+
+#: Every format a surface is exported in, by suffix: ``genr8 grow -o``, ``genr8 show -o``, the
+#: surface phenotype's ``export_formats`` and the studio's downloads all read this one table.
+SURFACE_FORMATS: dict[str, SurfaceFormat] = {f.suffix: f for f in (
+    SurfaceFormat("obj", _trimesh_format, "OBJ", "text/plain", mesh=True),
+    SurfaceFormat("ply", _trimesh_format, "PLY", mesh=True, download=False),
+    SurfaceFormat("stl", _trimesh_format, "STL", mesh=True, download=False),
+    SurfaceFormat("glb", _trimesh_format, "GLB", "model/gltf-binary", mesh=True),
+    SurfaceFormat("3dm", _rhino_format, "3DM"),
+)}
+MESH_FORMATS: tuple[str, ...] = tuple(s for s, f in SURFACE_FORMATS.items() if f.mesh)
+
+
+def export_surface(surface: SurfaceLike, path: str | Path, *, name: str = "", smooth: int = 0) -> Path:
+    """Write ``surface`` to ``path`` in the format its suffix names (one of ``SURFACE_FORMATS``),
+    named ``name`` where the format keeps names, after ``smooth`` subdivision steps; returns the path."""
+    path = Path(path)
+    found = SURFACE_FORMATS[_suffix(path, tuple(SURFACE_FORMATS), "surface")]
+    return found.write(surface, path, name, smooth)
+
+
+def surface_bytes(surface: SurfaceLike, suffix: str, *, name: str) -> bytes:
+    """The bytes ``export_surface`` writes for ``surface`` in the format ``suffix`` (a download)."""
+    with tempfile.TemporaryDirectory(prefix="genr8-export-") as tmp:
+        return export_surface(surface, Path(tmp) / f"{name}.{suffix}", name=name).read_bytes()

@@ -37,11 +37,30 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from genr8_dist.errors import UniverseError
+from genr8_dist.export import SURFACE_FORMATS, export_surface
 
-__all__ = ["SURFACES", "Developed", "Phenotype", "SurfacePhenotype", "phenotype_of"]
+if TYPE_CHECKING:
+    from genr8_dist.environment import Environment
+    from genr8_dist.fitness import FitnessSpec
+
+__all__ = ["SURFACES", "Developed", "Phenotype", "RunSettings", "SurfacePhenotype", "phenotype_of"]
+
+
+class RunSettings(Protocol):
+    """What a phenotype is given of a run's configuration (``genr8_dist.config.RunConfig``, a layer
+    above this one): its environment, its fitness (criteria, targets, weights) and its meshing."""
+
+    @property
+    def environment(self) -> Environment: ...
+
+    @property
+    def fitness(self) -> FitnessSpec: ...
+
+    @property
+    def meshing(self) -> int: ...
 
 
 @dataclass(frozen=True)
@@ -95,15 +114,15 @@ class Phenotype(ABC):
         return criterion_names(self.name)
 
     @abstractmethod
-    def develop(self, text: str, config: Any) -> Developed:
+    def develop(self, text: str, config: RunSettings) -> Developed:
         """The phenotype of ``text`` (raise to fail the individual at ``stage``)."""
 
     @abstractmethod
-    def measure(self, developed: Developed, config: Any) -> dict[str, float]:
+    def measure(self, developed: Developed, config: RunSettings) -> dict[str, float]:
         """A raw value for each of the run's criteria."""
 
     @abstractmethod
-    def fitness(self, raw: Mapping[str, float], config: Any) -> float:
+    def fitness(self, raw: Mapping[str, float], config: RunSettings) -> float:
         """The run's fitness from the raw values, lower is better."""
 
     def trivial(self, evaluation: Any) -> bool:
@@ -111,7 +130,7 @@ class Phenotype(ABC):
         place in generation 0 (sensible initialisation redraws it); by default never."""
         return False
 
-    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+    def screen(self, text: str, config: RunSettings) -> tuple[bool, str]:
         """What ``text`` shows before it is developed: whether its development is sure to be
         ``trivial`` (an island then draws or varies it again without developing it), and a key
         equal for two texts only when they develop into one phenotype (a copy, known without
@@ -130,12 +149,12 @@ class Phenotype(ABC):
         bad = [name for name, value in raw.items() if not math.isfinite(value)]
         return f"degenerate {self.name}: {', '.join(bad)} not finite" if bad else None
 
-    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "") -> Path:
+    def export(self, developed: Developed, path: str | Path, config: RunSettings, *, name: str = "") -> Path:
         """Write ``developed`` to ``path``, in the format its suffix names (one of ``export_formats``);
         ``name`` is what to call it inside the file, where the format keeps names."""
         raise UniverseError(f"phenotype {self.name} exports nothing")
 
-    def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+    def preview(self, developed: Developed, path: str | Path, *, title: str, config: RunSettings) -> Path:
         """A PNG picture of ``developed`` at ``path``, titled ``title``."""
         raise UniverseError(f"phenotype {self.name} draws no preview")
 
@@ -154,8 +173,7 @@ class SurfacePhenotype(Phenotype):
     stage = "grow"
     sizes = ("vertices", "edges", "regions")
     trivial_from_sizes = True
-    # triangle meshes through trimesh, and Rhino's .3dm (mesh and scaffold) through rhino3dm
-    export_formats = ("obj", "ply", "stl", "glb", "3dm")
+    export_formats = tuple(SURFACE_FORMATS)   # genr8_dist.export's table of surface formats
     smooths = True      # export takes smooth=N (Loop subdivision steps: genr8 show --smooth)
 
     def parse(self, text: str) -> Any:
@@ -166,7 +184,7 @@ class SurfacePhenotype(Phenotype):
 
         return parse(text)
 
-    def develop(self, text: str, config: Any) -> Developed:
+    def develop(self, text: str, config: RunSettings) -> Developed:
         from genr8_dist.hemls import grow, parse
 
         try:
@@ -187,16 +205,16 @@ class SurfacePhenotype(Phenotype):
                          len(steps) if isinstance(steps, (list, tuple)) else int(steps),
                          (capped if isinstance(capped, str) else "cap") if capped else None, counts)
 
-    def measure(self, developed: Developed, config: Any) -> dict[str, float]:
+    def measure(self, developed: Developed, config: RunSettings) -> dict[str, float]:
         from genr8_dist.fitness import score_surface
 
         return score_surface(developed.value, config.environment, config.fitness.names)
 
     def trivial(self, evaluation: Any) -> bool:
         """At most one region: the axiom polygon as it was, or grown without a subdivision."""
-        return evaluation.sizes.get("regions", 0) <= 1
+        return bool(evaluation.sizes.get("regions", 0) <= 1)
 
-    def screen(self, text: str, config: Any) -> tuple[bool, str]:
+    def screen(self, text: str, config: RunSettings) -> tuple[bool, str]:
         """Trivial when no rule that can fire draws a branch (no region can ever split: one region
         whatever the environment); the key is the text without the rules that can never fire
         (``genr8_dist.hemls.splitting.screen``)."""
@@ -210,21 +228,18 @@ class SurfacePhenotype(Phenotype):
             return "degenerate surface: no vertices or no edges"
         return super().problem(counts, raw)
 
-    def fitness(self, raw: Mapping[str, float], config: Any) -> float:
+    def fitness(self, raw: Mapping[str, float], config: RunSettings) -> float:
         return config.fitness.evaluate(raw)
 
-    def export(self, developed: Developed, path: str | Path, config: Any, *, name: str = "",
+    def export(self, developed: Developed, path: str | Path, config: RunSettings, *, name: str = "",
                smooth: int = 0) -> Path:
-        """The surface as a triangle mesh by its run's meshing (.obj .ply .stl .glb: every vertex in
-        order, then the points meshing added) or as a Rhino .3dm file (the mesh, named ``name``, the
-        scaffold's edges as lines and its lines as NURBS curves); ``smooth`` subdivision steps."""
-        from genr8_dist.export import export_3dm, export_mesh
+        """The surface in a format of ``genr8_dist.export.SURFACE_FORMATS`` by its run's meshing: a
+        triangle mesh (.obj .ply .stl .glb: every vertex in order, then the points meshing added) or
+        a Rhino .3dm file (the mesh, named ``name``, the scaffold's edges as lines and its lines as
+        NURBS curves); ``smooth`` subdivision steps."""
+        return export_surface(developed.value, path, name=name, smooth=smooth)
 
-        if Path(path).suffix.lower() == ".3dm":
-            return export_3dm(developed.value, path, name=name or "genr8 surface", smooth=smooth)
-        return export_mesh(developed.value, path, smooth=smooth)
-
-    def preview(self, developed: Developed, path: str | Path, *, title: str, config: Any) -> Path:
+    def preview(self, developed: Developed, path: str | Path, *, title: str, config: RunSettings) -> Path:
         """The shaded surface in the run's environment (boundaries, attractors, repellers, gravity)."""
         from genr8_dist.export import render_png
 
@@ -242,7 +257,7 @@ class SurfacePhenotype(Phenotype):
 SURFACES = SurfacePhenotype()
 
 
-def phenotype_of(universe: Any) -> Phenotype:
+def phenotype_of(universe: object) -> Phenotype:
     """The phenotype of ``universe``: its hooks' ``PHENOTYPE``, else the built-in surfaces."""
     hooks = getattr(universe, "hooks", None)
     found = getattr(hooks, "PHENOTYPE", None) if hooks is not None else None

@@ -12,16 +12,27 @@ these curves (``scaffold_curves``); ``.3dm`` exports write them as NURBS curves.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-__all__ = ["sample_line", "scaffold_curves", "scaffold_lines"]
+__all__ = ["SurfaceEdges", "sample_line", "scaffold_curves", "scaffold_lines"]
+
+
+class SurfaceEdges(Protocol):
+    """What the scaffold reads of a surface (``genr8_dist.hemls.Surface`` has it)."""
+
+    @property
+    def vertices(self) -> np.ndarray: ...
+
+    @property
+    def edges(self) -> np.ndarray: ...
 
 _STRAIGHT = 135.0   # two edges at a vertex continue each other when at least this far apart (degrees)
 
 
-def scaffold_lines(vertices: Any, edges: Any) -> list[tuple[np.ndarray, bool]]:
+def scaffold_lines(vertices: ArrayLike, edges: ArrayLike) -> list[tuple[np.ndarray, bool]]:
     """The map's edges joined into lines: ``(vertex ids, closed)`` each, every edge in exactly one, in a
     fixed order (deterministic)."""
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
@@ -107,7 +118,7 @@ def sample_line(points: np.ndarray, closed: bool, per_span: int = 8) -> np.ndarr
     return np.asarray(BSpline(knots, ctrl, degree)(u))
 
 
-def scaffold_curves(surface: Any, per_span: int = 8) -> list[np.ndarray]:
+def scaffold_curves(surface: SurfaceEdges, per_span: int = 8) -> list[np.ndarray]:
     """The scaffold's lines sampled as B-spline curves (each (S, 3)), for drawing."""
     v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     return [sample_line(v[ids], closed, per_span) for ids, closed in scaffold_lines(v, surface.edges)]

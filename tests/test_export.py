@@ -137,3 +137,23 @@ def test_grown_four_sided_tiles_round_trip_through_obj(tmp_path):
     assert mesh.area == pytest.approx(surface.n_regions * (1.5 ** 3 / 8) ** 2)  # 64 squares of side 1.5^3/8
     lines = export_scaffold(surface, tmp_path / "tiles-scaffold.obj").read_text().splitlines()
     assert sum(line.startswith("l ") for line in lines) == 144
+
+
+def test_every_surface_format_of_the_table_writes_its_file(tmp_path):
+    from genr8_dist.export import MESH_FORMATS, SURFACE_FORMATS, export_surface, surface_bytes
+    from genr8_dist.phenotype import SURFACES
+
+    assert SURFACES.export_formats == tuple(SURFACE_FORMATS)
+    assert MESH_FORMATS == ("obj", "ply", "stl", "glb")
+    surface = tiles(2)
+    for suffix, found in SURFACE_FORMATS.items():
+        if suffix == "3dm":
+            pytest.importorskip("rhino3dm")
+        path = export_surface(surface, tmp_path / f"t.{suffix}", name="t")
+        assert path.stat().st_size > 0 and found.suffix == suffix
+        download = surface_bytes(surface, suffix, name="t")
+        if suffix != "3dm":     # a Rhino file holds the time it was written and fresh object ids
+            assert download == path.read_bytes()
+        assert len(download) > 0
+    with pytest.raises(ConfigError, match=r"unknown surface format '\.dxf'; use one of \.obj"):
+        export_surface(surface, tmp_path / "t.dxf")

@@ -1,5 +1,6 @@
-"""The package's modules import each other without cycles (lazy imports inside functions count too;
-imports for type checking only do not): each layer can be read, and loaded, on its own."""
+"""The package's modules import each other without cycles and only downwards, through the layers below
+(imports inside functions and imports for type checking only count too): each layer can be read, and
+loaded, on its own, with what lies under it."""
 
 from __future__ import annotations
 
@@ -7,6 +8,27 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "genr8_dist"
+
+#: The layers, lowest first: a module may import its own layer's modules and those of layers below,
+#: never one above. A module's layer is that of the longest name here it is or lies under (the
+#: package's own ``__init__``, the public names, is the top).
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("errors", "rng", "resources", "tomlfile", "files", "fields"),   # no genr8_dist import but these
+    ("environment",),                   # the simulated environment: forces, boundaries, physics
+    ("hemls", "scaffold"),              # the language, growth in an environment, the surface
+    ("fitness", "export"),              # criteria over a surface; files and pictures of one
+    ("grammar",),                       # universes: grammar, mapping, hooks, trust, discovery
+    ("phenotype",),                     # what a universe's texts develop into
+    ("run_universe",),                  # the universe a configuration names, and its phenotype
+    ("evolution.individual", "evolution.archive"),  # the stored row and the grid a configuration reads
+    ("config",),                        # RunConfig
+    ("evolution",),                     # evaluation, operators, the island
+    ("store",),                         # the run store
+    ("history", "distributed"),         # reading a run; running one on Ray
+    ("studio",),                        # the browser studio
+    ("cli",),                           # the genr8 command
+    ("",),                              # genr8_dist/__init__.py
+)
 
 
 def _module(path: Path) -> str:
@@ -16,16 +38,10 @@ def _module(path: Path) -> str:
 
 def _imports(path: Path, modules: set[str]) -> set[str]:
     tree = ast.parse(path.read_text(encoding="utf-8"))
-    skip: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            skip.update(id(n) for child in node.body for n in ast.walk(child))
     me = _module(path)
     package = me if path.name == "__init__.py" else me.rpartition(".")[0]
     found = set()
     for node in ast.walk(tree):
-        if id(node) in skip:
-            continue
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
@@ -49,33 +65,94 @@ def _graph() -> dict[str, set[str]]:
     return {_module(p): _imports(p, modules) for p in paths}
 
 
-def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
-    state: dict[str, int] = {}
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
     stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
 
-    def visit(node: str) -> list[str] | None:
-        state[node] = 1
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
         stack.append(node)
+        on_stack.add(node)
         for nxt in sorted(graph.get(node, ())):
             if nxt.startswith(node + ".") or graph.get(nxt) is None:
                 continue
-            if state.get(nxt) == 1:
-                return [*stack[stack.index(nxt):], nxt]
-            if nxt not in state and (found := visit(nxt)):
-                return found
-        stack.pop()
-        state[node] = 2
-        return None
+            if nxt not in index:
+                visit(nxt)
+                low[node] = min(low[node], low[nxt])
+            elif nxt in on_stack:
+                low[node] = min(low[node], index[nxt])
+        if low[node] == index[node]:
+            component = []
+            while True:
+                top = stack.pop()
+                on_stack.discard(top)
+                component.append(top)
+                if top == node:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
 
     for node in sorted(graph):
-        if node not in state and (found := visit(node)):
-            return found
-    return None
+        if node not in index:
+            visit(node)
+    return found
+
+
+#: Cycles known and left for now: inside store/, the concept classes ``RunStore`` joins (commits,
+#: garbage) and the helpers it calls (parts, upgrade) annotate with ``RunStore`` (type-checking
+#: imports only) and import ``parts`` lazily. All one layer; a ``Protocol`` of what each needs would
+#: end it. Delete the entry when it is gone; a cycle not listed fails.
+KNOWN_CYCLES: tuple[tuple[str, ...], ...] = (
+    ("genr8_dist.store.commits", "genr8_dist.store.garbage", "genr8_dist.store.parts",
+     "genr8_dist.store.runstore", "genr8_dist.store.upgrade"),
+)
+
+
+def _edges() -> dict[str, set[str]]:
+    # a package's __init__ re-exports its modules: an import of a module's own package (or a parent)
+    # from inside it is the same layer, so those edges are left out
+    return {m: {i for i in imports if not m.startswith(i + ".")} for m, imports in _graph().items()}
+
+
+def _layer(module: str) -> int:
+    name = module.removeprefix("genr8_dist").removeprefix(".")
+    best, where = -1, -1
+    for level, names in enumerate(LAYERS):
+        for prefix in names:
+            if (name == prefix or name.startswith(prefix + ".") or prefix == "") and len(prefix) > best:
+                best, where = len(prefix), level
+    return where
 
 
 def test_the_package_has_no_import_cycle():
-    # a package's __init__ re-exports its modules: an import of a module's own package (or a parent)
-    # from inside it is the same layer, so those edges are left out
-    graph = {m: {i for i in imports if not m.startswith(i + ".")} for m, imports in _graph().items()}
-    cycle = _cycle(graph)
-    assert cycle is None, " -> ".join(cycle or [])
+    cycles = [c for c in _cycles(_edges()) if tuple(c) not in KNOWN_CYCLES]
+    assert not cycles, "modules importing each other: " + "; ".join(" <-> ".join(c) for c in cycles)
+
+
+def test_every_module_has_a_layer():
+    missing = [m for m in _graph() if m != "genr8_dist" and _layer(m) == len(LAYERS) - 1]
+    assert not missing, f"add to tests/test_import_graph.py's LAYERS: {', '.join(sorted(missing))}"
+
+
+def test_imports_only_run_downwards():
+    upward = sorted(f"{m} (layer {_layer(m)}) imports {i} (layer {_layer(i)})"
+                    for m, imports in _edges().items() for i in imports if _layer(i) > _layer(m))
+    assert not upward, "imports up the layers:\n" + "\n".join(upward)
+
+
+def test_no_handler_swallows_base_exception():
+    # KeyboardInterrupt and SystemExit end the program: a handler of BaseException may only clean up
+    # and raise it again
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ExceptHandler) and node.type is not None \
+                    and "BaseException" in ast.unparse(node.type):
+                last = node.body[-1]
+                if not (isinstance(last, ast.Raise) and last.exc is None):
+                    found.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno}")
+    assert not found, "catches BaseException: " + ", ".join(found)

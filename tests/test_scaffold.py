@@ -55,7 +55,7 @@ def test_pictures_draw_no_triangle_edge(tiles):
     pytest.importorskip("matplotlib")
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
-    from genr8_dist.export import _pyplot
+    from genr8_dist.export import pyplot as _pyplot
 
     plt = _pyplot()
     fig = plt.figure()

@@ -14,14 +14,18 @@ import argparse
 import dataclasses
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
+
+if TYPE_CHECKING:
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import Surface
 
 __all__ = ["register", "step_path"]
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``genr8 grow``."""
     parser = subparsers.add_parser(
         "grow",
@@ -82,7 +86,7 @@ def _check_outputs(args: argparse.Namespace) -> None:
             raise ConfigError("--png needs matplotlib: pip install 'genr8-dist[viz]'") from None
 
 
-def _environment(args: argparse.Namespace) -> Any:
+def _environment(args: argparse.Namespace) -> Environment:
     from genr8_dist.environment import Environment, load_environment
 
     env = load_environment(args.env) if args.env else Environment(source="<default environment>")
@@ -101,7 +105,8 @@ def _environment(args: argparse.Namespace) -> Any:
     return env
 
 
-def _write(surface: Any, args: argparse.Namespace, env: Any, title: str, step: int | None) -> list[str]:
+def _write(surface: Surface, args: argparse.Namespace, env: Environment, title: str, step: int | None
+           ) -> list[str]:
     from genr8_dist.export import export_mesh, export_scaffold, render_png
 
     written = []
@@ -119,7 +124,7 @@ def _write(surface: Any, args: argparse.Namespace, env: Any, title: str, step: i
     return written
 
 
-def _cap_message(capped: str, env: Any) -> str:
+def _cap_message(capped: str, env: Environment) -> str:
     if capped == "edges":
         return f"the edge cap (max_edges = {env.max_edges}) would be exceeded"
     if capped == "work":

@@ -47,7 +47,7 @@ def _seconds(text: str) -> float:
     return value
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the history commands to ``genr8``."""
     p = subparsers.add_parser(
         "history", help="fitness per generation and island (best, median, worst, criteria)",

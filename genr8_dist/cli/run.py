@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from genr8_dist.cli._args import int32
+
+if TYPE_CHECKING:
+    from genr8_dist.distributed.session import RunOptions
 
 __all__ = ["register"]
 
@@ -33,7 +37,7 @@ def _trust_option(parser: argparse.ArgumentParser) -> None:
                              "(docs/run-store.md: the trust rule)")
 
 
-def _options(args: argparse.Namespace):
+def _options(args: argparse.Namespace) -> RunOptions:
     from genr8_dist.distributed.session import RunOptions
     from genr8_dist.errors import ConfigError
 
@@ -146,7 +150,7 @@ def _edit(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``run``, ``resume``, ``repair`` and ``edit``."""
     p = subparsers.add_parser(
         "run", help="start an evolution run (islands on Ray) in a new run directory",

@@ -13,12 +13,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.environment import Environment
+    from genr8_dist.fitness import FitnessSpec
+    from genr8_dist.hemls import RewriteSystem
 
 __all__ = ["register", "score_phenotype", "score_system"]
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``genr8 score``."""
     parser = subparsers.add_parser(
         "score",
@@ -42,7 +48,8 @@ def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def score_system(system: Any, env: Any, spec: Any, *, name: str = "<text>") -> dict[str, Any]:
+def score_system(system: RewriteSystem | str, env: Environment, spec: FitnessSpec, *,
+                 name: str = "<text>") -> dict[str, Any]:
     """Grow ``system`` (a ``RewriteSystem``, or its text) in ``env`` and score it under ``spec``: the
     report ``genr8 score`` prints (JSON-ready). Text that does not parse raises ``ParseError``; growth
     that cannot start raises ``GrowthError``."""
@@ -103,7 +110,7 @@ def _print_table(report: dict[str, Any], mentioned: set[str] | None = None) -> N
         print(f"note: in a run this individual is invalid (fitness inf): {report['problem']}")
 
 
-def score_phenotype(text: str, config: Any, *, name: str = "<text>") -> dict[str, Any]:
+def score_phenotype(text: str, config: RunConfig, *, name: str = "<text>") -> dict[str, Any]:
     """Develop ``text`` with the phenotype of ``config``'s universe (a plugin's, e.g. tables) and
     score it as a run would: the report ``genr8 score`` prints for such a universe (JSON-ready)."""
     from genr8_dist.evolution.evaluate import evaluate_text

@@ -62,7 +62,7 @@ def _studio(args: argparse.Namespace) -> int:
     return 0
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``studio``."""
     p = subparsers.add_parser(
         "studio", help="watch and steer a run from a browser (live while it runs)",

@@ -22,7 +22,7 @@ from genr8_dist.errors import ConfigError, GenomeError, InversionError
 __all__ = ["parse_genome", "register"]
 
 
-def register(subparsers: argparse._SubParsersAction) -> None:
+def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add ``genr8 universes``, ``genr8 map`` and ``genr8 invert``."""
     p = subparsers.add_parser(
         "universes", help="list the universes (built-in, plugins, entry points) and where each is from",

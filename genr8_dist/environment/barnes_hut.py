@@ -35,12 +35,13 @@ def _morton(grid: np.ndarray) -> np.ndarray:
     return code
 
 
-def _levels(code: np.ndarray, points: np.ndarray):
+def _levels(code: np.ndarray, points: np.ndarray
+            ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
     """For each level 0.._DEPTH: the cells as (prefix, first point, end point, count, centre of mass),
     points in Morton order."""
     n = len(code)
     cumulative = np.vstack([np.zeros((1, 3)), np.cumsum(points, axis=0)])
-    levels = []
+    levels: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
     for level in range(_DEPTH + 1):
         prefix = code >> (3 * (_DEPTH - level))
         start = np.flatnonzero(np.r_[True, prefix[1:] != prefix[:-1]])

@@ -30,6 +30,7 @@ from __future__ import annotations
 import abc
 import copy
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -92,7 +93,8 @@ def _reflect(b: Boundary, p: np.ndarray, q: np.ndarray, extent: float) -> np.nda
     still = b.violation(mirrored) > 0.0
     if np.any(still):
         mirrored[still] = b.project(mirrored[still], extent)
-    return mirrored
+    result: np.ndarray = mirrored
+    return result
 
 
 #: Every boundary behaviour by name (the ``behaviour`` key of a boundary's table); an unknown name is
@@ -116,6 +118,10 @@ class Boundary(abc.ABC):
     """
 
     kind: ClassVar[str] = ""
+    #: a kind without an extent of its own (a plane): its outline is as wide as the scene drawn
+    unbounded: ClassVar[bool] = False
+    #: a picture draws this kind's outline lighter (a mesh: many edges)
+    faint: ClassVar[bool] = False
     behaviour: str = "slide"
     inside: bool | None = None
     #: the allowed side once resolved against the seed's centre (set by the Environment)
@@ -148,6 +154,29 @@ class Boundary(abc.ABC):
     @abc.abstractmethod
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         """The point of the boundary's surface nearest each point."""
+
+    @abc.abstractmethod
+    def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
+        """(S, 2, 3) line segments drawing the boundary as a wireframe in a picture of the scene
+        around ``centre``, ``size`` wide each way (an unbounded kind's outline spans that; a bounded
+        one ignores both)."""
+
+    def reach(self) -> np.ndarray:
+        """(P, 3) points a picture must hold to show the boundary whole (none: it need not grow the
+        picture, an unbounded or a mesh boundary)."""
+        return np.zeros((0, 3))
+
+    def sketch(self) -> dict[str, Any]:
+        """What the studio draws (JSON): the ``kind``, the outline's ``segments`` and ``reach``; an
+        unbounded kind's outline is drawn one unit wide around ``anchor`` (its point nearest the
+        origin), which the studio scales to each design's size."""
+        anchor = self.closest_points(np.zeros((1, 3)))[0] if self.unbounded else np.zeros(3)
+        out: dict[str, Any] = {"kind": self.kind,
+                               "segments": np.round(self.outline(anchor, 0.5), 4).tolist(),
+                               "reach": [[float(v) for v in p] for p in self.reach()]}
+        if self.unbounded:
+            out["anchor"] = [float(v) for v in anchor]
+        return out
 
     # -- shared ----------------------------------------------------------------------------------------
     def resolved(self, seed_centre: tuple[float, float, float]) -> Boundary:
@@ -194,7 +223,8 @@ class Boundary(abc.ABC):
             bad = self.violation(start + mid[:, None] * delta) > 0.0
             hi = np.where(bad, mid, hi)
             lo = np.where(bad, lo, mid)
-        return start + lo[:, None] * delta
+        result: np.ndarray = start + lo[:, None] * delta
+        return result
 
     def to_dict(self) -> dict[str, Any]:
         """The TOML table of this boundary (``kind`` first; ``inside`` only when given)."""
@@ -215,6 +245,7 @@ class PlaneBoundary(Boundary):
     """An infinite plane through ``point`` with unit ``normal``; its inside is behind the normal."""
 
     kind: ClassVar[str] = "plane"
+    unbounded: ClassVar[bool] = True
     point: tuple[float, float, float] = (0.0, 0.0, 0.0)
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
@@ -229,11 +260,29 @@ class PlaneBoundary(Boundary):
         object.__setattr__(self, "normal", tuple(float(v) for v in normal / length))
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
-        return (np.asarray(points, dtype=np.float64) - np.asarray(self.point)) @ np.asarray(self.normal)
+        offsets = np.asarray(points, dtype=np.float64) - np.asarray(self.point)
+        result: np.ndarray = offsets @ np.asarray(self.normal)
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
-        return points - self.outside_distance(points)[:, None] * np.asarray(self.normal)
+        result: np.ndarray = points - self.outside_distance(points)[:, None] * np.asarray(self.normal)
+        return result
+
+    def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
+        """A 7 x 7 grid of lines in the plane, ``size`` each way around ``centre``'s foot on it."""
+        n = np.asarray(self.normal)
+        helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(n, helper)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(n, e1)
+        centre = np.asarray(centre, dtype=np.float64)
+        foot = centre - n * float(np.dot(centre - np.asarray(self.point), n))
+        lines = []
+        for t in np.linspace(-size, size, 7):
+            lines.append([foot + e1 * t - e2 * size, foot + e1 * t + e2 * size])
+            lines.append([foot + e2 * t - e1 * size, foot + e2 * t + e1 * size])
+        return np.asarray(lines, dtype=np.float64)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -263,7 +312,8 @@ class BoxBoundary(Boundary):
         q = np.abs(points - centre) - half
         outside = np.linalg.norm(np.maximum(q, 0.0), axis=1)
         inside = np.minimum(np.max(q, axis=1), 0.0)
-        return outside + inside
+        result: np.ndarray = outside + inside
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
@@ -280,7 +330,18 @@ class BoxBoundary(Boundary):
             snapped = p.copy()
             snapped[np.arange(len(p)), axis] = value
             out[inner] = snapped
-        return out
+        result: np.ndarray = out
+        return result
+
+    def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
+        """The box's 12 edges."""
+        (x0, y0, z0), (x1, y1, z1) = self.min, self.max
+        corners = np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)])
+        return np.asarray([corners[[i, j]] for i in range(8) for j in range(i + 1, 8)
+                           if np.sum(corners[i] != corners[j]) == 1], dtype=np.float64)
+
+    def reach(self) -> np.ndarray:
+        return np.asarray([self.min, self.max], dtype=np.float64)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -300,7 +361,8 @@ class SphereBoundary(Boundary):
 
     def outside_distance(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
-        return np.linalg.norm(points - np.asarray(self.centre), axis=1) - self.radius
+        result: np.ndarray = np.linalg.norm(points - np.asarray(self.centre), axis=1) - self.radius
+        return result
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         points = np.asarray(points, dtype=np.float64)
@@ -310,6 +372,20 @@ class SphereBoundary(Boundary):
         up = np.array([0.0, 0.0, 1.0])
         unit = np.where(norm > 0, r / np.where(norm > 0, norm, 1.0), up)
         return centre + self.radius * unit
+
+    def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
+        """24 meridians and 12 parallels' segments."""
+        u, v = np.mgrid[0:2 * np.pi:24j, 0:np.pi:12j]
+        c, r = np.asarray(self.centre), self.radius
+        grid = np.stack([c[0] + r * np.cos(u) * np.sin(v), c[1] + r * np.sin(u) * np.sin(v),
+                         c[2] + r * np.cos(v)], axis=-1)
+        along_v = np.stack([grid[:, :-1], grid[:, 1:]], axis=2).reshape(-1, 2, 3)
+        along_u = np.stack([grid[:-1, :], grid[1:, :]], axis=2).reshape(-1, 2, 3)
+        return np.concatenate([along_v, along_u])
+
+    def reach(self) -> np.ndarray:
+        c = np.asarray(self.centre, dtype=np.float64)
+        return np.asarray([c - self.radius, c + self.radius])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -323,6 +399,7 @@ class MeshBoundary(Boundary):
     """
 
     kind: ClassVar[str] = "mesh"
+    faint: ClassVar[bool] = True
     path: str = ""
     scale: float = 1.0
     translate: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -416,6 +493,12 @@ class MeshBoundary(Boundary):
 
     def closest_points(self, points: np.ndarray) -> np.ndarray:
         return self.mesh.query(points)[0]
+
+    def outline(self, centre: np.ndarray, size: float) -> np.ndarray:
+        """The edges of the mesh's triangles (of every k-th one past 4,000 triangles)."""
+        tri = self.triangles
+        tri = tri[:: max(1, math.ceil(len(tri) / 4000))]
+        return np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
 
 
 _KINDS: dict[str, type[Boundary]] = {

@@ -55,7 +55,8 @@ class PointForce:
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             far = self.constant * np.power(d, -self.exponent) / mass
             if self.law == "bounded":
-                return np.where(d > 1.0, far, self.constant * d * np.ones_like(mass))
+                result: np.ndarray = np.where(d > 1.0, far, self.constant * d * np.ones_like(mass))
+                return result
             return np.where(d > 0.0, far, 0.0)
 
     def to_dict(self) -> dict[str, Any]:
@@ -114,7 +115,8 @@ def _push(delta: np.ndarray, length: float, radius: float) -> np.ndarray:
     safe = np.where(ok, d2, 1.0)
     tail = 0.0 if math.isinf(radius) else (length / radius) ** 2
     magnitude = np.where(ok, length * length / safe - tail, 0.0)
-    return (magnitude / np.sqrt(safe))[:, None] * delta
+    result: np.ndarray = (magnitude / np.sqrt(safe))[:, None] * delta
+    return result
 
 
 def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: float, radius: float,
@@ -136,14 +138,16 @@ def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: flo
     if math.isinf(radius) and theta > 0.0:
         from genr8_dist.environment.barnes_hut import inverse_square_field
 
-        return strength * length ** 3 * inverse_square_field(points, theta) / masses[:, None]
+        result: np.ndarray = strength * length ** 3 * inverse_square_field(points, theta) / masses[:, None]
+        return result
     if math.isinf(radius):
         rows = max(1, block // n)
         for r0 in range(0, n, rows):
             delta = points[r0:r0 + rows, None, :] - points[None, :, :]  # (rows, n, 3): from j to i
             flat = _push(delta.reshape(-1, 3), length, radius).reshape(delta.shape)
             out[r0:r0 + rows] = flat.sum(axis=1)
-        return strength * length * out / masses[:, None]
+        result = strength * length * out / masses[:, None]
+        return result
     i, j = _pairs_within(points, radius)
     if len(i) == 0:
         return out
@@ -151,4 +155,5 @@ def repelling_displacement(points: np.ndarray, masses: np.ndarray, strength: flo
     for axis in range(3):
         out[:, axis] += np.bincount(i, weights=push[:, axis], minlength=n)
         out[:, axis] -= np.bincount(j, weights=push[:, axis], minlength=n)
-    return strength * length * out / masses[:, None]
+    result = strength * length * out / masses[:, None]
+    return result

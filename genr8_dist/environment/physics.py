@@ -27,16 +27,49 @@ hand it such vertices.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
+from genr8_dist.environment.boundaries import Boundary
 from genr8_dist.errors import GrowthError
 
-if TYPE_CHECKING:
-    from genr8_dist.environment.model import Environment
+__all__ = ["EnvironmentLike", "SizeIncrease", "increase_size", "mean_edge_length", "neighbour_average",
+           "relax_cells", "repair"]
 
-__all__ = ["SizeIncrease", "increase_size", "mean_edge_length", "neighbour_average", "relax_cells", "repair"]
+class EnvironmentLike(Protocol):
+    """What the derivation step's physics reads of an environment (``genr8_dist.environment.model
+    .Environment`` has it, and calls these functions from its methods)."""
+
+    @property
+    def scale(self) -> tuple[float, float, float]: ...
+
+    @property
+    def position_noise(self) -> float: ...
+
+    @property
+    def fixed_perimeter(self) -> bool: ...
+
+    @property
+    def fixed_centre(self) -> bool: ...
+
+    @property
+    def uniform_cells(self) -> bool: ...
+
+    @property
+    def uniform_iterations(self) -> int: ...
+
+    @property
+    def repelling_points(self) -> float: ...
+
+    @property
+    def boundaries(self) -> tuple[Boundary, ...]: ...
+
+    def characteristic_length(self, step: int) -> float: ...
+
+    def total_force(self, positions: np.ndarray, masses: np.ndarray) -> np.ndarray: ...
+
+    def repelling(self, positions: np.ndarray, masses: np.ndarray, length: float) -> np.ndarray: ...
 
 
 class SizeIncrease(NamedTuple):
@@ -73,7 +106,7 @@ def _check(name: str, array: np.ndarray, shape: tuple[int, ...]) -> None:
         raise GrowthError(f"increase_size: '{name}' has shape {array.shape}, expected {shape}")
 
 
-def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses: np.ndarray,
+def increase_size(env: EnvironmentLike, positions: np.ndarray, *, step: int, masses: np.ndarray,
                   stopped: np.ndarray, perimeter: np.ndarray, edges: np.ndarray,
                   rng: np.random.Generator) -> SizeIncrease:
     """Move every vertex for derivation step ``step``; returns new positions and the cumulative stop mask.
@@ -127,7 +160,7 @@ def increase_size(env: Environment, positions: np.ndarray, *, step: int, masses:
     return SizeIncrease(q, new_stopped)
 
 
-def relax_cells(env: Environment, positions: np.ndarray, *, edges: np.ndarray, perimeter: np.ndarray,
+def relax_cells(env: EnvironmentLike, positions: np.ndarray, *, edges: np.ndarray, perimeter: np.ndarray,
                 stopped: np.ndarray) -> np.ndarray:
     """Uniform cells (thesis 2.7.2: "after each growth step, all the vertices on the perimeter are
     fixed" and the others move to even out their cells): at the end of a derivation step, with the
@@ -145,7 +178,7 @@ def relax_cells(env: Environment, positions: np.ndarray, *, edges: np.ndarray, p
     return q
 
 
-def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
+def repair(env: EnvironmentLike, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
     """Bring vertices that start on the wrong side of a hard boundary back to its nearest allowed point.
 
     Rewriting places new vertices along the turtle's lines, and a new edge between two vertices that
@@ -169,7 +202,7 @@ def repair(env: Environment, p: np.ndarray, stopped: np.ndarray) -> np.ndarray:
     return p
 
 
-def _apply_boundaries(env: Environment, p: np.ndarray, q: np.ndarray, stopped: np.ndarray
+def _apply_boundaries(env: EnvironmentLike, p: np.ndarray, q: np.ndarray, stopped: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Resolve each vertex's move p -> q against the boundaries (slide, cut-off, reflect; soft passes)."""
     extent = float(np.max(np.abs(q))) if len(q) else 1.0

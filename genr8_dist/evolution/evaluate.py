@@ -33,6 +33,8 @@ from genr8_dist.evolution.variation import map_genome
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
+    from genr8_dist.grammar.universe import Universe
+    from genr8_dist.phenotype import Developed
 
 __all__ = [
     "Evaluation",
@@ -60,7 +62,7 @@ class Preview(Evaluation):
         return Preview(**values)
 
 
-def universe_for(config: Any) -> Any:
+def universe_for(config: RunConfig | str) -> Universe:
     """The universe of ``config`` (a ``RunConfig``), built from the files it carries (once per process),
     never looked up again by name: a Ray host on any machine builds the driver's universe. A plain
     name is looked up (the Python API's shorthand)."""
@@ -73,7 +75,7 @@ def universe_for(config: Any) -> Any:
 
 
 @lru_cache(maxsize=16)
-def _named_universe(name: str) -> Any:
+def _named_universe(name: str) -> Universe:
     from genr8_dist.grammar import load_universe
 
     return load_universe(name)
@@ -113,7 +115,7 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     return grown if developed is None else _measure(grown, developed, config)
 
 
-def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Any]:
+def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Developed | None]:
     """``text`` developed, not yet measured: the evaluation so far (its text, sizes, steps, capped,
     digest and ``grow_seconds``; criteria empty, not judged) and the ``Developed`` phenotype; or the
     finished evaluation of a failed development and ``None``."""
@@ -132,7 +134,7 @@ def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Any]:
     return grown, developed
 
 
-def _measure(grown: Evaluation, developed: Any, config: RunConfig) -> Evaluation:
+def _measure(grown: Evaluation, developed: Developed, config: RunConfig) -> Evaluation:
     """``grown`` (what ``_develop`` found) measured and judged: its criteria, ``score_seconds``, the
     verdict and the fitness."""
     from genr8_dist.phenotype import phenotype_of
@@ -231,7 +233,7 @@ class Evaluator:
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
         self._previews: OrderedDict[tuple[int, ...], Preview] = OrderedDict()   # genome -> not measured
         self._unmeasured: OrderedDict[str, Evaluation] = OrderedDict()   # text -> developed, not measured
-        self._developed: OrderedDict[str, Any] = OrderedDict()   # text -> its Developed (the last few)
+        self._developed: OrderedDict[str, Developed] = OrderedDict()   # text -> its Developed (the last few)
         self.evaluations = 0     # genomes actually mapped
         self.growths = 0         # texts actually grown
         self.cache_hits = 0
@@ -287,7 +289,7 @@ class Evaluator:
         self._remember(self._texts, text, judged)
         return judged
 
-    def _defer(self, grown: Evaluation, developed: Any) -> Preview:
+    def _defer(self, grown: Evaluation, developed: Developed | None) -> Preview:
         """``grown`` (not measured) as a preview, its ``developed`` phenotype (``None``: not held)
         held for ``measure``."""
         from genr8_dist.phenotype import phenotype_of

@@ -12,11 +12,13 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from genr8_dist.fitness import FitnessSpec
+
 __all__ = ["crowding_distance", "hypervolume", "non_dominated", "non_dominated_ranks", "objectives_of",
            "pareto_order"]
 
 
-def objectives_of(criteria: Sequence[Mapping[str, float]], valid: Sequence[bool], spec,
+def objectives_of(criteria: Sequence[Mapping[str, float]], valid: Sequence[bool], spec: FitnessSpec,
                   names: Sequence[str]) -> np.ndarray:
     """The (N, k) matrix of the weighted deviations of ``names`` under ``spec`` (a ``FitnessSpec``);
     a row of ``inf`` for an invalid individual."""

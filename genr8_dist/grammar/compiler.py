@@ -25,12 +25,17 @@ from __future__ import annotations
 import ast
 import math
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 from genr8_dist.errors import UniverseError, located
+
+if TYPE_CHECKING:
+    from lark.lexer import Token
+    from lark.tree import Tree
 
 __all__ = ["CompiledGrammar", "EdgeTemplate", "compile_grammar"]
 
@@ -66,13 +71,20 @@ class EdgeTemplate:
         return re.compile(re.escape(self.prefix) + r"([0-9]+)" + re.escape(self.suffix))
 
 
+#: A node of a grammar's IR: its kind first (``"lit"``, ``"edge"``, ``"ref"``, ``"seq"``, ``"alt"``,
+#: ``"opt"``, ``"rep"``...), then fields that differ by kind (names, texts, child nodes).
+Node = tuple[Any, ...]
+#: A rule's alternatives.
+Alternatives = tuple[Node, ...]
+
+
 @dataclass(frozen=True)
 class CompiledGrammar:
     """A universe's grammar as IR plus the tables the mapper and inverse need."""
 
     source: str
     text: str
-    rules: dict[str, tuple]            # rule name -> tuple of alternative IR nodes
+    rules: dict[str, Alternatives]            # rule name -> tuple of alternative IR nodes
     need: dict[int, int]               # id(node) -> minimum height below the current rule
     min_depth: dict[str, int]          # rule -> minimum height of its expansion (itself counts 1)
     templates: tuple[EdgeTemplate, ...]
@@ -81,7 +93,7 @@ class CompiledGrammar:
     description: str
     start: str = "start"
 
-    def alt_need(self, node: tuple) -> int:
+    def alt_need(self, node: Node) -> int:
         """Minimum height (in rule levels) that ``node`` adds below the rule it sits in."""
         return self.need[id(node)]
 
@@ -253,7 +265,7 @@ def _directives(text: str, ctx: _Ctx) -> tuple[dict[str, dict[int | None, int]],
     return bias, repair, description, where_line, numbers
 
 
-def _literal(token, ctx: _Ctx, owner: str) -> tuple[str, str]:
+def _literal(token: Token, ctx: _Ctx, owner: str) -> tuple[str, str]:
     """('lit', text) for a string literal, ('re', body) for a regular expression."""
     value = str(token)
     if token.type == "STRING":
@@ -346,18 +358,18 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
     # Terminals: resolve each named terminal to a literal, an edge template or "unusable".
     term_trees = {str(name): tree for name, (tree, _prio) in grammar.term_defs}
     templates: dict[str, EdgeTemplate] = {}
-    term_kind: dict[str, tuple] = {}
+    term_kind: dict[str, Node] = {}
 
-    def term_value(tree) -> tuple[str, str] | None:
-        node = tree
+    def term_value(tree: Tree[Token]) -> tuple[str, str] | None:
+        node: Tree[Token] | Token = tree
         while isinstance(node, Tree) and node.data in ("expansions", "expansion", "value") \
                 and len(node.children) == 1:
             node = node.children[0]
         if isinstance(node, Tree) and node.data == "literal":
-            return _literal(node.children[0], ctx, "terminal")
+            return _literal(cast("Token", node.children[0]), ctx, "terminal")  # a literal's one token
         return None
 
-    def classify(name: str) -> tuple:
+    def classify(name: str) -> Node:
         if name in term_kind:
             return term_kind[name]
         if name not in term_trees:
@@ -396,11 +408,11 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
         return kind
 
     rule_names = [str(name) for name, *_ in grammar.rule_defs]
-    rules: dict[str, tuple] = {}
+    rules: dict[str, Alternatives] = {}
     rep_counter = [0]
     group_counter = [0]
 
-    def convert(node, rule: str, reps: list[int]) -> tuple:
+    def convert(node: Any, rule: str, reps: list[int]) -> Node:
         from lark.grammar import NonTerminal, Terminal
 
         if isinstance(node, Terminal):
@@ -499,7 +511,7 @@ def compile_grammar(text: str, source: str = "<universe>") -> CompiledGrammar:
                            repair_depth=repair_depth, description=description)
 
 
-def _nodes(node: tuple):
+def _nodes(node: Node) -> Iterator[Node]:
     """Every IR node under ``node`` (iteratively: deep nesting is no problem)."""
     stack = [node]
     while stack:
@@ -511,7 +523,7 @@ def _nodes(node: tuple):
             stack.append(cur[1])
 
 
-def _check_literals(rules: dict[str, tuple], term_kind: dict[str, tuple], ctx: _Ctx) -> None:
+def _check_literals(rules: dict[str, Alternatives], term_kind: dict[str, Node], ctx: _Ctx) -> None:
     """A literal must be one token of the text: tokens are separated by single spaces and read back
     split at whitespace, so a literal holding whitespace (other than the line break "\\n") would come
     back as several tokens."""
@@ -543,11 +555,11 @@ def _collision(exc: Exception, ctx: _Ctx) -> UniverseError:
     return _lark_error(exc, ctx)
 
 
-def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dict[int, int]]:
+def _min_depths(rules: dict[str, Alternatives], ctx: _Ctx) -> tuple[dict[str, int], dict[int, int]]:
     """Fixpoint of each rule's minimum derivation height, and every IR node's minimum need."""
     md = {name: math.inf for name in rules}
 
-    def need(node) -> float:
+    def need(node: Node) -> float:
         kind = node[0]
         if kind in ("lit", "edge", "num"):
             return 0
@@ -578,7 +590,7 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
 
     table: dict[int, int] = {}
 
-    def fill(node) -> None:
+    def fill(node: Node) -> None:
         table[id(node)] = int(need(node))
         if node[0] == "seq" or node[0] == "choice":
             for child in node[1]:
@@ -593,7 +605,7 @@ def _min_depths(rules: dict[str, tuple], ctx: _Ctx) -> tuple[dict[str, int], dic
     return {k: int(v) for k, v in md.items()}, table
 
 
-def _recursing_rule(rules: dict[str, tuple], endless: set[str]) -> str:
+def _recursing_rule(rules: dict[str, Alternatives], endless: set[str]) -> str:
     """Among rules that can never finish, the first (in file order) of a group that recurses on
     itself and needs no other endless rule: the rule to fix, not the rules that merely use it."""
     calls = {name: {n[1] for alt in rules[name] for n in _nodes(alt) if n[0] == "rule" and n[1] in endless}
@@ -617,7 +629,7 @@ def _recursing_rule(rules: dict[str, tuple], endless: set[str]) -> str:
     return order[0]
 
 
-def _reach_depth(rules: dict[str, tuple], target: str) -> int:
+def _reach_depth(rules: dict[str, Alternatives], target: str) -> int:
     """The shallowest depth (start = 1) at which ``target`` is expanded, 0 when unreachable."""
     depth = {"start": 1}
     frontier = ["start"]

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from genr8_dist.grammar.compiler import Alternatives, Node
 from genr8_dist.grammar.mapper import eligible
 from genr8_dist.grammar.universe import Universe
 
@@ -85,7 +86,7 @@ class _Sampler:
 
     # -- the walk ----------------------------------------------------------------------------
 
-    def pick(self, alts: tuple, depth: int) -> tuple:
+    def pick(self, alts: Alternatives, depth: int) -> Node:
         """Choose among ``alts`` at ``depth`` and write the codon the mapper reads for it."""
         if len(alts) == 1:
             self.any_codon()
@@ -105,7 +106,7 @@ class _Sampler:
         alt = self.pick(self.cg.rules[name], depth)
         self.node(alt, depth, {})
 
-    def fits(self, node: tuple, depth: int, limit: int) -> bool:
+    def fits(self, node: Node, depth: int, limit: int) -> bool:
         need = self.cg.alt_need(node)
         return need == 0 or depth + need <= limit
 
@@ -117,7 +118,7 @@ class _Sampler:
             self.count += 1
         return lab
 
-    def node(self, node: tuple, depth: int, scope: dict[str, int]) -> None:
+    def node(self, node: Node, depth: int, scope: dict[str, int]) -> None:
         kind = node[0]
         if kind == "lit":
             self.out.tokens.append(node[1])

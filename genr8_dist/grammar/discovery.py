@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -250,7 +250,7 @@ def consent_for_history(source: UniverseSource) -> bool:
     return False
 
 
-def consent_for_new_run(source, *, trust_flag: bool, command: str = "run",
+def consent_for_new_run(source: UniverseSource, *, trust_flag: bool, command: str = "run",
                         ask: Callable[[str], bool] | None = None) -> None:
     """Consent to the code of a universe named by a path (in a run TOML, on the command line) or
     carried in a TOML's ``[stored_universe]``, or refuse in one line (``UniverseError``).
@@ -303,7 +303,7 @@ def load_named_universe(name: str | os.PathLike[str], *, trust_flag: bool, comma
     return build_universe(source, origin=origin)
 
 
-def consent_for_stored(sources, *, trust_flag: bool, command: str) -> None:
+def consent_for_stored(sources: Iterable[UniverseSource], *, trust_flag: bool, command: str) -> None:
     """:func:`require_trust` for every universe a run stores (one per configuration version)."""
     for source in sources:
         require_trust(source, trust_flag=trust_flag, command=command, installed=installed_code_digest)

@@ -18,15 +18,35 @@ from __future__ import annotations
 
 import re
 import sys
-from collections.abc import Iterator
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterable, Iterator
+from typing import Any, Protocol
 
 from genr8_dist.errors import InversionError
+from genr8_dist.grammar.compiler import Alternatives, CompiledGrammar, Node
 from genr8_dist.grammar.hooks import rule_predecessors
-from genr8_dist.grammar.mapper import eligible
+from genr8_dist.grammar.mapper import CompiledMapper, MapResult, eligible
 
-if TYPE_CHECKING:
-    from genr8_dist.grammar.universe import Universe
+#: One step of a derivation the search found: ``("N",)`` a rule's only alternative, ``("C", j, n)`` the
+#: j-th of n eligible ones, ``("R", more, round, x)`` a repetition, ``("M", letter, label, pos)``...
+Event = tuple[Any, ...]
+#: The derivation so far, newest event first: (event, the chain before it), ``None`` at the start.
+Chain = tuple[Event, "Chain"] | None
+
+
+class Universe(Protocol):
+    """What inversion reads of a universe (``genr8_dist.grammar.universe.Universe``, which calls
+    this module from its ``invert``)."""
+
+    name: str
+    grammar: CompiledGrammar
+
+    def mapper(self, max_depth: int = ...) -> CompiledMapper: ...
+
+    def map(self, genome: Iterable[int], max_depth: int = ..., max_wraps: int = ...) -> MapResult: ...
+
+    def label_of(self, token: str) -> int | None: ...
+
+    def parser(self) -> Any: ...
 
 __all__ = ["invert", "normalize"]
 
@@ -102,16 +122,16 @@ class _Search:
         self.res = [t.regex() for t in self.cg.templates]
         self.steps = 0
         self.furthest = 0
-        self.elig: dict[tuple, tuple[int, ...]] = {}
+        self.elig: dict[tuple[object, int], tuple[int, ...]] = {}
 
-    def eligible(self, key, alts: tuple, d: int) -> tuple[int, ...]:
+    def eligible(self, key: object, alts: Alternatives, d: int) -> tuple[int, ...]:
         k = (key, d)
         e = self.elig.get(k)
         if e is None:
             e = self.elig[k] = eligible(self.cg, alts, d, self.maxd)
         return e
 
-    def fits(self, node: tuple, d: int) -> bool:
+    def fits(self, node: Node, d: int) -> bool:
         need = self.cg.alt_need(node)
         return need == 0 or d + need <= self.maxd
 
@@ -127,13 +147,13 @@ class _Search:
         m = self.res[template].fullmatch(self.toks[pos])
         return int(m.group(1)) if m else None
 
-    def run(self) -> tuple[Any, ...] | None:
+    def run(self) -> Chain:
         for pos, ev in self.rule(self.cg.start, 0, 1, None):
             if pos == self.n:
-                return ev  # type: ignore[return-value]  # the search yields derivation tuples
+                return ev
         return None
 
-    def rule(self, name: str, pos: int, d: int, ev) -> Iterator[tuple[int, object]]:
+    def rule(self, name: str, pos: int, d: int, ev: Chain) -> Iterator[tuple[int, Chain]]:
         self.tick()
         alts = self.cg.rules[name]
         if len(alts) == 1:
@@ -145,7 +165,8 @@ class _Search:
             for p, e, _scope in self.node(alts[i], pos, d, {}, (("C", j, len(elig)), ev)):
                 yield p, e
 
-    def node(self, node: tuple, pos: int, d: int, scope: dict, ev) -> Iterator[tuple[int, object, dict]]:
+    def node(self, node: Node, pos: int, d: int, scope: dict[str, int], ev: Chain
+             ) -> Iterator[tuple[int, Chain, dict[str, int]]]:
         self.tick()
         if pos > self.furthest:
             self.furthest = pos
@@ -211,14 +232,16 @@ class _Search:
             return
         raise AssertionError(kind)
 
-    def seq(self, items: tuple, i: int, pos: int, d: int, scope: dict, ev):
+    def seq(self, items: tuple[Node, ...], i: int, pos: int, d: int, scope: dict[str, int], ev: Chain
+            ) -> Iterator[tuple[int, Chain, dict[str, int]]]:
         if i == len(items):
             yield pos, ev, scope
             return
         for p, e, s in self.node(items[i], pos, d, scope, ev):
             yield from self.seq(items, i + 1, p, d, s, e)
 
-    def rep(self, body: tuple, x: int, c: int, pos: int, d: int, scope: dict, ev):
+    def rep(self, body: Node, x: int, c: int, pos: int, d: int, scope: dict[str, int], ev: Chain
+            ) -> Iterator[tuple[int, Chain, dict[str, int]]]:
         if not self.fits(body, d):
             yield pos, (("Z",), ev), scope
             return
@@ -228,7 +251,7 @@ class _Search:
         yield pos, (("R", False, c, x), ev), scope
 
 
-def _events(chain) -> list[tuple]:
+def _events(chain: Chain) -> list[Event]:
     out = []
     while chain is not None:
         out.append(chain[0])
@@ -413,7 +436,7 @@ def _check_numbers(universe: Universe, tokens: list[_Token], words: list[str]) -
 
 
 def _codons(universe: Universe, tokens: list[_Token], words: list[str],
-            events: list[tuple]) -> tuple[tuple[int, ...], list[str], dict[int, int]]:
+            events: list[Event]) -> tuple[tuple[int, ...], list[str], dict[int, int]]:
     """Codons for a derivation's events; the text's tokens with labels renamed to birth order."""
     count = 2
     rename: dict[int, int] = {}

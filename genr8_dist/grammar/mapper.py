@@ -24,17 +24,37 @@ caches the result. The semantics are Genr8's (``DESIGN.md``, thesis Appendix B, 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
-from genr8_dist.grammar.compiler import CompiledGrammar
+from genr8_dist.grammar.compiler import Alternatives, CompiledGrammar, Node
 
-__all__ = ["CompiledMapper", "build_source", "compile_mapper", "eligible"]
+__all__ = ["CompiledMapper", "MapResult", "build_source", "compile_mapper", "eligible"]
 
 _PRESIZE = 256
+#: Where generated code is: (the variable holding the depth, or None when it is known now; the offset)
+Depth = tuple[str | None, int]
+#: (the bound edge letters surely drawn, those maybe drawn) at a point of the generated code
+Drawn = tuple[frozenset[str], frozenset[str]]
 
 
-def eligible(cg: CompiledGrammar, alts: tuple, depth: int, max_depth: int) -> tuple[int, ...]:
+class MapResult(NamedTuple):
+    """The outcome of mapping one genome (an immutable record; a named tuple because it is made
+    tens of thousands of times a second).
+
+    ``text`` is the rewrite system (``None`` when invalid), ``reason`` says why a genome is invalid,
+    ``codons_used`` counts codons read (wrapping included) and ``wraps`` how often the genome wrapped.
+    """
+
+    text: str | None
+    valid: bool
+    reason: str | None
+    codons_used: int
+    wraps: int
+
+
+def eligible(cg: CompiledGrammar, alts: Alternatives, depth: int, max_depth: int) -> tuple[int, ...]:
     """Indices of ``alts`` that can finish within ``max_depth`` when expanded at ``depth``.
 
     When none can (the universe is deeper than ``max_depth`` allows), the shallowest ones are
@@ -63,14 +83,14 @@ class _Writer:
         self.suffix = suffix
         self.recursive = _recursive_rules(cg)
         self.functions_for = self.recursive | _too_big_to_inline(cg, self.recursive)
-        self._sets: dict[tuple, set[tuple[int, ...]]] = {}
+        self._sets: dict[tuple[int, bool, int], set[tuple[int, ...]]] = {}
         self.checked: set[str] = set()
         self.functions: dict[str, list[str]] = {}
         self.pending: list[str] = []
         self.counter = 0
         self.draws = False
 
-    def eligible_sets(self, alts: tuple, dep: tuple) -> set[tuple[int, ...]]:
+    def eligible_sets(self, alts: Alternatives, dep: Depth) -> set[tuple[int, ...]]:
         """The distinct eligible-alternative tuples ``alts`` can have at depth ``dep`` (memoised)."""
         key = (id(alts), dep[0] is None, dep[1])
         found = self._sets.get(key)
@@ -88,7 +108,7 @@ class _Writer:
         return f"{stem}{self.counter}"
 
     @staticmethod
-    def dexpr(dep: tuple) -> str:
+    def dexpr(dep: Depth) -> str:
         var, off = dep
         if var is None:
             return str(off)
@@ -114,7 +134,7 @@ class _Writer:
             funcs.extend(lines)
         return funcs, main
 
-    def rule_ref(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
+    def rule_ref(self, name: str, out: list[str], ind: int, dep: Depth) -> None:
         if name in self.functions_for:
             if name not in self.functions and name not in self.pending:
                 self.functions[name] = []
@@ -123,8 +143,8 @@ class _Writer:
         else:
             self.inline_rule(name, out, ind, dep)
 
-    def choose(self, alts: tuple, table: str, out: list[str], ind: int, dep: tuple,
-               scope: dict, state: tuple) -> tuple:
+    def choose(self, alts: Alternatives, table: str, out: list[str], ind: int, dep: Depth,
+               scope: dict[str, str], state: Drawn) -> Drawn:
         """Read a codon and run the chosen alternative among those eligible at ``dep``."""
         pad = "    " * ind
         if len(alts) == 1:
@@ -155,15 +175,15 @@ class _Writer:
             maybe |= self.block(alts[i], out, ind + 1, dep, scope, state)[1]
         return state[0], frozenset(maybe)
 
-    def block(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
-              state: tuple) -> tuple:
+    def block(self, node: Node, out: list[str], ind: int, dep: Depth, scope: dict[str, str],
+              state: Drawn) -> Drawn:
         before = len(out)
         result = self.node(node, out, ind, dep, scope, state)
         if len(out) == before:
             out.append("    " * ind + "pass")
         return result
 
-    def inline_rule(self, name: str, out: list[str], ind: int, dep: tuple) -> None:
+    def inline_rule(self, name: str, out: list[str], ind: int, dep: Depth) -> None:
         alts = self.cg.rules[name]
         scope = {letter: self.fresh(f"b{letter}") for letter in sorted(_bound_letters(alts))}
         start = len(out)
@@ -172,7 +192,7 @@ class _Writer:
         inits = [f"{'    ' * ind}{var} = -1" for var in scope.values() if var in self.checked]
         out[start:start] = inits
 
-    def fits(self, need: int, dep: tuple) -> bool | str:
+    def fits(self, need: int, dep: Depth) -> bool | str:
         """True/False when known now, else the runtime test (as code) that the body fits."""
         if need == 0:
             return True
@@ -180,8 +200,8 @@ class _Writer:
             return dep[1] + need <= self.maxd
         return f"{self.dexpr(dep)} + {need} <= {self.maxd}"
 
-    def node(self, node: tuple, out: list[str], ind: int, dep: tuple, scope: dict,
-             state: tuple) -> tuple:
+    def node(self, node: Node, out: list[str], ind: int, dep: Depth, scope: dict[str, str],
+             state: Drawn) -> Drawn:
         """Append code for ``node``. ``state`` is (bound letters surely drawn, letters maybe drawn)
         before it; returns the state after it."""
         pad = "    " * ind
@@ -257,7 +277,7 @@ class _Writer:
         out.append(f"{pad}    if count >= len(ES0):")
         out.append(f"{pad}        grow(count)")
 
-    def edge(self, node: tuple, out: list[str], pad: str, scope: dict, state: tuple) -> tuple:
+    def edge(self, node: Node, out: list[str], pad: str, scope: dict[str, str], state: Drawn) -> Drawn:
         _, mode, template, letter = node
         table = f"ES{template}"
         if mode == "P" and self.birth:
@@ -297,7 +317,7 @@ def _too_big_to_inline(cg: CompiledGrammar, recursive: set[str]) -> set[str]:
     cost: dict[str, tuple[int, int]] = {}
     big: set[str] = set()
 
-    def node_cost(node: tuple) -> tuple[int, int]:
+    def node_cost(node: Node) -> tuple[int, int]:
         kind = node[0]
         if kind == "rule":
             name = node[1]
@@ -379,7 +399,7 @@ def _recursive_rules(cg: CompiledGrammar) -> set[str]:
     return result
 
 
-def _walk(node: tuple):
+def _walk(node: Node) -> Iterator[Node]:
     yield node
     if node[0] in ("seq", "choice"):
         for child in node[1]:
@@ -388,7 +408,7 @@ def _walk(node: tuple):
         yield from _walk(node[1])
 
 
-def _bound_letters(alts: tuple) -> set[str]:
+def _bound_letters(alts: Alternatives) -> set[str]:
     return {n[3] for alt in alts for n in _walk(alt) if n[0] == "edge" and n[1] == "B"}
 
 
@@ -472,7 +492,7 @@ def _group_ids(cg: CompiledGrammar) -> list[int]:
                    if n[0] == "choice"})
 
 
-def _groups(cg: CompiledGrammar) -> dict[int, tuple]:
+def _groups(cg: CompiledGrammar) -> dict[int, Alternatives]:
     return {n[2]: n[1] for alts in cg.rules.values() for alt in alts for n in _walk(alt)
             if n[0] == "choice"}
 
@@ -488,13 +508,13 @@ class CompiledMapper:
     (``None`` when the universe has no repair rule). ``tables`` holds each template's token strings.
     """
 
-    derive: Callable
-    repair: Callable | None
+    derive: Callable[..., int]         # generated code (exec'd): the signatures above
+    repair: Callable[..., Callable[[], None]] | None
     tables: tuple[list[str], ...]
     labels: dict[str, int]             # every edge token in ``tables`` -> its label
     distinct: tuple[list[str], ...]    # the distinct tables among ``tables``
     max_depth: int
-    derive_hemls: Callable | None = None  # derive + built-in HEMLS repair: -> (count, new rules)
+    derive_hemls: Callable[..., Any] | None = None  # derive + built-in HEMLS repair: -> (count, new rules)
 
 
 def compile_mapper(cg: CompiledGrammar, max_depth: int, pred_template: int | None = None) -> CompiledMapper:
@@ -519,7 +539,7 @@ def compile_mapper(cg: CompiledGrammar, max_depth: int, pred_template: int | Non
             table.extend(f"{prefix}{i}{suffix}" for i in range(start, 2 * count + 1))
             labels.update((table[i], i) for i in range(start, len(table)))
 
-    namespace: dict = {}
+    namespace: dict[str, Any] = {}
     exec(compile(code, f"<universe {cg.source}>", "exec"), namespace)
     distinct = tuple(table for _, table in unique)
     derive, repair, derive_hemls = namespace["make"](el, eg, tables, distinct, grow, labels.get)

@@ -19,7 +19,7 @@ import linecache
 import re
 import sys
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
@@ -175,7 +175,8 @@ class UniverseSource:
                 f"unknown hook '{name}': {hint}hooks.py may define {', '.join(KNOWN_HOOKS)}; "
                 "start helper functions' names with '_'", self.where("hooks.py"), line, 1))
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable[[str, tuple[tuple[str, str], ...], str, bool], UniverseSource],
+                                  tuple[str, tuple[tuple[str, str], ...], str, bool]]:
         """Pickled with whether this process consented to its code, so that a Ray host may run the
         code the driver consented to (a source read from a file never carries consent)."""
         from genr8_dist.grammar.trust import may_run
@@ -183,7 +184,7 @@ class UniverseSource:
         return (_unpickle, (self.name, self.files, self.origin, may_run(self.code_digest)))
 
 
-def _unpickle(name: str, files: tuple, origin: str, consented: bool) -> UniverseSource:
+def _unpickle(name: str, files: tuple[tuple[str, str], ...], origin: str, consented: bool) -> UniverseSource:
     from genr8_dist.grammar.trust import consent
 
     source = UniverseSource(name, files, origin=origin)
@@ -214,7 +215,8 @@ class _SourceFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def __init__(self) -> None:
         self.packages: dict[str, UniverseSource] = {}
 
-    def find_spec(self, fullname: str, path: Any = None, target: Any = None):
+    def find_spec(self, fullname: str, path: Any = None, target: Any = None
+                  ) -> importlib.machinery.ModuleSpec | None:
         package, _, module = fullname.partition(".")
         source = self.packages.get(package)
         if source is None:
@@ -227,7 +229,7 @@ class _SourceFinder(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         spec.has_location = True
         return spec
 
-    def create_module(self, spec):
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> None:
         return None
 
     def exec_module(self, module: ModuleType) -> None:

@@ -28,10 +28,33 @@ import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
+from typing import Protocol
 
 from genr8_dist.errors import UniverseError
 
-__all__ = ["consent", "may_run", "remember", "remembered", "require_trust", "trust_file"]
+__all__ = ["StoredCode", "consent", "may_run", "remember", "remembered", "require_trust", "trust_file"]
+
+
+
+class StoredCode(Protocol):
+    """What the trust rule reads of a universe's files (``grammar.source.UniverseSource``, which asks
+    this module whether its code may run)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def origin(self) -> str: ...
+
+    @property
+    def code_digest(self) -> str: ...
+
+    @property
+    def folder(self) -> str: ...
+
+    @property
+    def modules(self) -> tuple[str, ...]: ...
+
 
 _CONSENTED: set[str] = set()
 _LOCK = threading.Lock()
@@ -80,7 +103,7 @@ def remember(code_digest: str, what: str) -> None:
         pass
 
 
-def require_trust(source, *, trust_flag: bool, command: str,
+def require_trust(source: StoredCode, *, trust_flag: bool, command: str,
                   installed: Callable[[str], str | None] | None = None) -> None:
     """Consent to ``source``'s stored code for ``command`` (``resume``, ``edit``), or refuse in one line.
 

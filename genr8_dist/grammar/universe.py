@@ -14,34 +14,22 @@ from collections.abc import Callable, Iterable
 from operator import length_hint
 from pathlib import Path
 from types import ModuleType
-from typing import NamedTuple
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import GenomeError, UniverseError, located
 from genr8_dist.grammar.compiler import MAX_MAX_DEPTH, CompiledGrammar, compile_grammar
 from genr8_dist.grammar.hooks import RepairContext, hemls_repair, rule_predecessors
-from genr8_dist.grammar.mapper import CompiledMapper, _walk, compile_mapper
+from genr8_dist.grammar.mapper import CompiledMapper, MapResult, _walk, compile_mapper
 from genr8_dist.grammar.source import UniverseSource, load_modules
+
+if TYPE_CHECKING:
+    from lark import Lark
 
 __all__ = ["MapResult", "Universe", "build_universe", "check_genome"]
 
 
 class HookError(Exception):
     """A universe's hook raised: the genome being mapped fails at the ``map`` stage."""
-
-
-class MapResult(NamedTuple):
-    """The outcome of mapping one genome (an immutable record; a named tuple because it is made
-    tens of thousands of times a second).
-
-    ``text`` is the rewrite system (``None`` when invalid), ``reason`` says why a genome is invalid,
-    ``codons_used`` counts codons read (wrapping included) and ``wraps`` how often the genome wrapped.
-    """
-
-    text: str | None
-    valid: bool
-    reason: str | None
-    codons_used: int
-    wraps: int
 
 
 def check_genome(genome: Iterable[int]) -> list[int] | tuple[int, ...]:
@@ -162,9 +150,10 @@ class Universe:
                              for alt in alts for n in _walk(alt))
         self._edge_res = [t.regex() for t in templates]
         self._labels: dict[str, int | None] = {}
-        self._parser = None
+        self._parser: Lark | None = None
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[Callable[[UniverseSource, str, str], Universe],
+                                  tuple[UniverseSource, str, str]]:
         """Pickle by source (the universe's files as text): compiled code is rebuilt where it lands,
         which needs no file of the plugin there (a Ray host on another machine)."""
         if self.hooks is not None and self.source.text("hooks.py") is None:
@@ -174,22 +163,31 @@ class Universe:
 
     # ----------------------------------------------------------------------------- the phenotype
 
-    def parse_system(self, text: str):
-        """The phenotype's parser applied to a derived text (the built-in surface phenotype parses
-        HEMLS into a ``RewriteSystem``); it raises for a text the phenotype cannot read. ``None``
-        when the universe's phenotype has no parser (its texts are then not checked at load)."""
-        from genr8_dist.phenotype import phenotype_of
+    def text_parser(self) -> Callable[[str], object] | None:
+        """The parser of the universe's phenotype: the ``parse`` of its hooks' ``PHENOTYPE`` (``None``
+        when that phenotype has none: its texts are then not checked at load), else the built-in
+        surface phenotype's, HEMLS into a ``RewriteSystem`` (``genr8_dist.phenotype.phenotype_of``
+        reads the same ``PHENOTYPE``; the phenotype layer sits above this one)."""
+        phenotype = getattr(self.hooks, "PHENOTYPE", None) if self.hooks is not None else None
+        if phenotype is None:
+            from genr8_dist.hemls import parse
 
-        parse = getattr(phenotype_of(self), "parse", None)
+            return parse
+        found: Callable[[str], object] | None = getattr(phenotype, "parse", None)
+        return found
+
+    def parse_system(self, text: str) -> object:
+        """The phenotype's parser (``text_parser``) applied to a derived text; it raises for a text
+        the phenotype cannot read. ``None`` when the phenotype has no parser."""
+        parse = self.text_parser()
         return parse(text) if parse is not None else None
 
     def check_sample(self, max_depth: int = 5) -> None:
         """Parse ``SAMPLE_GENOMES`` derivations of seeded random genomes; the first one the phenotype's
         parser rejects is a :class:`UniverseError` naming the grammar literal it came from."""
-        from genr8_dist.phenotype import phenotype_of
         from genr8_dist.rng import stream
 
-        if getattr(phenotype_of(self), "parse", None) is None:
+        if self.text_parser() is None:
             return
         gen = stream(0, "universe-check", self.source.digest[:16])
         genomes = gen.integers(0, 256, size=(SAMPLE_GENOMES, SAMPLE_LENGTH)).tolist()
@@ -379,7 +377,7 @@ class Universe:
 
     # ----------------------------------------------------------------------------- inverse
 
-    def parser(self):
+    def parser(self) -> Lark:
         """A Lark Earley parser for this universe's rewrite systems (built once)."""
         if self._parser is None:
             from lark import Lark

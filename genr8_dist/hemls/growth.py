@@ -73,7 +73,7 @@ class GrowthResult:
 
 
 
-def _check_kernels(module) -> None:
+def _check_kernels(module: ModuleType) -> None:
     assert (module.LEFT, module.RIGHT) == (LEFT, RIGHT)
 
 
@@ -164,7 +164,8 @@ class _Grower(BranchJoining):
         want = v * width + label
         count = np.searchsorted(keys, want, side="right") - np.searchsorted(keys, want, side="left")
         own = (m.label[idx] == label).astype(np.int64)  # the edge itself sits at that vertex too
-        return count - own > 0
+        result: np.ndarray = count - own > 0
+        return result
 
     def _chain_ok(self, idx: np.ndarray, chain: tuple[int, ...]) -> np.ndarray:
         """Whether a path of edges labelled ``chain`` continues from the end vertex of each edge."""
@@ -183,7 +184,8 @@ class _Grower(BranchJoining):
         p, q = ends[labels == lab, 0], ends[labels == lab, 1]
         count = (np.bincount(p[rest[q]], minlength=m.nv) + np.bincount(q[rest[p]], minlength=m.nv))
         own = (m.label[idx] == lab) & rest[m.ev[idx, 0]]  # the edge itself, seen from its end
-        return count[m.ev[idx, 1]] - own > 0
+        result: np.ndarray = count[m.ev[idx, 1]] - own > 0
+        return result
 
     def _rewrite_group(self, group: Group, pending: PendingBranches) -> None:
         m = self.m
@@ -261,6 +263,7 @@ class _Grower(BranchJoining):
         chain[:, 0] = s
         chain[:, k] = t
         if k > 1:
+            assert left is not None     # asked for above
             pts = tpl.points[1:k]  # the vertices drawn between the edge's ends
             world = (p[:, None, :] + length[:, None, None]
                      * (pts[None, :, 0, None] * h[:, None, :] + pts[None, :, 1, None] * left[:, None, :]
@@ -330,6 +333,7 @@ class _Grower(BranchJoining):
         j = tpl.branch_vertex
         bvert = chain[:, j]  # (n, nb)
         hd = tpl.branch_heading
+        assert left is not None         # asked for above
         heading = (hd[None, :, 0, None] * h[:, None, :] + hd[None, :, 1, None] * left[:, None, :]
                    + hd[None, :, 2, None] * up[:, None, :])
         corner = np.full((n, nb), -1, dtype=np.int64)
@@ -341,7 +345,7 @@ class _Grower(BranchJoining):
                 corner[:, br] = bwd[:, j[br] - 1]
         self._add_branches(pending, tpl, n, idx, bvert, corner, heading, up, first, last)
 
-    def _rewrite_compiled(self, kernels, idx: np.ndarray, tpl: Template, areas: np.ndarray,
+    def _rewrite_compiled(self, kernels: ModuleType, idx: np.ndarray, tpl: Template, areas: np.ndarray,
                           pending: PendingBranches) -> None:
         """``_rewrite`` with its array work in one compiled call (``_growth_compiled.rewrite``)."""
         m = self.m
@@ -392,7 +396,7 @@ class _Grower(BranchJoining):
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(normal, e1)
 
-        def flat(vec):
+        def flat(vec: np.ndarray) -> np.ndarray:
             return np.array([vec @ e1, vec @ e2])
 
         hflat = flat(heading)

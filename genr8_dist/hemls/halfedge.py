@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import math
 from types import ModuleType
+from typing import overload
 
 import numpy as np
 
+from genr8_dist.environment import Environment
 from genr8_dist.errors import GrowthError
 from genr8_dist.hemls.rules import CompiledSystem
 from genr8_dist.hemls.surface import Surface
@@ -98,11 +100,27 @@ class HalfEdgeMap:
                 setattr(self, name, new)
 
     # -- derived ---------------------------------------------------------------------------------
-    def origin(self, h):
-        return self.ev[h >> 1, h & 1]
+    @overload
+    def origin(self, h: int) -> np.int64: ...
 
-    def dest(self, h):
-        return self.ev[h >> 1, 1 - (h & 1)]
+    @overload
+    def origin(self, h: np.ndarray) -> np.ndarray: ...
+
+    def origin(self, h: int | np.ndarray) -> np.int64 | np.ndarray:
+        """The vertex half-edge(s) ``h`` leave."""
+        found: np.int64 | np.ndarray = self.ev[h >> 1, h & 1]
+        return found
+
+    @overload
+    def dest(self, h: int) -> np.int64: ...
+
+    @overload
+    def dest(self, h: np.ndarray) -> np.ndarray: ...
+
+    def dest(self, h: int | np.ndarray) -> np.int64 | np.ndarray:
+        """The vertex half-edge(s) ``h`` reach."""
+        found: np.int64 | np.ndarray = self.ev[h >> 1, 1 - (h & 1)]
+        return found
 
     def alive_halves(self) -> np.ndarray:
         e = self.alive[:self.ne].nonzero()[0]
@@ -118,7 +136,9 @@ class HalfEdgeMap:
     def face_areas(self) -> np.ndarray:
         """Area vector of every face (Newell: half the sum of p_i x p_i+1; zero for the outside)."""
         if self.kernels is not None:
-            return self.kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne, self.nf)
+            result: np.ndarray = self.kernels.face_areas(self.pos, self.ev, self.alive, self.face, self.ne,
+                                                         self.nf)
+            return result
         e = self.alive[:self.ne].nonzero()[0]
         ends = self.ev[e]
         c = cross(self.pos[ends[:, 0]], self.pos[ends[:, 1]])
@@ -223,15 +243,16 @@ class HalfEdgeMap:
                        masses=self.mass[:self.nv].copy(), stopped=self.stopped[:self.nv].copy())
 
 
-def regular_polygon(n: int, length: float, centre) -> np.ndarray:
+def regular_polygon(n: int, length: float, centre: tuple[float, float, float]) -> np.ndarray:
     """A regular n-gon of side ``length``: first side along +x, counter-clockwise, centred."""
     turns = np.arange(n) * (2.0 * math.pi / n)
     steps = np.stack([np.cos(turns), np.sin(turns), np.zeros(n)], axis=1) * length
     pts = np.vstack([np.zeros(3), np.cumsum(steps, axis=0)[:-1]])
-    return pts - pts.mean(axis=0) + np.asarray(centre, dtype=np.float64)
+    result: np.ndarray = pts - pts.mean(axis=0) + np.asarray(centre, dtype=np.float64)
+    return result
 
 
-def seed_map(compiled: CompiledSystem, env) -> HalfEdgeMap:
+def seed_map(compiled: CompiledSystem, env: Environment) -> HalfEdgeMap:
     n = len(compiled.axiom_labels)
     if env.seed_polygon is not None:
         pts = np.asarray(env.seed_polygon, dtype=np.float64)
@@ -246,7 +267,11 @@ def seed_map(compiled: CompiledSystem, env) -> HalfEdgeMap:
     return HalfEdgeMap(pts, masses, compiled.axiom_labels, compiled.axiom_reversed)
 
 
-def frames(m: HalfEdgeMap, idx: np.ndarray, areas: np.ndarray, left: bool = True):
+#: An edge frame (``frames``): start, end, start position, length, heading, left (or None), up.
+Frames = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]
+
+
+def frames(m: HalfEdgeMap, idx: np.ndarray, areas: np.ndarray, left: bool = True) -> Frames:
     """Start, length and (heading, left, up) of edges ``idx`` (left None unless asked for).
 
     Up is the surface normal: the sum of the area vectors of the regions on both sides of the edge

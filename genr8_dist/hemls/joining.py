@@ -24,6 +24,7 @@ __all__ = ["TIE", "BranchJoining"]
 #: Join pairs whose alignment and distance (each rounded to 1e-9) differ by no more than this are
 #: tied (``branch_ties``): mirror images, computed in floating point, may round one step apart.
 TIE = 1.5e-9
+Arr = np.ndarray    # the pairs' and branches' columns: index and value arrays
 
 
 class BranchJoining:
@@ -163,7 +164,8 @@ class BranchJoining:
                 raise Capped("edges")
         pending.keep(~used)
 
-    def _settle_ties(self, chosen, at, fi, fa, lead, score, gap, live, settled, pi, pj, br: Pending):
+    def _settle_ties(self, chosen: Arr, at: Arr, fi: Arr, fa: Arr, lead: Arr, score: Arr, gap: Arr, live: Arr,
+                     settled: Arr, pi: Arr, pj: Arr, br: Pending) -> Arr:
         """Settle ties without looking at the order branches were drawn in (``branch_ties``).
 
         A face's tied pairs are its live pairs as good as its best (alignment and distance within
@@ -172,6 +174,8 @@ class BranchJoining:
         ``"none"`` makes none of them. Pairs left out are marked dead, pairs left in ``settled``;
         returns the chosen pairs, a face whose best pair was left out choosing its first tied pair
         left in (the others follow in later rounds, in any order: none crosses another)."""
+        close: Arr
+        tied_faces: Arr
         if self.kernels is not None:
             close, tied_faces = self.kernels.ties(at, fa, lead, score, gap, TIE)
         else:
@@ -199,7 +203,7 @@ class BranchJoining:
                 del pick[face]
         return np.sort(np.array(list(pick.values()), dtype=np.int64))
 
-    def _centre_on_left(self, a, b, vert, normal, centre):
+    def _centre_on_left(self, a: Arr, b: Arr, vert: Arr, normal: Arr, centre: Arr) -> tuple[Arr, Arr]:
         """Join pairs (a, b) reordered so that the new edge, from a's vertex to b's, has the map's
         centre on its left (about the branches' surface normal); left as drawn where the centre is
         on the line (within 1e-9 of a radian).
@@ -210,7 +214,8 @@ class BranchJoining:
         the branches were drawn in need not."""
         m = self.m
         if self.kernels is not None:
-            return self.kernels.centre_on_left(a, b, vert, m.pos, normal, centre)
+            pair: tuple[Arr, Arr] = self.kernels.centre_on_left(a, b, vert, m.pos, normal, centre)
+            return pair
         u, w = m.pos[vert[a]], m.pos[vert[b]]
         along, to_centre = w - u, centre - u
         n = normal[a] + normal[b]
@@ -220,7 +225,7 @@ class BranchJoining:
         swap = side < -1e-9 * scale
         return np.where(swap, b, a), np.where(swap, a, b)
 
-    def _conflicts(self, tied, pi, pj, br: Pending) -> np.ndarray:
+    def _conflicts(self, tied: Arr, pi: Arr, pj: Arr, br: Pending) -> Arr:
         """Which of the join pairs ``tied`` (all in one face) conflict with another of them: they
         share a branch or a vertex pair, or one, made first, would leave the other's two branches in
         different regions (they cross), as ``_split`` decides it: a join from corner ha to corner hb
@@ -243,7 +248,8 @@ class BranchJoining:
                 if len(r):
                     side[r, c] = _swept(*terms) ^ at_a
                 sides.append(side)
-            return self.kernels.clashes(a, b, vert, sides[0], sides[1])
+            result: np.ndarray = self.kernels.clashes(a, b, vert, sides[0], sides[1])
+            return result
         start, span = at_ha, (at_hb - at_ha) % size
         cross = np.zeros((t, t), dtype=bool)
         first_side = None
@@ -268,7 +274,8 @@ class BranchJoining:
                  | (b[:, None] == b[None, :]) | ((va[:, None] == va[None, :]) & (vb[:, None] == vb[None, :]))
                  | cross | cross.T)
         np.fill_diagonal(clash, False)
-        return clash.any(axis=1)
+        result = clash.any(axis=1)
+        return result
 
     def _cycle_places(self, ha: np.ndarray, hb: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
         """The length of the face cycle through half-edge ``ha[0]`` and the place of each half-edge of
@@ -280,7 +287,8 @@ class BranchJoining:
         m = self.m
         origin = int(ha[0])
         if self.kernels is not None:
-            return self.kernels.cycle_places(m.nxt, origin, ha, hb)
+            places: tuple[int, np.ndarray, np.ndarray] = self.kernels.cycle_places(m.nxt, origin, ha, hb)
+            return places
         halves = np.flatnonzero(m.face[:2 * m.ne] == m.face[origin])
         halves = halves[m.alive[halves >> 1]]
         size = len(halves)
@@ -305,7 +313,8 @@ class BranchJoining:
         order = np.argsort(walk)
         return len(walk), order[np.searchsorted(walk[order], ha)], order[np.searchsorted(walk[order], hb)]
 
-    def _prefilter(self, rows, cols, points, heading, max_dist):
+    def _prefilter(self, rows: Arr, cols: Arr, points: Arr, heading: Arr, max_dist: float
+                   ) -> tuple[Arr, ...]:
         """(row, col) index pairs, row branch drawn before col branch, that may pass ``_pair_ok``.
 
         Joining branches have headings at most a from opposite (``orientation``), or, pointing at each
@@ -323,7 +332,7 @@ class BranchJoining:
         return np.nonzero(ok)
 
     @staticmethod
-    def _aim(pi, pj, points, heading, normal):
+    def _aim(pi: Arr, pj: Arr, points: Arr, heading: Arr, normal: Arr) -> tuple[Arr, Arr, Arr, Arr]:
         """How well branches pi and pj point at each other's start vertex, seen in the surface's
         tangent plane there (normal to the mean of the two branches' surface normals): the cosines of
         the angles between each heading and the direction to the other vertex, all projected on
@@ -351,7 +360,7 @@ class BranchJoining:
         toward = np.einsum("kij,ij->ki", v[1:], u)
         return toward[0], -toward[1], dist, -np.einsum("ij,ij->i", hi, hj)
 
-    def _pair_ok(self, pi, pj, points, heading, normal, max_dist) -> np.ndarray:
+    def _pair_ok(self, pi: Arr, pj: Arr, points: Arr, heading: Arr, normal: Arr, max_dist: float) -> Arr:
         """Branch pairs whose orientations fit (``Environment.branch_join``) within the distance limit.
 
         ``orientation`` (the thesis, 2.5.1; journal 4.3): the dot product of the two headings is at
@@ -359,13 +368,19 @@ class BranchJoining:
         (each heading has a positive component towards the other vertex). ``cone``: each heading
         points at the other vertex within BranchAngle. Both are judged in the surface's tangent
         plane (``_aim``)."""
-        return self._pair_aim(pi, pj, points, heading, normal, max_dist)[0]
+        result: np.ndarray = self._pair_aim(pi, pj, points, heading, normal, max_dist)[0]
+        return result
 
-    def _pair_aim(self, pi, pj, points, heading, normal, max_dist):
+    def _pair_aim(self, pi: Arr, pj: Arr, points: Arr, heading: Arr, normal: Arr, max_dist: float
+                  ) -> tuple[Arr, tuple[Arr, Arr, Arr]]:
         """``_pair_ok`` and the (ci, cj, dist) of ``_aim`` it judged by (joining ranks the pairs
         that pass by them)."""
         cos_cone = self.c.cos_cone - 1e-9
         if self.kernels is not None:
+            ok: Arr
+            ci: Arr
+            cj: Arr
+            dist: Arr
             ok, ci, cj, dist = self.kernels.pair_aim(pi, pj, points, heading, normal, float(max_dist),
                                                        cos_cone, self.cone)
             return ok, (ci, cj, dist)
@@ -462,7 +477,7 @@ class BranchJoining:
                     break
             m.face[walk] = new_face[r]
 
-    def _split(self, a, b, br: Pending, used) -> None:
+    def _split(self, a: Arr, b: Arr, br: Pending, used: Arr) -> None:
         """Join branch pairs (a, b): a new edge between their vertices splits each one's face; the
         other pending branches at those corners move to the part of the corner they point into."""
         m = self.m
@@ -510,7 +525,7 @@ class BranchJoining:
             self._new_faces_lockstep(x, y, new_face)
         self._move_corners(a, b, x, y, br, used)
 
-    def _move_corners(self, a, b, x, y, br: Pending, used) -> None:
+    def _move_corners(self, a: Arr, b: Arr, x: Arr, y: Arr, br: Pending, used: Arr) -> None:
         """After joins (a, b) made edges with halves x (a's vertex to b's) and y: the other pending
         branches at a split corner keep it (the sector from its direction round to the new edge)
         or move to the new edge's half leaving the same vertex."""
@@ -564,4 +579,5 @@ def _swept(sweep_y: np.ndarray, sweep_x: np.ndarray, y: np.ndarray, x: np.ndarra
     two_pi = 2.0 * np.pi
     sweep = np.mod(np.arctan2(sweep_y, sweep_x), two_pi)
     ang = np.mod(np.arctan2(y, x), two_pi)
-    return (ang > 1e-9) & (ang < sweep - 1e-9)
+    result: np.ndarray = (ang > 1e-9) & (ang < sweep - 1e-9)
+    return result

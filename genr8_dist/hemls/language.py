@@ -14,6 +14,7 @@ import functools
 import math
 import re
 import sys
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +27,7 @@ from lark.exceptions import (
     UnexpectedToken,
     VisitError,
 )
+from lark.tree import Meta
 
 from genr8_dist.errors import ParseError
 from genr8_dist.resources import grammars_dir, systems_dir
@@ -262,7 +264,7 @@ class RewriteSystem:
         """Every label name used, in order of first appearance."""
         seen: dict[str, None] = {}
 
-        def visit(symbols):
+        def visit(symbols: tuple[Symbol, ...]) -> None:
             for s in symbols:
                 if isinstance(s, Segment):
                     seen.setdefault(s.name)
@@ -331,12 +333,12 @@ def _word(name: str) -> str:
     return name
 
 
-def _expected(names) -> str:
+def _expected(names: Iterable[str]) -> str:
     words = sorted({_word(n) for n in names})
     return ", ".join(words) if words else "nothing"
 
 
-def _token_text(tok) -> str:
+def _token_text(tok: Token | None) -> str:
     if tok is None or getattr(tok, "type", "") == "$END":
         return "end of text"
     value = str(tok)
@@ -353,13 +355,20 @@ def _located_error(message: str, source: str, line: int, column: int, text: str)
     return ParseError(message, source=source, line=line, column=column, context=context)
 
 
-def _error_at(message: str, meta_or_token, source: str, text: str) -> ParseError:
+def _error_at(message: str, meta_or_token: Meta | Token, source: str, text: str) -> ParseError:
     line = getattr(meta_or_token, "line", 0) or 0
     column = getattr(meta_or_token, "column", 0) or 0
     return _located_error(message, source, line, column, text)
 
 
-class _Build(Transformer):
+#: A parse-tree node's children as Lark hands them to a callback: tokens and what the callbacks below
+#: made of the nodes under it.
+Children = list[Any]
+#: A rule's left-hand side: (left context, predecessor, right context, the edges following it).
+_Context = tuple["Segment | None", "Segment", "Segment | None", tuple["Segment", ...]]
+
+
+class _Build(Transformer[Token, RewriteSystem]):
     """Turns the parse tree into RewriteSystem parts; semantic checks raise ParseError with positions."""
 
     def __init__(self, source: str, text: str) -> None:
@@ -367,10 +376,10 @@ class _Build(Transformer):
         self.source = source
         self.text = text
 
-    def _fail(self, message: str, where) -> ParseError:
+    def _fail(self, message: str, where: Meta | Token) -> ParseError:
         return _error_at(message, where, self.source, self.text)
 
-    def segment(self, children):
+    def segment(self, children: Children) -> _Pos:
         tok: Token = children[0]
         m = _EDGE_RE.match(str(tok))
         if m is None:  # the terminal's pattern and this one agree; kept as a guard for edits
@@ -385,18 +394,18 @@ class _Build(Transformer):
         seg = Segment(name, age)
         return _Pos(seg, tok)
 
-    def axiom_edge(self, children):
+    def axiom_edge(self, children: Children) -> tuple[_Pos, bool]:
         rev = len(children) == 2
         return (children[-1], rev)
 
-    def axiom_turn(self, children):
+    def axiom_turn(self, children: Children) -> bool:
         tok = children[-1]
         if str(tok) != "+":
             raise self._fail(f"the axiom joins its edges with '+' only, got {str(tok)!r}", tok)
         return len(children) == 2
 
     @v_args(meta=True)
-    def axiom(self, meta, children):
+    def axiom(self, meta: Meta, children: Children) -> tuple[str, tuple[AxiomEdge, ...]]:
         edges: list[AxiomEdge] = []
         pending_rev = False
         for child in children:
@@ -413,28 +422,28 @@ class _Build(Transformer):
             raise self._fail(f"the axiom needs at least 3 edges (a polygon), got {len(edges)}", meta)
         return ("axiom", tuple(edges))
 
-    def _predecessor(self, pos, what: str):
+    def _predecessor(self, pos: _Pos, what: str) -> Segment:
         seg = pos.value
         if seg.age not in (None, 0):
             raise self._fail(f"{what} {seg} may only be timed as {seg.name}_i", pos.token)
         return seg
 
-    def context_free(self, c):
+    def context_free(self, c: Children) -> _Context:
         chain = tuple(self._predecessor(p, "following edge") for p in c[1:])
         return (None, self._predecessor(c[0], "predecessor"), None, chain)
 
-    def left_context(self, c):
+    def left_context(self, c: Children) -> _Context:
         return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"), None, ())
 
-    def right_context(self, c):
+    def right_context(self, c: Children) -> _Context:
         return (None, self._predecessor(c[0], "predecessor"), self._predecessor(c[1], "right context"),
                 ())
 
-    def both_contexts(self, c):
+    def both_contexts(self, c: Children) -> _Context:
         return (self._predecessor(c[0], "left context"), self._predecessor(c[1], "predecessor"),
                 self._predecessor(c[2], "right context"), ())
 
-    def _symbols(self, children):
+    def _symbols(self, children: Children) -> tuple[Symbol, ...]:
         out: list[Symbol] = []
         for ch in children:
             if isinstance(ch, _Pos):
@@ -445,18 +454,18 @@ class _Build(Transformer):
                 out.append(ch)
         return tuple(out)
 
-    def branch(self, children):
+    def branch(self, children: Children) -> Branch:
         return Branch(self._symbols(children))
 
     @v_args(meta=True)
-    def successor(self, meta, children):
+    def successor(self, meta: Meta, children: Children) -> tuple[Symbol, ...]:
         symbols = self._symbols(children)
         if not any(isinstance(s, Segment) for s in symbols):
             raise self._fail("a successor needs at least one edge outside brackets (its main line)",
                              meta)
         return symbols
 
-    def weight(self, children):
+    def weight(self, children: Children) -> _Weight:
         tok = children[-1]
         value = float(tok)
         if len(children) == 2:  # thesis Table 2.3: 'p = 0.5', the probability of this production
@@ -468,19 +477,19 @@ class _Build(Transformer):
         return _Weight(value)
 
     @v_args(meta=True)
-    def alternative(self, meta, children):
+    def alternative(self, meta: Meta, children: Children) -> _Alternative:
         symbols = children[0]
         if len(children) > 1:
             weight = children[1]
             return _Alternative(Successor(symbols, weight.value), weight.probability)
         return _Alternative(Successor(symbols), False)
 
-    def condition(self, children):
+    def condition(self, children: Children) -> Condition:
         op, value = children
         return Condition(str(op), int(value))
 
     @v_args(meta=True)
-    def rule(self, meta, children):
+    def rule(self, meta: Meta, children: Children) -> tuple[str, Rule, Meta]:
         left, pred, right, chain = children[0]
         succs = tuple(c.successor for c in children[1:] if isinstance(c, _Alternative))
         stochastic = any(c.probability for c in children[1:] if isinstance(c, _Alternative))
@@ -489,33 +498,34 @@ class _Build(Transformer):
         return ("stochastic rule" if stochastic else "rule", rule, meta)
 
     @v_args(meta=True)
-    def continuation(self, meta, children):
+    def continuation(self, meta: Meta, children: Children
+                     ) -> tuple[str, tuple[tuple[Successor, ...], Condition | None], Meta]:
         succs = tuple(c.successor for c in children if isinstance(c, _Alternative))
         cond = next((c for c in children if isinstance(c, Condition)), None)
         return ("continuation", (succs, cond), meta)
 
-    def _setting(self, name: str, tok: Token, low: float, high: float):
+    def _setting(self, name: str, tok: Token, low: float, high: float) -> float:
         value = float(tok)
         if not (low <= value <= high):
             raise self._fail(f"{name} must be between {low:g} and {high:g} degrees, got {tok}", tok)
         return value
 
     @v_args(meta=True)
-    def angle(self, meta, children):
+    def angle(self, meta: Meta, children: Children) -> tuple[str, float, Meta]:
         return ("Angle", self._setting("Angle", children[0], 0.0, 360.0), meta)
 
     @v_args(meta=True)
-    def branch_angle(self, meta, children):
+    def branch_angle(self, meta: Meta, children: Children) -> tuple[str, float, Meta]:
         return ("BranchAngle", self._setting("BranchAngle", children[0], 0.0, 90.0), meta)
 
     @v_args(meta=True)
-    def sync(self, meta, children):
+    def sync(self, meta: Meta, children: Children) -> tuple[str, bool, Meta]:
         return ("Sync", True, meta)
 
-    def start(self, children):
+    def start(self, children: Children) -> RewriteSystem:
         axiom = children[0][1]
         rules: list[Rule] = []
-        settings: dict[str, tuple[object, int]] = {}
+        settings: dict[str, tuple[float, int]] = {}   # Sync: True
         for kind, value, meta in children[1:]:
             if kind == "rule":
                 rules.append(value)
@@ -678,7 +688,7 @@ def _direct_alternatives(words: list[str], i: int) -> tuple[tuple[Successor, ...
     return tuple(successors), condition
 
 
-def _direct_predecessor(words: list[str]) -> tuple[tuple, int]:
+def _direct_predecessor(words: list[str]) -> tuple[_Context, int]:
     """(left, predecessor, right, chain) and the index of the first '->'."""
     try:
         arrow = words.index("->")
@@ -704,7 +714,9 @@ def _direct_predecessor(words: list[str]) -> tuple[tuple, int]:
     for seg in (*parts, *chain):
         if seg is not None and seg.age not in (None, 0):
             raise _NotDirect
-    return (parts[0], parts[1], parts[2], chain), arrow
+    predecessor = parts[1]
+    assert predecessor is not None   # read from a word above
+    return (parts[0], predecessor, parts[2], chain), arrow
 
 
 def _direct_axiom(words: list[str]) -> tuple[AxiomEdge, ...]:

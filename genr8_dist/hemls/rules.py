@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Successor
+from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Successor, Symbol
 from genr8_dist.hemls.turtle import Template, draw
 
 __all__ = ["CompiledRule", "CompiledSystem", "Group", "compile_system"]
@@ -62,7 +62,7 @@ class CompiledSystem:
 
 
 @functools.lru_cache(maxsize=4096)
-def _segments(symbols: tuple) -> tuple[Segment, ...]:
+def _segments(symbols: tuple[Symbol, ...]) -> tuple[Segment, ...]:
     """The segments in ``symbols`` (brackets included), in order."""
     out: list[Segment] = []
     for sym in symbols:
@@ -73,9 +73,9 @@ def _segments(symbols: tuple) -> tuple[Segment, ...]:
     return tuple(out)
 
 
-def _shape(symbols: tuple, count: list[int]) -> tuple:
+def _shape(symbols: tuple[Symbol, ...], count: list[int]) -> tuple[Symbol, ...]:
     """``symbols`` with the i-th segment (in ``_segments`` order) replaced by the plain segment "i"."""
-    out: list = []
+    out: list[Symbol] = []
     for sym in symbols:
         if isinstance(sym, Segment):
             out.append(Segment(str(count[0])))
@@ -88,7 +88,7 @@ def _shape(symbols: tuple, count: list[int]) -> tuple:
 
 
 @functools.lru_cache(maxsize=4096)
-def _drawn_shape(shape: tuple, angle: float) -> Template:
+def _drawn_shape(shape: tuple[Symbol, ...], angle: float) -> Template:
     """The template of successors of this shape: labels are segment positions, ages untimed."""
     n = len(_segments(shape))
     return draw(Successor(shape), angle, {str(i): i for i in range(n)})

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from genr8_dist.hemls.language import Branch, Segment, Successor
+from genr8_dist.hemls.language import Branch, Segment, Successor, Symbol
 
 __all__ = ["AT_END", "LEFT", "NO_SIDE", "RIGHT", "Template", "draw", "rotation_between"]
 
@@ -88,10 +88,12 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return 2.0 * np.outer(axis, axis) - np.eye(3)
     k = v / s
     kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
+    result: np.ndarray = np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
+    return result
 
 
-def _rotate(h: np.ndarray, lft: np.ndarray, u: np.ndarray, op: str, ca: float, sa: float):
+def _rotate(h: np.ndarray, lft: np.ndarray, u: np.ndarray, op: str, ca: float, sa: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if op == "+":  # turn left about up
         return h * ca + lft * sa, -h * sa + lft * ca, u
     if op == "-":
@@ -121,7 +123,8 @@ def draw(successor: Successor, angle: float, labels: dict[str, int]) -> Template
         return (0, False) if seg.age is None else (seg.age, True)
 
     # state: heading frame, pending reverse flag; inside brackets also the branch origin vertex
-    def walk(symbols, h, lft, u, reverse, in_branch: bool, origin: int):
+    def walk(symbols: tuple[Symbol, ...], h: np.ndarray, lft: np.ndarray, u: np.ndarray, reverse: bool,
+             in_branch: bool, origin: int) -> bool:
         nonlocal pos
         tip = False
         for sym in symbols:
@@ -168,8 +171,8 @@ def draw(successor: Successor, angle: float, labels: dict[str, int]) -> Template
     sides = np.array([_side(pts, int(j), hd) for j, hd in zip(bvert, heads, strict=True)],
                      dtype=np.int8)
 
-    def arr(values, dtype):
-        a = np.array(values, dtype=dtype)
+    def arr(values: object, dtype: type) -> np.ndarray:
+        a: np.ndarray = np.array(values, dtype=dtype)
         a.setflags(write=False)
         return a
 

@@ -50,14 +50,9 @@ _EVENT_STYLE = {
 
 
 def _pyplot() -> Any:
-    try:
-        import matplotlib
-    except ImportError:
-        raise HistoryError("pictures need matplotlib: pip install 'genr8-dist[viz]'") from None
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
+    from genr8_dist.export import pyplot
 
-    return plt
+    return pyplot("pictures", HistoryError)
 
 
 def save_figure(fig: Any, path: str | os.PathLike) -> None:

@@ -506,6 +506,7 @@ class RunView:
             "counts": {**{s: row[c] for c in row if (s := size_of(c)) is not None},
                        "steps": row["steps_done"]},
             "criteria": crits, "lineage": main, "hand_fitness": hand, "durable": durable,
+            "downloads": downloads(),
         }
 
     # -- surfaces -----------------------------------------------------------------------------------
@@ -543,40 +544,20 @@ class RunView:
         return data
 
     def download(self, id: str, kind: str) -> tuple[bytes, str]:
-        """``id``'s full surface as an ``obj``, ``glb`` or ``3dm`` file (bytes, media type)."""
-        from genr8_dist.export import mesh_of
+        """``id``'s full surface as a file of one of the ``downloads()`` formats (bytes, media type)."""
+        from genr8_dist.export import SURFACE_FORMATS, surface_bytes
 
         surface, _ = self._grow(id)
-        if kind == "obj":
-            data = mesh_of(surface).export(file_type="obj", include_normals=False, include_texture=False,
-                                           digits=17, header="genr8_dist")
-            return (data.encode() if isinstance(data, str) else data), "text/plain"
-        if kind == "glb":
-            return mesh_of(surface).export(file_type="glb"), "model/gltf-binary"
-        if kind == "3dm":
-            return _rhino(surface, id), "application/octet-stream"
-        raise StoreError(f"unknown download format {kind!r}: obj, glb or 3dm")
+        found = SURFACE_FORMATS.get(kind)
+        if found is None or not found.download:
+            raise StoreError(f"unknown download format {kind!r}: "
+                             f"{', '.join(d['format'] for d in downloads())}")
+        return surface_bytes(surface, kind, name=id), found.media
 
     def environment(self, version: int | None = None) -> dict[str, Any]:
         """The environment of configuration ``version`` to draw: attractors, repellers, boundaries."""
-        from genr8_dist.environment import BoxBoundary, MeshBoundary, PlaneBoundary, SphereBoundary
-
         env = self.config(version).environment
-        boundaries: list[dict[str, Any]] = []
-        for b in env.boundaries:
-            if isinstance(b, SphereBoundary):
-                boundaries.append({"kind": "sphere", "centre": list(map(float, b.centre)),
-                                   "radius": float(b.radius)})
-            elif isinstance(b, BoxBoundary):
-                boundaries.append({"kind": "box", "min": list(map(float, b.min)),
-                                   "max": list(map(float, b.max))})
-            elif isinstance(b, PlaneBoundary):
-                boundaries.append({"kind": "plane", "point": list(map(float, b.point)),
-                                   "normal": list(map(float, b.normal))})
-            elif isinstance(b, MeshBoundary):
-                tri = b.triangles
-                step = max(1, math.ceil(len(tri) / 4000))
-                boundaries.append({"kind": "mesh", "triangles": tri[::step].round(4).tolist()})
+        boundaries = [b.sketch() for b in env.boundaries]   # each kind draws itself (boundaries.py)
         return {
             "attractors": [{"position": list(map(float, a.position)), "constant": float(a.constant)}
                            for a in env.attractors],
@@ -689,19 +670,12 @@ def _decimate(mesh: Any, faces: int) -> Any:
     return out
 
 
-def _rhino(surface: Any, name: str) -> bytes:
-    import os
-    import tempfile
-    from pathlib import Path
+def downloads() -> list[dict[str, str]]:
+    """The formats a design downloads in (``genr8_dist.export.SURFACE_FORMATS``'s ``download`` ones):
+    each one's ``format`` (the suffix) and ``label`` (the link's text)."""
+    from genr8_dist.export import SURFACE_FORMATS
 
-    from genr8_dist.export import export_3dm
-
-    with tempfile.TemporaryDirectory(prefix="genr8-studio-") as tmp:
-        path = Path(tmp) / f"{name}.3dm"
-        export_3dm(surface, path, name=name)
-        data = path.read_bytes()
-        os.unlink(path)
-        return data
+    return [{"format": f.suffix, "label": f.label} for f in SURFACE_FORMATS.values() if f.download]
 
 
 def _request_label(request: dict[str, Any]) -> str:

@@ -312,3 +312,32 @@ def test_a_behaviour_is_one_registry_entry(monkeypatch):
     out, stopped = step_once(env, np.array([[0.0, 0.0, 1.0], [2.0, 0.0, 3.0]]))
     np.testing.assert_allclose(out, [[0.0, 0.0, 1.0], [2.0, 0.0, 1.5]])
     assert not stopped.any() and env.count_soft_violations(out) == 0
+
+
+def test_every_kind_draws_and_bounds_itself(tmp_path):
+    """Each boundary kind gives its wireframe, the points a picture holds and the studio's JSON; no
+    module outside boundaries.py asks which kind a boundary is (a new kind touches that file only)."""
+    import ast
+    import json
+    from pathlib import Path
+
+    from genr8_dist.environment import boundaries as module
+
+    built = {"plane": PlaneBoundary(point=(0, 0, -1)), "box": BoxBoundary(),
+             "sphere": SphereBoundary(radius=2), "mesh": MeshBoundary(path=str(_icosphere_file(tmp_path)))}
+    assert set(built) == set(module._KINDS)
+    for kind, b in built.items():
+        segments = b.outline(np.zeros(3), 2.0)
+        assert segments.shape[1:] == (2, 3) and len(segments) and np.isfinite(segments).all()
+        sketch = json.loads(json.dumps(b.sketch()))
+        assert sketch["kind"] == kind and len(sketch["segments"]) == len(segments)
+        assert ("anchor" in sketch) == b.unbounded
+    assert np.allclose(built["sphere"].reach(), [[-2, -2, -2], [2, 2, 2]])
+    assert len(built["plane"].reach()) == 0
+    names = {cls.__name__ for cls in module._KINDS.values()}
+    package = Path(module.__file__).resolve().parents[1]
+    asking = sorted(f"{path.relative_to(package)}:{node.lineno}" for path in package.rglob("*.py")
+                    if path.parent.name != "environment"
+                    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+                    if isinstance(node, ast.Name) and node.id in names)
+    assert not asking, f"a boundary kind named outside environment/: {asking}"

@@ -326,3 +326,16 @@ def test_an_action_on_a_finished_run_says_to_add_generations_first(tmp_path):
         assert status == 200 and answer["version"] == 3
     finally:
         studio.close()
+
+
+def test_the_downloads_listed_are_the_export_tables_and_each_downloads(studio):
+    from genr8_dist.export import SURFACE_FORMATS
+
+    best = json.loads(get(studio, "/api/generation")[2])["individuals"][0]["id"]
+    listed = json.loads(get(studio, f"/api/individual?id={best}")[2])["downloads"]
+    assert listed == [{"format": f.suffix, "label": f.label} for f in SURFACE_FORMATS.values() if f.download]
+    assert [d["format"] for d in listed] == ["obj", "glb", "3dm"]
+    status, kind, _ = get(studio, f"/api/download?id={best}&format=glb")
+    assert (status, kind) == (200, "model/gltf-binary")
+    with pytest.raises(urllib.error.HTTPError):
+        get(studio, f"/api/download?id={best}&format=stl")      # in the table, not offered

@@ -254,23 +254,11 @@ function environmentGroup(env, size) {
   env.repellers.forEach((a) => ball(a.position, "#ef6f6c"));
   const lineMat = new THREE.LineBasicMaterial({ color: 0x8a94a3, transparent: true, opacity: 0.16 });
   for (const b of env.boundaries) {
-    if (b.kind === "sphere") {
-      const w = new THREE.LineSegments(new THREE.WireframeGeometry(new THREE.SphereGeometry(b.radius, 18, 12)), lineMat);
-      w.position.set(...b.centre); g.add(w);
-    } else if (b.kind === "box") {
-      const box = new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(...b.min), new THREE.Vector3(...b.max)), 0x8a94a3);
-      box.material.transparent = true; box.material.opacity = 0.3; g.add(box);
-    } else if (b.kind === "plane") {
-      const grid = new THREE.GridHelper(size, 8, 0x8a94a3, 0x59636f);
-      grid.material.transparent = true; grid.material.opacity = 0.35;
-      grid.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), new THREE.Vector3(...b.normal).normalize());
-      grid.position.set(...b.point); g.add(grid);
-    } else if (b.kind === "mesh") {
-      const pts = [];
-      for (const [a, bb, c] of b.triangles) { pts.push(a, bb, bb, c, c, a); }
-      const geo = new THREE.BufferGeometry().setFromPoints(pts.map((p) => new THREE.Vector3(...p)));
-      g.add(new THREE.LineSegments(geo, lineMat));
-    }
+    // each boundary's outline as segments (Boundary.sketch); an unbounded one (a plane) is given one
+    // unit wide around its anchor and drawn as wide as the design
+    const k = b.anchor ? size : 1, o = b.anchor || [0, 0, 0];
+    const pts = b.segments.flat().map((p) => new THREE.Vector3(...p.map((v, i) => o[i] + (v - o[i]) * k)));
+    g.add(new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(pts), lineMat));
   }
   return g;
 }
@@ -279,8 +267,9 @@ function envExtent(env) {
   // the width (x, y) of the boundaries drawn with each design, so that cells do not overlap
   let w = 0;
   for (const b of env.boundaries) {
-    if (b.kind === "sphere") w = Math.max(w, 2 * b.radius + 2 * Math.hypot(b.centre[0], b.centre[1]));
-    else if (b.kind === "box") w = Math.max(w, b.max[0] - b.min[0], b.max[1] - b.min[1]);
+    if (!b.reach.length) continue;
+    const lo = [0, 1].map((i) => Math.min(...b.reach.map((p) => p[i]))), hi = [0, 1].map((i) => Math.max(...b.reach.map((p) => p[i])));
+    w = Math.max(w, Math.max(hi[0] - lo[0], hi[1] - lo[1]) + 2 * Math.hypot((lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2));
   }
   return w;
 }
@@ -585,7 +574,7 @@ async function select(id) {
       return `<tr><th>${c.name.replace("_", " ")}</th><td>${fmt(c.value, 3)}</td><td>${fmt(c.target, 3)}</td><td>${fmt(c.weight, 3)}</td>` +
         `<td class="dev"><div class="devbar" style="width:${(100 * dev / maxDev).toFixed(0)}%"></div></td></tr>`;
     }).join("");
-  for (const kind of ["obj", "glb", "3dm"]) { const a = $(`dl-${kind}`); a.href = `/api/download?id=${d.id}&format=${kind}`; }
+  $("d-downloads").innerHTML = "Download" + d.downloads.map((f) => `<a download href="/api/download?id=${d.id}&format=${f.format}">${f.label}</a>`).join("");
   $("d-lineage").innerHTML = d.lineage.map((r) => `<li data-id="${r.id}">${r.id}<span>${r.origin}</span>${fmt(r.fitness, 3)}</li>`).join("");
   $("d-text").textContent = d.text || `(no rewrite system: failed at ${d.stage}: ${d.error})`;
   document.body.dataset.selected = id;
