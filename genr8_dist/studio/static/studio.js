@@ -591,9 +591,10 @@ function drawObjectives() {
   const grid = new THREE.GridHelper(CUBE, 5, 0x2b3440, 0x1c232c);
   grid.rotation.x = Math.PI / 2; grid.position.set(CUBE / 2, CUBE / 2, 0); oGroup.add(grid);
   // each axis named along its side, with its range (low at the origin's end)
-  const where = [new THREE.Vector3(CUBE / 2, -1.2, 0), new THREE.Vector3(-0.6, CUBE + 0.9, 0), new THREE.Vector3(-0.6, -0.6, CUBE + 0.8)];
+  const where = [new THREE.Vector3(CUBE / 2, -1.2, 0), new THREE.Vector3(-0.3, CUBE + 0.9, 0), new THREE.Vector3(-0.3, -0.3, CUBE + 0.8)];
   axes.forEach((c, k) => {
     const sprite = axisSprite(`${c.name.replace("_", " ")}  ${fmt(ranges[k][0], 3)} → ${fmt(ranges[k][1], 3)}`, ["#f2a541", "#59c3c3", "#9b8cf2"][k]);
+    if (k) sprite.center.set(0, 0.5);   // y and z: from the axis rightwards, inside the view
     sprite.position.copy(where[k]); oGroup.add(sprite);
   });
   const frontMat = new THREE.MeshStandardMaterial({ color: 0xf2a541, emissive: 0xf2a541, emissiveIntensity: 0.35 });
