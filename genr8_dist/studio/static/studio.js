@@ -312,6 +312,13 @@ function frame(box) {
   camera.position.copy(c).add(new THREE.Vector3(0.45, -0.75, 0.75).normalize().multiplyScalar(distance));
   camera.near = s / 500; camera.far = s * 50; camera.updateProjectionMatrix();
 }
+// the whole grid the designs will fill, framed when the first of them has loaded (framing that one
+// alone would zoom onto it until the last arrives)
+function frameGrid() {
+  const n = (ui.order || []).length, cols = Math.ceil(Math.sqrt(n)), rows = Math.ceil(n / Math.max(cols, 1));
+  const cell = ui.cell || 1;
+  frame(new THREE.Box3(new THREE.Vector3(-cols * cell / 2, -rows * cell / 2, 0), new THREE.Vector3(cols * cell / 2, rows * cell / 2, cell / 2)));
+}
 function frameAll() { const b = new THREE.Box3().setFromObject(world); if (!b.isEmpty()) frame(b); }
 
 async function showDesigns(ids, generationRows) {
@@ -356,7 +363,7 @@ async function showDesigns(ids, generationRows) {
         loaded++;
         document.body.dataset.surfaces = String(loaded);
         layout();
-        if (first) { first = false; frameAll(); } else if (loaded === ids.length) frameAll();
+        if (first) { first = false; frameGrid(); } else if (loaded === ids.length) frameAll();
         if (ui.selected === id) highlight();
       } catch (e) {
         // a design without a surface (failed before growth) is left out of the view
