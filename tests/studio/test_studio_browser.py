@@ -96,8 +96,16 @@ def _wait(what, check, timeout):
 def _canvas_is_drawn(driver, shot: Path) -> int:
     """Save a screenshot; the number of distinct colours inside the 3D canvas (a blank one has 1-2)."""
     from PIL import Image
+    from selenium.common.exceptions import TimeoutException
 
-    driver.save_screenshot(str(shot))
+    for attempt in range(3):   # on a loaded machine the renderer may miss selenium's 10 s answer
+        try:
+            driver.save_screenshot(str(shot))
+            break
+        except TimeoutException:
+            if attempt == 2:
+                raise
+            time.sleep(5)
     rect = driver.execute_script(
         "const r = document.querySelector('#viewport canvas').getBoundingClientRect();"
         "return [r.left, r.top, r.right, r.bottom, window.devicePixelRatio];")
