@@ -365,6 +365,9 @@ def _gallery(args: argparse.Namespace) -> int:
         fig, info = pictures.clusters_figure_of(args.run, args.clusters, generation=None,
                                                 island=args.island)
         pictures.save_figure(fig, args.output)
+        _sayer(args.output)(f"wrote {args.output}: {info}")
+        _sayer(args.output)(_cluster_statistics(args.run, args.clusters, args.island))
+        return 0
     elif args.archive:
         fig, info = pictures.archive_figure_of(args.run, generation=args.generation)
         pictures.save_figure(fig, args.output)
@@ -374,6 +377,22 @@ def _gallery(args: argparse.Namespace) -> int:
                                     distinct=not args.duplicates)
     _sayer(args.output)(f"wrote {args.output}: {info}")
     return 0
+
+
+def _cluster_statistics(run: str, k: int, island: int | None) -> str:
+    """Per kind of form (the clusters ``gallery --clusters`` draws): its size and the range of the
+    fitness and of each weighted criterion over its members, as an aligned table."""
+    import pyarrow as pa
+
+    from genr8_dist.history import _search, _text
+
+    stats = _search.cluster_ranges(_search.clusters(run, k, island=island), _search.weighted_criteria(run))
+    names = list(stats[0]["ranges"]) if stats else []
+    table = pa.table({"cluster": [s["cluster"] for s in stats], "members": [s["members"] for s in stats],
+                      "nearest centre": [s["id"] for s in stats],
+                      **{_text.short_criterion(n) if n != "fitness" else n:
+                         [_search.format_range(*s["ranges"][n]) for s in stats] for n in names}})
+    return "ranges over each cluster's members:\n" + _text.format_table(table)
 
 
 def _export(args: argparse.Namespace) -> int:

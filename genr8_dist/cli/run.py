@@ -27,6 +27,10 @@ def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cpus", type=int, default=None, metavar="N",
                         help="CPUs of the local Ray (default: all of this machine's); ignored with --address")
     parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
+    parser.add_argument("--dashboard", action=argparse.BooleanOptionalAction, default=None,
+                        help="Ray's dashboard: a local Ray starts it (needs ray[default]) and its URL is "
+                             "printed; default: the URL of a cluster's dashboard when it runs one, none "
+                             "for a local Ray")
     _trust_option(parser)
 
 
@@ -44,7 +48,8 @@ def _options(args: argparse.Namespace) -> RunOptions:
     if args.cpus is not None and args.cpus < 1:
         raise ConfigError(f"--cpus {args.cpus}: must be >= 1")
     return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet,
-                      trust_hooks=bool(getattr(args, "trust_hooks", False)))
+                      trust_hooks=bool(getattr(args, "trust_hooks", False)),
+                      dashboard=getattr(args, "dashboard", None))
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -379,7 +379,8 @@ class Coordinator:
 
     def _island_done(self, island: int, generation: int, done: Any) -> None:
         """One island completed one generation (``done``: the host's ``Generated``; not committed
-        yet): ``on_island`` sees it, then the edits queued meanwhile are taken."""
+        yet): the progress table's row, ``on_island``, then the edits queued meanwhile are taken."""
+        self.progress.island(island, generation, done)
         if self.on_island is not None:
             self.on_island(self, island, generation, done)
         self._take_during_epoch()

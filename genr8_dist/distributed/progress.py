@@ -1,12 +1,17 @@
-"""The progress display: one line per generation completed by every island.
+"""The progress display: a refreshing table in a terminal, one line per generation elsewhere.
 
-Lines are plain text (no cursor movement), so they read the same in a terminal, in ``ray job logs``
-and in a CI log::
+When its output is not a terminal (``ray job logs``, a CI log, a pipe) it prints plain lines, one per
+generation completed by every island, with no cursor movement::
 
     gen   12/50  best 0.4123  median 1.2030  | i0 0.412/1.203  i1 0.519/1.410 | 38.2 ind/s  1m05s left
 
 ``best`` and ``median`` are over all islands; each ``iN`` shows that island's best/median fitness.
 Invalid individuals (fitness ``inf``) count as worst.
+
+In a terminal (``out.isatty()``) it keeps a table at the bottom, redrawn in place as each island
+completes a generation, as Ray Tune shows its trials: a head line (the generation every island has
+completed, the rate, the time left, the best) and a row per island with its current generation, best
+and mean fitness (of the valid) and the individuals it has evaluated. Messages print above the table.
 """
 
 from __future__ import annotations
@@ -19,6 +24,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any, TextIO
 
 __all__ = ["ProgressDisplay", "format_duration", "format_fitness"]
+
+_UP_AND_CLEAR = "\x1b[{n}F\x1b[J"   # to the start of the line n lines up, then clear to the end
 
 
 def format_duration(seconds: float) -> str:
@@ -55,23 +62,84 @@ def _median(values: Sequence[float]) -> float:
     return statistics.median_low(finite) if finite else math.inf
 
 
+def _mean(values: Sequence[float]) -> float:
+    """The mean of the finite values (the valid individuals'); ``inf`` when there are none."""
+    finite = [v for v in values if math.isfinite(v)]
+    return math.fsum(finite) / len(finite) if finite else math.inf
+
+
+def _is_terminal(out: TextIO) -> bool:
+    isatty = getattr(out, "isatty", None)
+    try:
+        return bool(isatty()) if isatty is not None else False
+    except ValueError:   # a closed stream
+        return False
+
+
 class ProgressDisplay:
-    """Prints a line for each generation every island has completed, and the run's start and end."""
+    """Shows each generation every island has completed (a line, or a refreshing table in a
+    terminal: ``table``, default ``out.isatty()``), and the run's messages."""
 
     def __init__(self, *, total_generations: int, out: TextIO | None = None, quiet: bool = False,
-                 clock=time.monotonic) -> None:
+                 clock=time.monotonic, table: bool | None = None) -> None:
         self.total_generations = total_generations
         self.out = out if out is not None else sys.stdout
         self.quiet = quiet
+        self.table = (_is_terminal(self.out) if table is None else table) and not quiet
         self._clock = clock
         self._started = clock()
         self._individuals = 0
         self._generations = 0
+        self._islands: dict[int, dict[str, float]] = {}   # island -> generation, best, mean, evaluations
+        self._drawn = 0          # lines of the table now on screen (0: none)
+        self._head = "waiting for the first generation"
 
     def message(self, text: str) -> None:
-        """A free-form line (start, migration, recovery, interrupt), unless quiet."""
-        if not self.quiet:
+        """A free-form line (start, migration, recovery, interrupt), unless quiet; above the table."""
+        if self.quiet:
+            return
+        if self.table:
+            self._erase()
+            print(text, file=self.out)
+            self._draw()
+        else:
             print(text, file=self.out, flush=True)
+
+    def island(self, island: int, generation: int, population: Any) -> None:
+        """``island`` completed ``generation`` (its individuals, or its host's report): its row of
+        the table (redrawn in a terminal)."""
+        fitness = _fitness_of(population)
+        row = self._islands.setdefault(island, {"generation": -1, "best": math.inf, "mean": math.inf,
+                                                "evaluations": 0})
+        row["generation"] = generation
+        row["best"] = min(fitness, default=math.inf)
+        row["mean"] = _mean(fitness)
+        row["evaluations"] += len(fitness)
+        if self.table:
+            self._erase()
+            self._draw()
+
+    def rows(self) -> list[str]:
+        """The table as lines: the head line, the column names, a row per island."""
+        width = len(str(self.total_generations))
+        lines = [self._head, f"{'island':>6}  {'generation':>{max(10, 2 * width + 1)}}  {'best':>10}  "
+                             f"{'mean':>10}  {'evaluations':>11}"]
+        for i, row in sorted(self._islands.items()):
+            gen = f"{int(row['generation'])}/{self.total_generations}"
+            lines.append(f"{i:>6}  {gen:>{max(10, 2 * width + 1)}}  {format_fitness(row['best']):>10}  "
+                         f"{format_fitness(row['mean']):>10}  {int(row['evaluations']):>11,}")
+        return lines
+
+    def _erase(self) -> None:
+        if self._drawn:
+            self.out.write(_UP_AND_CLEAR.format(n=self._drawn))
+            self._drawn = 0
+
+    def _draw(self) -> None:
+        lines = self.rows()
+        self.out.write("\n".join(lines) + "\n")
+        self.out.flush()
+        self._drawn = len(lines)
 
     def generation(self, generation: int, populations: Mapping[int, Any], *, remaining: int) -> str:
         """Record that every island completed ``generation``; print and return its line.
@@ -95,7 +163,13 @@ class ProgressDisplay:
             f"  | {islands} |"
             f" {rate:.1f} ind/s  {format_duration(left)} left"
         )
-        if not self.quiet:
+        if self.table:
+            self._head = (f"generation {generation}/{self.total_generations} completed by every island"
+                          f" · best {format_fitness(min(everyone, default=math.inf))}"
+                          f" · {rate:.1f} ind/s · {format_duration(left)} left")
+            self._erase()
+            self._draw()
+        elif not self.quiet:
             print(line, file=self.out, flush=True)
         return line
 

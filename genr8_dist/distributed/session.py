@@ -48,6 +48,8 @@ class RunOptions:
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
     trust_hooks: bool = False             # run the Python code a run directory carries (resume)
+    dashboard: bool | None = None         # Ray's dashboard: on (a local Ray starts it), off, or None:
+                                          # a cluster's URL printed when its head runs one
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -179,17 +181,17 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0].strip() if text else type(exc).__name__
 
 
-def _init_with_retry(ray: Any, address: str | None, kwargs: dict[str, Any]) -> None:
+def _init_with_retry(ray: Any, address: str | None, kwargs: dict[str, Any]) -> Any:
     """``ray.init(**kwargs)``, tried ``START_ATTEMPTS`` times; then a one-line ``RunError`` saying why
     and what to do. Ray raises a plain ``Exception`` for a node that timed out during start-up, so
-    every ``Exception`` is met here (a SIGTERM's ``SystemExit`` is the caller's)."""
+    every ``Exception`` is met here (a SIGTERM's ``SystemExit`` is the caller's). Returns Ray's
+    context."""
     import time
 
     cause = ""
     for attempt in range(1, START_ATTEMPTS + 1):
         try:
-            ray.init(**kwargs)
-            return
+            return ray.init(**kwargs)
         except Exception as exc:   # Ray's start-up failures have no class of their own
             cause = _first_line(exc)
             with contextlib.suppress(Exception):
@@ -207,11 +209,14 @@ def _init_with_retry(ray: Any, address: str | None, kwargs: dict[str, Any]) -> N
 
 @contextmanager
 def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
-                meanwhile: Callable[[], None] | None = None) -> Iterator[Any]:
+                meanwhile: Callable[[], None] | None = None, dashboard: bool = False,
+                on_dashboard: Callable[[str | None], None] | None = None) -> Iterator[Any]:
     """Ray, connected as described in the module docstring; disconnects on leaving only if it connected.
 
     ``meanwhile`` runs in a thread while Ray starts or connects (``ray.init`` mostly waits for Ray's
-    processes): a run's own start-up work (imports) then costs no time of its own."""
+    processes): a run's own start-up work (imports) then costs no time of its own. ``dashboard``: a
+    local Ray starts its dashboard (needs ``ray[default]``); ``on_dashboard`` is told the dashboard's
+    URL once connected (``None`` when there is none)."""
     import logging
 
     if "ray" not in sys.modules and (address is not None or os.environ.get("RAY_ADDRESS")):
@@ -252,10 +257,10 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
 
             start_reaper()
             with _patient_start():
-                _init_with_retry(ray, None, dict(address="local", num_cpus=num_cpus, include_dashboard=False,
-                                                 **kwargs))
+                context = _init_with_retry(ray, None, dict(address="local", num_cpus=num_cpus,
+                                                           include_dashboard=dashboard, **kwargs))
         else:
-            _init_with_retry(ray, address, dict(address=address, **kwargs))
+            context = _init_with_retry(ray, address, dict(address=address, **kwargs))
     except SystemExit:  # SIGTERM while Ray starts: its own handler exits; nothing is written yet
         ray.shutdown()
         raise KeyboardInterrupt("SIGTERM while Ray was starting") from None
@@ -267,6 +272,9 @@ def connect_ray(address: str | None = None, num_cpus: int | None = None, *,
     if swallowed:
         ray.shutdown()
         raise KeyboardInterrupt("SIGTERM while Ray was starting")
+    if on_dashboard is not None:
+        url = getattr(context, "dashboard_url", None)
+        on_dashboard(f"http://{url}" if url and "://" not in url else (url or None))
     try:
         yield ray
     finally:
@@ -429,12 +437,38 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
                                   live=True, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
-        with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):
+        def announce(text: str) -> None:   # above the progress table; said even when quiet
+            if options.quiet:
+                print(text, file=out, flush=True)
+            else:
+                coordinator.progress.message(text)
+
+        with stop_on_signals(stop, announce=announce):
             return coordinator.run()
     finally:
         live.clear()
         if own_hosts:
             hosts.shutdown()
+
+
+def _dashboard_options(options: RunOptions, out: TextIO) -> dict[str, Any]:
+    """``connect_ray``'s dashboard arguments for ``options.dashboard`` (``--dashboard``): its URL
+    printed when there is one; asked for and missing, a line saying why."""
+    if options.dashboard:
+        try:
+            import aiohttp  # noqa: F401  (what ray[default] adds for the dashboard)
+        except ImportError:
+            raise RunError("--dashboard: Ray's dashboard needs ray[default]: "
+                           "pip install 'ray[default]'") from None
+
+    def say(url: str | None) -> None:
+        if url:
+            print(f"dashboard: {url}", file=out, flush=True)
+        elif options.dashboard:
+            print("dashboard: none on this cluster (its head starts one when it has ray[default])",
+                  file=out, flush=True)
+
+    return {"dashboard": bool(options.dashboard), "on_dashboard": None if options.dashboard is False else say}
 
 
 def _stop_request(given: Any) -> Any:
@@ -502,7 +536,8 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
     # run before its first epoch, one after the last commit changes nothing (the run is complete)
     with _signals_stop(stop, out), \
-            connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload,
+                        **_dashboard_options(options, out)), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
                          timeout=options.schedule_timeout)
@@ -556,7 +591,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     _refuse_if_running(store)   # at once, before Ray starts; the lock itself is taken once Ray is up
     with _signals_stop(stop, out), \
-            connect_ray(options.address, options.num_cpus, meanwhile=_preload), hold_run_lock(store):
+            connect_ray(options.address, options.num_cpus, meanwhile=_preload,
+                        **_dashboard_options(options, out)), hold_run_lock(store):
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,

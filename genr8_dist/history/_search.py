@@ -15,6 +15,7 @@ Each takes a run (directory or open ``RunStore``) and returns an Arrow table of 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -41,7 +42,7 @@ from genr8_dist.store.schema import (
     sizes_of,
 )
 
-__all__ = ["archive", "clusters", "pareto_front"]
+__all__ = ["archive", "cluster_ranges", "clusters", "format_range", "pareto_front", "weighted_criteria"]
 
 
 def _newest_config(store: Any) -> Any:
@@ -156,8 +157,9 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
              island: int | None = None) -> pa.Table:
     """``k`` clusters of the run's distinct phenotypes (or of ``generation``, ``island``) by k-means over
     their standardised criteria and the logs of their sizes; per cluster the design nearest its
-    centroid, with its ``cluster`` number, how many ``members`` the cluster has (largest first) and
-    their ids (``member_ids``, each form's best)."""
+    centroid, with its ``cluster`` number, how many ``members`` the cluster has (largest first),
+    their ids (``member_ids``, each form's best) and the range of each criterion and of the fitness
+    over them (``min_<name>``, ``max_<name>``; ``cluster_ranges`` reads them)."""
     if k < 1:
         raise HistoryError(f"clusters: k must be at least 1, got {k}")
     try:
@@ -179,7 +181,9 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     k = min(k, len(x))
     model = KMeans(n_clusters=k, n_init=10, random_state=0).fit(x)
     labels = model.labels_
-    picks, sizes, ids = [], [], []
+    raw = {"fitness": as_numpy(table["fitness"], math.nan).astype(np.float64)}
+    raw.update({c: as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits})
+    picks, sizes, ids, ranges = [], [], [], []
     for c in range(k):
         members = np.flatnonzero(labels == c)
         if not members.size:
@@ -188,8 +192,48 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
         picks.append(int(nearest))
         sizes.append(int(members.size))
         ids.append([table["id"][int(m)].as_py() for m in members])
+        ranges.append({name: _finite_range(values[members]) for name, values in raw.items()})
     order = sorted(range(len(picks)), key=lambda i: (-sizes[i], picks[i]))
     rows = _with_top_columns(store, [table["id"][picks[i]].as_py() for i in order])
     rows = rows.append_column("cluster", pa.array(list(range(1, len(order) + 1)), pa.int32()))
     rows = rows.append_column("members", pa.array([sizes[i] for i in order], pa.int32()))
-    return rows.append_column("member_ids", pa.array([ids[i] for i in order], pa.list_(pa.string())))
+    rows = rows.append_column("member_ids", pa.array([ids[i] for i in order], pa.list_(pa.string())))
+    for name in raw:
+        for end, side in (("min", 0), ("max", 1)):
+            rows = rows.append_column(f"{end}_{name}", pa.array([ranges[i][name][side] for i in order],
+                                                                pa.float64()))
+    return rows
+
+
+def weighted_criteria(run: RunLike) -> list[str]:
+    """The criteria the run's newest configuration weighs (weight above 0), in its order."""
+    fitness = _newest_config(open_run(run)).fitness
+    return [n for n in fitness.names if fitness[n].weight > 0]
+
+
+def format_range(low: float | None, high: float | None) -> str:
+    """``0.412–1.2`` (4 significant digits), one value when they are equal, ``-`` for none."""
+    if low is None or high is None:
+        return "-"
+    return f"{low:.4g}" if f"{low:.4g}" == f"{high:.4g}" else f"{low:.4g}–{high:.4g}"
+
+
+def _finite_range(values: np.ndarray) -> tuple[float | None, float | None]:
+    finite = values[np.isfinite(values)]
+    return (float(finite.min()), float(finite.max())) if finite.size else (None, None)
+
+
+def cluster_ranges(kinds: pa.Table, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The per-cluster statistics of a ``clusters`` table: per cluster its number, size, the design
+    nearest its centre and ``ranges``: fitness and each criterion (of ``names``, default all) ->
+    ``(min, max)`` over its members (``None`` where no member has a finite value)."""
+    kept = None if names is None else {"fitness", *names}
+    columns = set(kinds.column_names)
+    names = [c[4:] for c in kinds.column_names
+             if c.startswith("min_") and f"max_{c[4:]}" in columns and (kept is None or c[4:] in kept)]
+    out = []
+    for r in kinds.select(["cluster", "members", "id", *[f"{e}_{n}" for n in names for e in ("min", "max")]]
+                          ).to_pylist():
+        out.append({"cluster": r["cluster"], "members": r["members"], "id": r["id"],
+                    "ranges": {n: (r[f"min_{n}"], r[f"max_{n}"]) for n in names}})
+    return out

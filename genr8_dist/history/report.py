@@ -2,10 +2,12 @@
 
 The page holds the fitness curves, a gallery of the best designs of the last generation (drawn by the
 run's phenotype: surfaces, tables...), the kinds of form the run found (clusters; and the Pareto front
-or the MAP-Elites archive in those modes), the top individuals with their criteria and rewrite systems,
-the interventions with what each changed, and the configuration versions. Images are embedded as
-base64 PNG; there are no scripts, fonts or links to fetch, so it opens offline and can be mailed as
-one file.
+or the MAP-Elites archive in those modes) with each cluster's size and criterion ranges, the
+parallel coordinates of the run's distinct designs across their criteria (brushing an axis selects
+designs), the top individuals with their criteria and rewrite systems, the interventions with what
+each changed, and the configuration versions. Images are embedded as base64 PNG; the one script (the
+parallel coordinates, the studio's ``parallel.js``) is inline and its data too; there are no fonts or
+links to fetch, so it opens offline and can be mailed as one file.
 """
 
 from __future__ import annotations
@@ -30,6 +32,9 @@ if TYPE_CHECKING:
 __all__ = ["report_html", "write_report"]
 
 _LINEAGE_DEPTH = 30  # generations of the best individual's ancestry drawn in the report
+PARALLEL_DESIGNS = 300   # the best distinct designs drawn in the parallel coordinates
+_PARALLEL_JS = Path(__file__).resolve().parents[1] / "studio" / "static" / "parallel.js"
+_PARALLEL_GLUE = Path(__file__).resolve().parent / "report_parallel.js"
 
 _CSS = """
 body { font-family: -apple-system, "Segoe UI", Helvetica, Arial, sans-serif; margin: 0;
@@ -54,6 +59,21 @@ pre { margin: 0; font-size: 12px; background: #f7f7f2; padding: 6px 8px; border-
       white-space: pre-wrap; }
 .note { color: #6b747c; font-size: 13px; }
 code { background: #eef2f5; padding: 1px 5px; border-radius: 3px; white-space: nowrap; }
+svg.pc { width: 100%; height: 300px; display: block; background: #fbfbf9; border-radius: 6px;
+         user-select: none; }
+svg.pc .axis line { stroke: #7a8794; stroke-width: 1; }
+svg.pc .axis text { fill: #2b3640; font-size: 12px; }
+svg.pc .axis .tick { fill: #6b747c; font-size: 10px; }
+svg.pc .axis .hit { fill: transparent; cursor: ns-resize; }
+svg.pc .brush { fill: rgba(224, 120, 40, 0.16); stroke: #d9772b; stroke-width: 1; }
+svg.pc path.design { fill: none; stroke-width: 1.2; opacity: 0.7; cursor: pointer; }
+svg.pc path.design.out { opacity: 0.06; }
+svg.pc path.design.selected { stroke-width: 3; opacity: 1; }
+svg.pc .target { stroke: #d9772b; stroke-width: 2; }
+tr.picked td { background: #fdf0e1; }
+.pc-bar { display: flex; gap: 12px; align-items: baseline; margin: 8px 0; }
+.pc-bar button { font: inherit; font-size: 13px; padding: 3px 10px; border: 1px solid #c8d0d8;
+                 border-radius: 4px; background: #fff; cursor: pointer; }
 """
 
 
@@ -160,6 +180,8 @@ def report_html(run: RunLike, *, k: int = 10, gallery_k: int = 12) -> str:
     phenotype = _phenotype(store, configs)
     parts.append(_section(f"The best {phenotype.noun}s of generation {last}", gallery))
     parts.extend(_search_sections(store, run_label(store), phenotype.noun))
+    parts.append(_cluster_statistics_section(store, phenotype.noun))
+    parts.append(_parallel_section(store, phenotype.noun))
 
     crits = criteria_of(best.schema)
     head = "".join(f"<th>{h}</th>" for h in ["#", "id", "gen", "island", f"fitness under v{newest}",
@@ -278,6 +300,69 @@ def _search_sections(store: RunStore, label: str, noun: str) -> list[str]:
                      f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>",
         failed="No clusters: "))
     return sections
+
+
+def _cluster_statistics_section(store: Any, noun: str) -> str:
+    """Per kind of form (the 12 clusters drawn above): its size, the design nearest its centre and
+    the range of the fitness and of each weighted criterion over its members."""
+    from genr8_dist.history._search import cluster_ranges, clusters, format_range, weighted_criteria
+
+    title = "Statistics of the kinds of form"
+    try:
+        stats = cluster_ranges(clusters(store, 12), weighted_criteria(store))
+    except Genr8Error as exc:
+        return _section(title, f'<p class="note">No clusters: {html.escape(str(exc))}</p>')
+    names = list(stats[0]["ranges"]) if stats else []
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in
+                   ["kind", f"{noun}s", "nearest its centre", *[n.replace("_", " ") for n in names]])
+    rows = "".join(
+        f'<tr><td class="num">{s["cluster"]}</td><td class="num">{s["members"]}</td>'
+        f"<td><code>{html.escape(s['id'])}</code></td>"
+        + "".join(f'<td class="num">{html.escape(format_range(*s["ranges"][n]))}</td>' for n in names)
+        + "</tr>" for s in stats)
+    note = (f'<p class="note">Each cluster\'s distinct {noun}s: how many, and the lowest and highest '
+            "value of the fitness and of each weighted criterion among them (raw values).</p>")
+    return _section(title, f"{note}<table><tr>{head}</tr>{rows}</table>")
+
+
+def _parallel_section(store: Any, noun: str) -> str:
+    """The parallel coordinates of the run's best distinct designs (``PARALLEL_DESIGNS``) across the
+    fitness and the weighted criteria, drawn in the page by the studio's ``parallel.js``: dragging
+    along an axis brushes a range, and the designs inside every brush are listed under the plot."""
+    from genr8_dist.history._search import _distinct, _newest_config
+
+    title = "Parallel coordinates of the criteria"
+    try:
+        table = _distinct(store, None, None, [])
+    except Genr8Error as exc:
+        return _section(title, f'<p class="note">No designs: {html.escape(str(exc))}</p>')
+    fitness = _newest_config(store).fitness
+    names = [n for n in fitness.names if fitness[n].weight > 0 and criterion_column(n) in table.column_names]
+    shown = table.slice(0, PARALLEL_DESIGNS)
+
+    def finite(v: Any) -> float | None:
+        return float(v) if v is not None and math.isfinite(v) else None
+
+    rows = [{"id": r["id"], "generation": r["generation"], "island": r["island"],
+             "fitness": finite(r["fitness"]), "criteria": {n: finite(r[criterion_column(n)]) for n in names}}
+            for r in shown.select(["id", "generation", "island", "fitness", *map(criterion_column, names)])
+            .to_pylist()]
+    axes = [{"key": n, "label": n.replace("_", " "), "target": finite(fitness[n].target)} for n in names]
+    data = json.dumps({"rows": rows, "axes": axes}, separators=(",", ":")).replace("</", "<\\/")
+    script = (_PARALLEL_JS.read_text(encoding="utf-8").replace("export function", "function") + "\n"
+              + _PARALLEL_GLUE.read_text(encoding="utf-8"))
+    of = (f"the best {len(rows)} of the run's {table.num_rows} distinct {noun}s" if table.num_rows > len(rows)
+          else f"the run's {len(rows)} distinct {noun}s")
+    note = (f'<p class="note">One line per design ({of}, best amber to worst blue) across its fitness '
+            "and weighted criteria, raw values, each target marked on its axis. Drag along an axis to "
+            "brush a range (a click on the axis clears it); the designs inside every brush are listed "
+            "below, best first. Click a line to mark its design in the list.</p>")
+    body = (f'{note}<svg class="pc" id="pc"></svg><div class="pc-bar"><b id="pc-count"></b>'
+            '<button id="pc-clear" type="button">clear brushes</button></div>'
+            '<table id="pc-list"></table>'
+            f'<script type="application/json" id="pc-data">{data}</script>'
+            f"<script>\n{script}</script>")
+    return _section(title, body)
 
 
 def write_report(run: RunLike, path: str | os.PathLike, *, k: int = 10, gallery_k: int = 12) -> Path:

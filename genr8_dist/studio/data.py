@@ -152,7 +152,14 @@ class RunView:
             "environment": self._environment_values(config),
             "injectable": _builtin_universe(str(config.universe)),
             "search": getattr(getattr(config, "search", None), "mode", "weighted"),
+            "objectives": self._objectives(config),
         }
+
+    def _objectives(self, config: Any) -> list[str]:
+        """The criteria a Pareto search would treat as objectives (``pareto_objectives``), stored ones."""
+        from genr8_dist.evolution.island import pareto_objectives
+
+        return [n for n in pareto_objectives(config) if n in self.store().criteria]
 
     def _events(self, store: Any) -> list[dict[str, Any]]:
         table = store.events()
@@ -194,7 +201,8 @@ class RunView:
             except KeyError:
                 out.append({"name": name, "target": None, "weight": None})
                 continue
-            out.append({"name": name, "target": _finite(term.target), "weight": _finite(term.weight)})
+            out.append({"name": name, "target": _finite(term.target), "weight": _finite(term.weight),
+                        "unit": _finite(term.unit)})
         return out
 
     @staticmethod
@@ -414,6 +422,7 @@ class RunView:
         ``unavailable`` says which extra to install."""
         from genr8_dist.errors import HistoryError
         from genr8_dist.history import clusters
+        from genr8_dist.history._search import cluster_ranges, weighted_criteria
 
         store = self.store()
         committed = store.committed_generations()
@@ -436,8 +445,10 @@ class RunView:
         try:
             table = clusters(store, k, generation=g, island=island)
             sizes = [c for c in table.column_names if size_of(c) is not None]
+            ranges = {s["id"]: s["ranges"] for s in cluster_ranges(table, weighted_criteria(store))}
             rows = [{"id": r["id"], "cluster": r["cluster"], "members": r["members"], "island": r["island"],
-                     "fitness": _finite(r["fitness"]), **{c: r[c] for c in sizes}}
+                     "fitness": _finite(r["fitness"]), **{c: r[c] for c in sizes},
+                     "ranges": {n: list(v) for n, v in ranges[r["id"]].items()}}
                     for r in table.select(["id", "cluster", "members", "island", "fitness", *sizes])
                     .to_pylist()]
             answer: dict[str, Any] = {"generation": g, "k": k, "representatives": rows,

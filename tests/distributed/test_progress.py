@@ -52,3 +52,62 @@ def test_formats():
     assert format_duration(math.inf) == "?"
     assert format_fitness(math.inf) == "inf"
     assert format_fitness(0.123456) == "0.1235"
+
+
+class _Terminal(io.StringIO):
+    """A fake terminal: ``isatty`` says yes."""
+
+    def isatty(self):
+        return True
+
+
+def _screen(text: str) -> list[str]:
+    """What a terminal shows after ``text``: lines, with ESC[nF (n lines up) and ESC[J (clear below)."""
+    import re
+
+    lines: list[str] = [""]
+    for token in re.split(r"(\x1b\[\d*F|\x1b\[J|\n)", text):
+        if token == "\n":
+            lines.append("")
+        elif token.startswith("\x1b[") and token.endswith("F"):
+            up = int(token[2:-1] or 1)
+            del lines[len(lines) - 1 - up:]   # the cursor sits on the last (empty) line
+            lines.append("")
+        elif token == "\x1b[J":
+            pass   # the lines below the cursor were dropped with the move
+        else:
+            lines[-1] += token
+    return lines[:-1] if lines[-1] == "" else lines
+
+
+def test_a_terminal_gets_a_table_redrawn_in_place_with_messages_above():
+    out, clock = _Terminal(), _Clock()
+    display = ProgressDisplay(total_generations=20, out=out, clock=clock)
+    assert display.table
+    display.message("run r1: 2 islands")
+    display.island(0, 0, _pop(0, [3.0, 1.0, math.inf]))
+    display.island(1, 0, _pop(1, [0.5, 4.0, 1.5]))
+    clock.now += 2.0
+    display.generation(0, {0: _pop(0, [3.0, 1.0, math.inf]), 1: _pop(1, [0.5, 4.0, 1.5])}, remaining=20)
+    display.island(0, 1, _pop(0, [0.75, 2.0, 2.0]))
+    display.message("migration after generation 1")
+    screen = _screen(out.getvalue())
+    assert "\x1b[" in out.getvalue()
+    assert screen[0] == "run r1: 2 islands"
+    assert screen[1] == "migration after generation 1"       # messages above the table
+    assert screen[2].startswith("generation 0/20 completed by every island · best 0.5 · 3.0 ind/s")
+    assert screen[3].split() == ["island", "generation", "best", "mean", "evaluations"]
+    assert screen[4].split() == ["0", "1/20", "0.75", "1.583", "6"]   # the mean of the valid
+    assert screen[5].split() == ["1", "0/20", "0.5", "2", "3"]
+    assert len(screen) == 6                                      # redrawn in place, not appended
+
+
+def test_a_pipe_gets_lines_and_no_table():
+    out, clock = io.StringIO(), _Clock()
+    display = ProgressDisplay(total_generations=5, out=out, clock=clock)
+    assert not display.table
+    display.island(0, 0, _pop(0, [1.0]))
+    line = display.generation(0, {0: _pop(0, [1.0])}, remaining=5)
+    assert out.getvalue() == line + "\n" and "\x1b" not in out.getvalue()
+    quiet = ProgressDisplay(total_generations=5, out=_Terminal(), quiet=True)
+    assert not quiet.table

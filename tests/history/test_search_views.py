@@ -80,6 +80,40 @@ def test_clusters_cover_the_distinct_surfaces_once_and_are_repeatable(pareto_run
     assert a["members"].to_pylist() == sorted(a["members"].to_pylist(), reverse=True)
 
 
+def test_each_cluster_carries_the_ranges_of_its_members_criteria(pareto_run):
+    from genr8_dist.history._search import cluster_ranges, clusters, format_range, weighted_criteria
+
+    store, config = pareto_run
+    kinds = clusters(store, 4)
+    rows = {r["id"]: r for r in store.individuals().to_pylist()}
+    for stats, members in zip(cluster_ranges(kinds), kinds["member_ids"].to_pylist(), strict=True):
+        assert stats["members"] == len(members)
+        for name in ["fitness", "undulation", "slivers"]:
+            column = name if name == "fitness" else f"crit_{name}"
+            values = [rows[m][column] for m in members if math.isfinite(rows[m][column])]
+            assert stats["ranges"][name] == (min(values), max(values))
+    assert set(cluster_ranges(kinds, ["slivers"])[0]["ranges"]) == {"fitness", "slivers"}
+    assert weighted_criteria(store) == [n for n in config.fitness.names if config.fitness[n].weight > 0]
+    assert format_range(0.5, 1.25) == "0.5–1.25" and format_range(2.0, 2.0) == "2"
+    assert format_range(None, None) == "-"
+
+
+def test_gallery_clusters_prints_each_clusters_size_and_ranges(pareto_run, tmp_path, capsys):
+    from genr8_dist.cli import main
+    from genr8_dist.history._search import cluster_ranges, clusters, format_range
+
+    store, _ = pareto_run
+    assert main(["gallery", str(store.path), "--clusters", "3", "-o", str(tmp_path / "k.png")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith(f"wrote {tmp_path / 'k.png'}: 3 clusters")
+    assert out[1] == "ranges over each cluster's members:"
+    assert out[2].split()[:4] == ["cluster", "members", "nearest", "centre"] and "fitness" in out[2]
+    for line, stats in zip(out[3:], cluster_ranges(clusters(store, 3)), strict=True):
+        cells = line.split()
+        assert cells[:3] == [str(stats["cluster"]), str(stats["members"]), stats["id"]]
+        assert cells[3] == format_range(*stats["ranges"]["fitness"])
+
+
 def test_the_archive_holds_the_best_surface_of_each_cell(archive_run):
     from genr8_dist import history
     from genr8_dist.evolution.archive import Grid

@@ -96,8 +96,16 @@ def _wait(what, check, timeout):
 def _canvas_is_drawn(driver, shot: Path) -> int:
     """Save a screenshot; the number of distinct colours inside the 3D canvas (a blank one has 1-2)."""
     from PIL import Image
+    from selenium.common.exceptions import TimeoutException
 
-    driver.save_screenshot(str(shot))
+    for attempt in range(3):   # on a loaded machine the renderer may miss selenium's 10 s answer
+        try:
+            driver.save_screenshot(str(shot))
+            break
+        except TimeoutException:
+            if attempt == 2:
+                raise
+            time.sleep(5)
     rect = driver.execute_script(
         "const r = document.querySelector('#viewport canvas').getBoundingClientRect();"
         "return [r.left, r.top, r.right, r.bottom, window.devicePixelRatio];")
@@ -328,3 +336,135 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
     assert not (live / "live").exists() and not (live / "_running.lock").exists()
     print(f"first live generation drawn {seconds:.0f} s after `genr8 run` started; generations seen "
           f"before the commit: {sorted(set(shown))}")
+
+
+def _stored_run(path: Path, search: dict | None) -> None:
+    """A small finished run of one island, made without Ray (the island's generations committed)."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution import Island
+    from genr8_dist.store import RunStore
+
+    fitness = {"undulation": {"target": 1.5, "weight": 1.0}, "subdivisions": {"target": 0.5, "weight": 1.0},
+               "symmetry": {"target": 1.0, "weight": 2.0}, "slivers": {"target": 0.0, "weight": 1.0}}
+    base = {"universe": "tiles", "seed": 3, "genome": {"length": 60}, "fitness": fitness,
+            "ea": {"population": 16, "generations": 3}, "environment": {"steps": 2}}
+    config = RunConfig.from_dict({**base, "search": search} if search else base)
+    store = RunStore.create(path, config.to_toml())
+    for generation in Island(config, 0).run():
+        store.commit(generation)
+
+
+def _front(view, names):
+    """The ids of the newest generation's valid designs no other dominates in ``names`` (each the
+    weighted distance to its target, as the page computes it), and every plotted id."""
+    crits = {c["name"]: c for c in view.state()["criteria"]}
+    points = {}
+    for r in view.generation()["individuals"]:
+        values = [r["criteria"].get(n) for n in names]
+        if r["valid"] and all(v is not None for v in values):
+            points[r["id"]] = [crits[n]["weight"] * abs(v - crits[n]["target"]) / crits[n]["unit"]
+                               for n, v in zip(names, values, strict=True)]
+    front = {i for i, p in points.items() if not any(
+        j != i and all(a <= b for a, b in zip(q, p, strict=True)) and q != p for j, q in points.items())}
+    return front, points
+
+
+@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
+                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
+@pytest.mark.parametrize("search", [
+    {"mode": "pareto", "objectives": ["undulation", "subdivisions", "symmetry", "slivers"]}, None])
+def test_objective_space_kinds_statistics_and_a_layout_without_overlap(tmp_path, search):
+    """A stored run (pareto, then weighted) in the studio: the parallel coordinates sit below the 3D
+    view, not over it; the objective space shows every valid design of the generation with the
+    non-dominated ones of the chosen objectives highlighted (3D, then 2D), and a click on a point
+    selects that design and shows its surface; the kinds of form list each cluster's ranges."""
+    pytest.importorskip("selenium")
+    pytest.importorskip("PIL")
+    from selenium.webdriver.common.actions.action_builder import ActionBuilder
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import Select
+
+    from genr8_dist.studio.data import RunView
+
+    shots = Path(os.environ.get("GENR8_STUDIO_SHOTS") or tmp_path)
+    shots.mkdir(parents=True, exist_ok=True)
+    name = "pareto" if search else "weighted"
+    run = tmp_path / name
+    _stored_run(run, search)
+    view = RunView(str(run))
+    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "studio", str(run), "--port", "0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+    threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True).start()
+    driver = None
+    try:
+        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
+                                                    if ln.startswith("studio: http")), None), 60)
+        driver = _browser()
+        driver.get(url)
+        body = driver.find_element(By.TAG_NAME, "body")
+
+        def data(key):
+            return body.get_attribute(f"data-{key}")
+
+        def rect(css):
+            return driver.execute_script(f"const r = document.querySelector('{css}').getBoundingClientRect();"
+                                         "return [r.left, r.top, r.right, r.bottom];")
+
+        _wait("the surfaces", lambda: int(data("surfaces") or 0) >= 4, 120)
+        assert rect("#pc-panel")[1] >= rect("#viewport")[3] - 1      # below the 3D view, not over it
+
+        driver.find_element(By.ID, "show-objectives").click()
+        names = [Select(driver.find_element(By.ID, f"obj-{a}")).first_selected_option.get_attribute("value")
+                 for a in "xyz"]
+        if search:
+            assert names == search["objectives"][:3]                  # the run's objectives first
+        front, plotted = _front(view, names)
+        _wait("the points", lambda: int(data("objective-points") or 0) == len(plotted), 30)
+        assert set(data("objective-front-ids").split()) == front and 1 <= len(front) < len(plotted)
+        assert rect("#objective")[0] >= rect("#viewport")[2] - 1      # beside the surfaces
+        time.sleep(1.5)
+        assert _canvas_is_drawn(driver, shots / f"studio-objectives-3d-{name}.png") > 50
+
+        Select(driver.find_element(By.ID, "obj-z")).select_by_value("")      # 2 objectives
+        front2, _ = _front(view, names[:2])
+        _wait("the 2D front", lambda: set((data("objective-front-ids") or "").split()) == front2, 20)
+        time.sleep(1.0)
+        driver.save_screenshot(str(shots / f"studio-objectives-2d-{name}.png"))
+
+        # a click on a point of its own (copies share one) not among the surfaces shown: selected, and
+        # its surface shown
+        shown = set(driver.execute_script("return window.studio.order"))
+        _, flat = _front(view, names[:2])
+        alone = [i for i, p in sorted(flat.items()) if [q for q in flat.values() if q == p] == [p]]
+        ident = next((i for i in alone if i not in shown), alone[-1])
+        x, y = driver.execute_script("return window.studio.objectiveAt(arguments[0])", ident)
+        click = ActionBuilder(driver)
+        click.pointer_action.move_to_location(int(x), int(y)).click()
+        click.perform()
+        _wait("the clicked design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
+        _wait("its surface", lambda: ident in driver.execute_script("return window.studio.order")
+              and driver.execute_script("return window.studio.designs.has(arguments[0])", ident), 60)
+
+        # the kinds of form, each with its size and its criteria's ranges over its members
+        Select(driver.find_element(By.ID, "count")).select_by_value("kinds")
+        _wait("the kinds", lambda: int(data("kinds") or 0) >= 2, 120)
+        kinds = view.clusters(None, 12)["representatives"]
+        texts = [e.text for e in driver.find_elements(By.CSS_SELECTOR, "#kinds-list .ranges")]
+        assert len(texts) == len(kinds)
+        weighted = {c["name"] for c in view.state()["criteria"] if c["weight"]}
+        for text, kind in zip(texts, kinds, strict=True):
+            assert set(kind["ranges"]) == {"fitness", *weighted}
+            assert text.startswith("fitness ") and "symmetry " in text
+            low, high = kind["ranges"]["symmetry"]
+            if all(v == 0 or 1e-4 <= abs(v) < 1000 for v in (low, high)):   # no exponent either side
+                shown = f"{low:.3g}" if f"{low:.3g}" == f"{high:.3g}" else f"{low:.3g}–{high:.3g}"
+                assert f"symmetry {shown}" in text, text
+    finally:
+        if driver is not None:
+            driver.quit()
+        proc.send_signal(signal.SIGINT)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(30)
+        if proc.poll() is None:
+            proc.kill()

@@ -4,6 +4,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
+import { drawParallel, inBrushes } from "/static/parallel.js";
 
 const $ = (id) => document.getElementById(id);
 const ISLAND_COLOURS = ["#f2a541", "#59c3c3", "#e0662f", "#9b8cf2", "#7bd389", "#ef6f6c", "#f7d774",
@@ -300,6 +301,13 @@ function frame(box) {
   camera.position.copy(c).add(new THREE.Vector3(0.45, -0.75, 0.75).normalize().multiplyScalar(distance));
   camera.near = s / 500; camera.far = s * 50; camera.updateProjectionMatrix();
 }
+// the whole grid the designs will fill, framed when the first of them has loaded (framing that one
+// alone would zoom onto it until the last arrives)
+function frameGrid() {
+  const n = (ui.order || []).length, cols = Math.ceil(Math.sqrt(n)), rows = Math.ceil(n / Math.max(cols, 1));
+  const cell = ui.cell || 1;
+  frame(new THREE.Box3(new THREE.Vector3(-cols * cell / 2, -rows * cell / 2, 0), new THREE.Vector3(cols * cell / 2, rows * cell / 2, cell / 2)));
+}
 function frameAll() { const b = new THREE.Box3().setFromObject(world); if (!b.isEmpty()) frame(b); }
 
 async function showDesigns(ids, generationRows) {
@@ -344,7 +352,7 @@ async function showDesigns(ids, generationRows) {
         loaded++;
         document.body.dataset.surfaces = String(loaded);
         layout();
-        if (first) { first = false; frameAll(); } else if (loaded === ids.length) frameAll();
+        if (first) { first = false; frameGrid(); } else if (loaded === ids.length) frameAll();
         if (ui.selected === id) highlight();
       } catch (e) {
         // a design without a surface (failed before growth) is left out of the view
@@ -421,7 +429,7 @@ async function loadGeneration(g) {
     `<span>${r.origin}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
   const version = rows.length ? rows[0].config_version : null;
   if (version !== ui.envVersion) { ui.env = await getJSON(`/api/environment?version=${version ?? ""}`); ui.envVersion = version; }
-  ui.pcRows = rows; drawPC();
+  ui.pcRows = rows; drawPC(); drawObjectives();
   const pool = ui.brushes.size ? rows.filter(brushed) : rows;   // a brush on the criteria chooses the designs
   const choice = $("count").value;
   let shown = choice === "pareto" ? pool.filter((r) => r.pareto).slice(0, 36) :
@@ -453,7 +461,9 @@ async function loadKinds(g, island) {
   list.innerHTML = k.representatives.map((r) =>
     `<div data-id="${r.id}" class="${r.id === ui.selected ? "selected" : ""}">` +
     `<b><i style="color:${islandColour(r.island)}">■</i> kind ${r.cluster} · ${r.id}</b>` +
-    `<span>${r.members} form${r.members > 1 ? "s" : ""}</span><b>${fmt(r.fitness, 4)}</b></div>`).join("");
+    `<span>${r.members} form${r.members > 1 ? "s" : ""}</span><b>${fmt(r.fitness, 4)}</b></div>` +
+    `<div class="ranges" data-kind="${r.cluster}">${Object.entries(r.ranges || {}).map(([n, [lo, hi]]) =>
+      `${n.replace("_", " ")} <b>${lo === null ? "–" : fmt(lo, 3) === fmt(hi, 3) ? fmt(lo, 3) : `${fmt(lo, 3)}–${fmt(hi, 3)}`}</b>`).join(" · ")}</div>`).join("");
   document.body.dataset.kinds = String(k.representatives.length);
   return k;
 }
@@ -478,82 +488,195 @@ function pcAxes() {
   return [{ key: "fitness", label: "fitness", get: (r) => r.fitness, target: null },
     ...crits.map((c) => ({ key: c.name, label: c.name.replace("_", " "), get: (r) => (r.criteria || {})[c.name] ?? null, target: c.target }))];
 }
-function brushed(r) {
-  for (const [key, [lo, hi]] of ui.brushes) {
-    const axis = (ui.pcAxes || pcAxes()).find((a) => a.key === key);
-    const v = axis ? axis.get(r) : null;
-    if (v === null || v === undefined || !Number.isFinite(v) || v < lo || v > hi) return false;
-  }
-  return true;
-}
+const brushed = (r) => inBrushes(r, ui.pcAxes || pcAxes(), ui.brushes);
 function drawPC() {
   const svg = $("pc"), panel = $("pc-panel");
   panel.classList.toggle("hidden", !$("show-pc").checked);
-  svg.innerHTML = "";
+  $("centre").classList.toggle("with-pc", $("show-pc").checked);
   const rows = (ui.pcRows || []).filter((r) => r.valid);
-  const W = svg.clientWidth || 800, H = svg.clientHeight || 196, top = 22, bottom = H - 16;
-  const axes = pcAxes(); ui.pcAxes = axes;
-  const xs = axes.map((_, i) => 60 + i * (W - 120) / Math.max(1, axes.length - 1));
-  const scales = axes.map((a) => {
-    const vs = rows.map(a.get).filter((v) => v !== null && Number.isFinite(v));
-    if (a.target !== null && a.target !== undefined) vs.push(a.target);
-    let lo = Math.min(...vs), hi = Math.max(...vs);
-    if (!vs.length) { lo = 0; hi = 1; }
-    if (hi - lo < 1e-12) { lo -= 0.5; hi += 0.5; }
-    return { lo, hi, y: (v) => bottom - (v - lo) / (hi - lo) * (bottom - top), v: (y) => lo + (bottom - y) / (bottom - top) * (hi - lo) };
-  });
-  let inside = 0;
-  const lines = el("g", {}, svg);
-  rows.forEach((r, rank) => {
-    const pts = axes.map((a, i) => { const v = a.get(r); return v === null || !Number.isFinite(v) ? null : [xs[i], scales[i].y(v)]; });
-    const d = pts.map((p, i) => p ? `${i && pts[i - 1] ? "L" : "M"}${p[0].toFixed(1)},${p[1].toFixed(1)}` : "").join("");
-    const ok = !ui.brushes.size || brushed(r);
-    inside += ok ? 1 : 0;
-    const path = el("path", { d, class: `design${ok ? "" : " out"}${r.id === ui.selected ? " selected" : ""}`,
-      stroke: rankColour(rows.length > 1 ? rank / (rows.length - 1) : 0).getStyle(), "data-id": r.id }, lines);
-    el("title", {}, path).textContent = `${r.id} · fitness ${fmt(r.fitness, 4)}`;
-    path.addEventListener("click", () => select(r.id));
-  });
-  axes.forEach((a, i) => {
-    const g = el("g", { class: "axis", "data-axis": a.key }, svg), sc = scales[i], x = xs[i];
-    el("line", { x1: x, x2: x, y1: top, y2: bottom }, g);
-    el("text", { x, y: 12, "text-anchor": "middle" }, g).textContent = a.label;
-    el("text", { x: x + 4, y: top + 4, class: "tick" }, g).textContent = fmt(sc.hi, 3);
-    el("text", { x: x + 4, y: bottom, class: "tick" }, g).textContent = fmt(sc.lo, 3);
-    if (a.target !== null && a.target !== undefined) {
-      const ty = sc.y(a.target);
-      el("line", { x1: x - 7, x2: x + 7, y1: ty, y2: ty, class: "target" }, g);
-    }
-    const b = ui.brushes.get(a.key);
-    if (b) el("rect", { x: x - 8, width: 16, y: sc.y(b[1]), height: Math.max(2, sc.y(b[0]) - sc.y(b[1])), class: "brush" }, g);
-    const hit = el("rect", { x: x - 14, width: 28, y: top - 4, height: bottom - top + 8, class: "hit" }, g);
-    hit.addEventListener("mousedown", (ev) => {
-      ev.preventDefault();
-      const box = svg.getBoundingClientRect(), y0 = ev.clientY - box.top;
-      let moved = false;
-      const move = (e) => {
-        const y1 = Math.max(top, Math.min(bottom, e.clientY - box.top)); moved = true;
-        ui.brushes.set(a.key, [Math.min(sc.v(y0), sc.v(y1)), Math.max(sc.v(y0), sc.v(y1))]); drawPC();
-      };
-      const up = () => {
-        window.removeEventListener("mousemove", move); window.removeEventListener("mouseup", up);
-        if (!moved) ui.brushes.delete(a.key);   // a click on an axis clears its brush
-        loadGeneration(ui.viewGen);
-      };
-      window.addEventListener("mousemove", move); window.addEventListener("mouseup", up);
-    });
-  });
-  $("pc-count").textContent = ui.brushes.size ? `${inside} of ${rows.length} designs brushed` : `${rows.length} designs`;
-  document.body.dataset.brushed = String(ui.brushes.size ? inside : rows.length);
+  ui.pcAxes = pcAxes();
+  drawParallel(svg, { rows, axes: ui.pcAxes, brushes: ui.brushes, selected: ui.selected,
+    colour: (rank, n) => rankColour(n > 1 ? rank / (n - 1) : 0).getStyle(), onSelect: select,
+    onBrushEnd: () => loadGeneration(ui.viewGen),
+    onDraw: (inside) => {
+      $("pc-count").textContent = ui.brushes.size ? `${inside} of ${rows.length} designs brushed` : `${rows.length} designs`;
+      document.body.dataset.brushed = String(ui.brushes.size ? inside : rows.length);
+    } });
 }
-$("show-pc").onchange = drawPC;
+$("show-pc").onchange = () => { drawPC(); resize(); frameAll(); drawObjectives(); };
 $("pc-clear").onclick = () => { ui.brushes.clear(); loadGeneration(ui.viewGen); };
 window.addEventListener("resize", drawPC);
+
+
+// ------------------------------------------------------------------------------- objective space
+// Octopus's view: the viewed generation's valid designs as points in the space of 2 or 3 objectives
+// the designer picks (each criterion's weighted distance to its target, as the Pareto search scores
+// it; lower is better), turnable in 3D; the non-dominated ones in these objectives are larger and
+// amber, the others blue (dimmed when a parallel-coordinates brush leaves them out). A click on a
+// point selects its design and shows its surface.
+const objView = $("obj-view");
+const oRenderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true, alpha: true });
+oRenderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+oRenderer.setClearColor(0x000000, 0);
+objView.appendChild(oRenderer.domElement);
+const oScene = new THREE.Scene();
+const oCamera = new THREE.PerspectiveCamera(40, 1, 0.01, 500);
+oCamera.up.set(0, 0, 1);
+const oControls = new OrbitControls(oCamera, oRenderer.domElement);
+oControls.enableDamping = true;
+oScene.add(new THREE.HemisphereLight(0xdfe8ff, 0x2a2118, 2.0));
+const oSun = new THREE.DirectionalLight(0xffffff, 1.6); oSun.position.set(6, -8, 12); oScene.add(oSun);
+const oGroup = new THREE.Group(); oScene.add(oGroup);
+const CUBE = 10;
+function oResize() {
+  const w = objView.clientWidth, h = objView.clientHeight;
+  if (!w || !h) return;
+  oRenderer.setSize(w, h, false); oRenderer.domElement.style.width = w + "px"; oRenderer.domElement.style.height = h + "px";
+  oCamera.aspect = w / Math.max(h, 1); oCamera.updateProjectionMatrix();
+}
+new ResizeObserver(oResize).observe(objView);
+(function oLoop() { requestAnimationFrame(oLoop); if (ui.objectivesOn) { oControls.update(); oRenderer.render(oScene, oCamera); } })();
+
+function objectiveChoices() { return (ui.state ? ui.state.criteria : []).filter((c) => c.weight); }
+function fillObjectives() {
+  const crits = objectiveChoices();
+  if (!crits.length || $("obj-x").options.length) return;
+  const preferred = ((ui.state && ui.state.objectives) || []).filter((n) => crits.some((c) => c.name === n));
+  const names = [...preferred, ...crits.map((c) => c.name).filter((n) => !preferred.includes(n))];
+  const opts = (extra) => extra + crits.map((c) => `<option value="${c.name}">${c.name.replace("_", " ")}</option>`).join("");
+  $("obj-x").innerHTML = opts(""); $("obj-y").innerHTML = opts("");
+  $("obj-z").innerHTML = opts(`<option value="">none (2D)</option>`);
+  $("obj-x").value = names[0]; $("obj-y").value = names[1] || names[0]; $("obj-z").value = names[2] || "";
+}
+// the objective of criterion c for row r: weight * |raw - target| / unit (raw when there is no target)
+function objective(c, r) {
+  const v = (r.criteria || {})[c.name];
+  if (v === null || v === undefined || !Number.isFinite(v)) return null;
+  return c.target === null || c.target === undefined ? v : (c.weight || 1) * Math.abs(v - c.target) / (c.unit || 1);
+}
+// which points no other point dominates (all objectives lower or equal, one lower)
+function nonDominated(points) {
+  return points.map((p, i) => !points.some((q, j) => j !== i &&
+    q.every((v, k) => v <= p[k]) && q.some((v, k) => v < p[k])));
+}
+ui.objectiveKey = null;
+function drawObjectives() {
+  fillObjectives();
+  ui.objectivesOn = $("show-objectives").checked;
+  $("objective").classList.toggle("hidden", !ui.objectivesOn);
+  $("centre").classList.toggle("with-objectives", ui.objectivesOn);
+  if (!ui.objectivesOn) return;
+  oResize();
+  while (oGroup.children.length) oGroup.remove(oGroup.children[0]);
+  const byName = new Map(objectiveChoices().map((c) => [c.name, c]));
+  const chosen = [$("obj-x").value, $("obj-y").value, $("obj-z").value].filter((n) => n && byName.has(n));
+  const axes = chosen.map((n) => byName.get(n));
+  const rows = (ui.pcRows || []).filter((r) => r.valid);
+  const points = [], ids = [];
+  for (const r of rows) {
+    const p = axes.map((c) => objective(c, r));
+    if (p.every((v) => v !== null)) { points.push(p); ids.push(r); }
+  }
+  const front = nonDominated(points);
+  const dims = axes.length;
+  const ranges = axes.map((_, k) => extent(points.map((p) => p[k])));
+  const at = (p) => new THREE.Vector3(...[0, 1, 2].map((k) => k < dims ? (p[k] - ranges[k][0]) / (ranges[k][1] - ranges[k][0]) * CUBE : 0));
+  // the box and the axes' names and ends
+  const box = new THREE.Box3Helper(new THREE.Box3(new THREE.Vector3(0, 0, 0), new THREE.Vector3(CUBE, CUBE, dims > 2 ? CUBE : 0)), 0x5b6578);
+  box.material.transparent = true; box.material.opacity = 0.5; oGroup.add(box);
+  const grid = new THREE.GridHelper(CUBE, 5, 0x2b3440, 0x1c232c);
+  grid.rotation.x = Math.PI / 2; grid.position.set(CUBE / 2, CUBE / 2, 0); oGroup.add(grid);
+  // each axis named along its side, with its range (low at the origin's end)
+  const where = [new THREE.Vector3(CUBE / 2, -1.2, 0), new THREE.Vector3(-0.3, CUBE + 0.9, 0), new THREE.Vector3(-0.3, -0.3, CUBE + 0.8)];
+  axes.forEach((c, k) => {
+    const sprite = axisSprite(`${c.name.replace("_", " ")}  ${fmt(ranges[k][0], 3)} → ${fmt(ranges[k][1], 3)}`, ["#f2a541", "#59c3c3", "#9b8cf2"][k]);
+    if (k) sprite.center.set(0, 0.5);   // y and z: from the axis rightwards, inside the view
+    sprite.position.copy(where[k]); oGroup.add(sprite);
+  });
+  const frontMat = new THREE.MeshStandardMaterial({ color: 0xf2a541, emissive: 0xf2a541, emissiveIntensity: 0.35 });
+  const restMat = new THREE.MeshStandardMaterial({ color: 0x4f9de0, transparent: true, opacity: 0.8 });
+  const outMat = new THREE.MeshStandardMaterial({ color: 0x4f9de0, transparent: true, opacity: 0.15 });
+  const big = new THREE.SphereGeometry(0.24, 16, 12), small = new THREE.SphereGeometry(0.15, 12, 8);
+  ui.objectivePoints = new Map();
+  points.forEach((p, i) => {
+    const r = ids[i], inside = !ui.brushes.size || brushed(r);
+    const m = new THREE.Mesh(front[i] ? big : small, front[i] ? frontMat : inside ? restMat : outMat);
+    m.position.copy(at(p)); m.userData.id = r.id; oGroup.add(m);
+    ui.objectivePoints.set(r.id, m);
+  });
+  if (dims === 2) {   // the front as a staircase through its points
+    const f = points.filter((_, i) => front[i]).sort((a, b) => a[0] - b[0]);
+    const stairs = [];
+    f.forEach((p, i) => { const q = at(p); if (i) stairs.push(new THREE.Vector3(q.x, stairs[stairs.length - 1].y, 0.01)); stairs.push(q.setZ(0.01)); });
+    if (stairs.length > 1) oGroup.add(new THREE.Line(new THREE.BufferGeometry().setFromPoints(stairs), new THREE.LineBasicMaterial({ color: 0xf2a541, transparent: true, opacity: 0.6 })));
+  }
+  markObjective();
+  const count = front.filter(Boolean).length;
+  $("obj-count").textContent = `${count} of ${points.length} non-dominated`;
+  document.body.dataset.objectivePoints = String(points.length);
+  document.body.dataset.objectiveFront = String(count);
+  document.body.dataset.objectiveFrontIds = ids.filter((_, i) => front[i]).map((r) => r.id).join(" ");
+  const key = chosen.join("|");
+  if (key !== ui.objectiveKey) {   // new axes: framed again; otherwise the designer's view is kept
+    ui.objectiveKey = key;
+    const c = new THREE.Vector3(CUBE / 2, CUBE / 2, dims > 2 ? CUBE / 2 : 0);
+    const radius = (dims > 2 ? 0.87 : 0.71) * CUBE + 4;   // the box and its labels
+    const distance = radius / Math.sin(THREE.MathUtils.degToRad(oCamera.fov / 2)) / Math.min(1, oCamera.aspect);
+    oControls.target.copy(c);
+    oCamera.position.copy(c).add((dims > 2 ? new THREE.Vector3(0.5, -0.75, 0.45) : new THREE.Vector3(0, -0.25, 1)).normalize().multiplyScalar(distance));
+    oCamera.updateProjectionMatrix();
+  }
+}
+function axisSprite(text, colour) {   // a label as wide as its text, 1 unit high
+  const c = document.createElement("canvas"), g = c.getContext("2d"), font = "600 40px ui-monospace, monospace";
+  g.font = font; c.width = Math.ceil(g.measureText(text).width) + 28; c.height = 60;
+  g.fillStyle = "rgba(14,17,22,0.8)"; g.beginPath(); g.roundRect(0, 0, c.width, 60, 14); g.fill();
+  g.font = font; g.fillStyle = colour; g.textBaseline = "middle"; g.fillText(text, 14, 31);
+  const sprite = new THREE.Sprite(new THREE.SpriteMaterial({ map: new THREE.CanvasTexture(c), depthTest: false, transparent: true }));
+  sprite.scale.set(c.width / 60, 1, 1); sprite.renderOrder = 10;
+  return sprite;
+}
+let objMarker = null;
+function markObjective() {
+  if (objMarker) { oGroup.remove(objMarker); objMarker = null; }
+  const m = ui.objectivePoints && ui.objectivePoints.get(ui.selected);
+  if (!m) return;
+  objMarker = new THREE.Mesh(new THREE.SphereGeometry(0.42, 20, 14), new THREE.MeshBasicMaterial({ color: 0xffffff, wireframe: true }));
+  objMarker.position.copy(m.position); oGroup.add(objMarker);
+}
+// a click (a press that did not drag) on a point: its design selected, and its surface shown
+const oRay = new THREE.Raycaster(); let oPressed = null;
+oRenderer.domElement.addEventListener("pointerdown", (e) => { oPressed = [e.clientX, e.clientY]; });
+oRenderer.domElement.addEventListener("pointerup", (e) => {
+  if (!oPressed || Math.hypot(e.clientX - oPressed[0], e.clientY - oPressed[1]) > 4) return;
+  const r = oRenderer.domElement.getBoundingClientRect();
+  oRay.setFromCamera(new THREE.Vector2((e.clientX - r.left) / r.width * 2 - 1, -(e.clientY - r.top) / r.height * 2 + 1), oCamera);
+  const hit = oRay.intersectObjects([...(ui.objectivePoints || new Map()).values()], false)[0];
+  if (hit) showDesign(hit.object.userData.id);
+});
+// select a design and make sure its surface is among those in the 3D view
+function showDesign(id) {
+  select(id);
+  if (!ui.designs.has(id) && !(ui.order || []).includes(id)) {
+    showDesigns([id, ...(ui.order || []).filter((x) => x !== id)].slice(0, Math.max((ui.order || []).length, 1)), ui.pcRows || []);
+  }
+}
+ui.showDesign = showDesign;
+// where the point of design id is drawn, in page coordinates (read by the browser test)
+ui.objectiveAt = (id) => {
+  const m = ui.objectivePoints && ui.objectivePoints.get(id);
+  if (!m) return null;
+  const v = m.position.clone().project(oCamera), r = oRenderer.domElement.getBoundingClientRect();
+  return [r.left + (v.x + 1) / 2 * r.width, r.top + (1 - v.y) / 2 * r.height];
+};
+for (const id of ["obj-x", "obj-y", "obj-z"]) $(id).onchange = drawObjectives;
+$("show-objectives").onchange = () => { drawObjectives(); resize(); frameAll(); };
 
 // ------------------------------------------------------------------------------------------ design
 async function select(id) {
   ui.selected = id;
   document.querySelectorAll("#pc path.design").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
+  markObjective();
   document.querySelectorAll("#gen-list [data-id], #kinds-list [data-id]").forEach((n) => n.classList.toggle("selected", n.dataset.id === id));
   highlight();
   let d;
