@@ -8,8 +8,9 @@ Each takes a run (directory or open ``RunStore``) and returns an Arrow table of 
   weighted deviation as ``dev_<name>``;
 * ``archive``: the MAP-Elites archive after a generation (the best of each cell of the grid of
   ``[search]``), with ``cell`` and one ``bin_<descriptor>`` per axis;
-* ``clusters``: k-means (scikit-learn) over the standardised criteria and the logs of the phenotype's
-  sizes, one representative per cluster (the design nearest its centroid), with ``cluster`` and ``members``.
+* ``clusters``: the kinds of form among the best distinct designs, told apart by what a person sees
+  (outline, height field, curvature: ``form_descriptors``), each kind's representative as far from the
+  others as the pool allows, with ``cluster`` and ``members``.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from genr8_dist.store.schema import (
     sizes_of,
 )
 
-__all__ = ["archive", "clusters", "pareto_front"]
+__all__ = ["archive", "clusters", "form_descriptors", "pareto_front"]
 
 
 def _newest_config(store: Any) -> Any:
@@ -152,20 +153,98 @@ class _Row:
                          for k, v in row.items() if (c := criterion_of(k)) is not None}
 
 
-def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
-             island: int | None = None) -> pa.Table:
-    """``k`` clusters of the run's distinct phenotypes (or of ``generation``, ``island``) by k-means over
-    their standardised criteria and the logs of their sizes; per cluster the design nearest its
-    centroid, with its ``cluster`` number, how many ``members`` the cluster has (largest first) and
-    their ids (``member_ids``, each form's best)."""
-    if k < 1:
-        raise HistoryError(f"clusters: k must be at least 1, got {k}")
-    try:
-        from sklearn.cluster import KMeans
-    except ImportError:
-        raise HistoryError("clustering needs scikit-learn: pip install 'genr8_dist[search]'") from None
-    store = open_run(run)
-    table = _distinct(store, generation, island, [])
+POOL_PER_KIND = 10   # the kinds of form are found among the run's best 10 * k distinct designs
+_RAYS = 24           # outline: the perimeter's distance from the centre in 24 directions
+_GRID = 8            # height field: mean height on an 8 x 8 grid over the outline's square
+_TILTS = 6           # curvature: area share of the regions per 15 degrees of tilt from level
+
+
+def form_descriptors(surface: Any) -> np.ndarray | None:
+    """What a person sees of a surface in a gallery tile, at any size: its outline (how far from the
+    centre of its bounding square a ray in each of 24 directions leaves the perimeter, over the
+    farthest), its height field (the mean height above the surface's mean on an 8 x 8 grid over the
+    bounding square, over the square's side) and its curvature (the regions' area per 15 degrees of
+    tilt from level, and the share of area facing down: folds). Each varies continuously with the
+    vertices, so a form a hair away has descriptors a hair away. ``None`` for a phenotype that is not a surface or has no regions."""
+    if not all(hasattr(surface, a) for a in ("vertices", "regions", "perimeter")):
+        return None
+    v = np.asarray(surface.vertices, dtype=np.float64)
+    regions = surface.regions
+    if len(v) < 3 or not len(regions):
+        return None
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    side = float(max(hi[0] - lo[0], hi[1] - lo[1]))
+    if not side > 0:
+        return None
+    centre = (lo + hi) / 2
+    # outline: where a ray from the centre in each of 24 directions leaves the perimeter, the farthest
+    loop = v[np.asarray(surface.perimeter(), dtype=np.int64)][:, :2] - centre[:2]
+    angle = np.arange(_RAYS) * (2 * np.pi / _RAYS)
+    ray = np.column_stack([np.cos(angle), np.sin(angle)])
+    p, e = loop, np.roll(loop, -1, axis=0) - loop
+    cross = ray[:, None, 0] * e[None, :, 1] - ray[:, None, 1] * e[None, :, 0]       # (rays, sides)
+    safe = np.where(np.abs(cross) > 1e-12, cross, 1.0)
+    t = (p[None, :, 0] * e[None, :, 1] - p[None, :, 1] * e[None, :, 0]) / safe      # along the ray
+    u = (p[None, :, 0] * ray[:, None, 1] - p[None, :, 1] * ray[:, None, 0]) / safe  # along the side
+    hit = (np.abs(cross) > 1e-12) & (u >= 0) & (u <= 1) & (t > 0)
+    outline = np.where(hit, t, 0.0).max(axis=1)
+    outline /= max(float(outline.max()), 1e-12)
+    # height field: the vertices and the regions' centres, spread bilinearly over the grid's cells
+    areas, normals, centres = [], [], []
+    for cycle in regions:
+        q = v[cycle]
+        n = np.cross(q, np.roll(q, -1, axis=0)).sum(axis=0) / 2   # Newell: area times unit normal
+        areas.append(float(np.linalg.norm(n)))
+        normals.append(n)
+        centres.append(q.mean(axis=0))
+    area = np.asarray(areas)
+    normal = np.asarray(normals) / np.maximum(area, 1e-300)[:, None]
+    points = np.vstack([v, np.asarray(centres)])
+    z = (points[:, 2] - points[:, 2].mean()) / side
+    total, count = np.zeros(_GRID * _GRID), np.zeros(_GRID * _GRID)
+    g = np.clip((points[:, :2] - (centre[:2] - side / 2)) / side * _GRID - 0.5, 0.0, _GRID - 1.0)
+    i0 = np.minimum(np.floor(g).astype(np.int64), _GRID - 2)
+    f = g - i0
+    for dx in (0, 1):
+        for dy in (0, 1):
+            w = (f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1])
+            cell = (i0[:, 0] + dx) * _GRID + i0[:, 1] + dy
+            total += np.bincount(cell, w * z, _GRID * _GRID)
+            count += np.bincount(cell, w, _GRID * _GRID)
+    height = np.where(count > 1e-9, total / np.maximum(count, 1e-9), 0.0)
+    # curvature: the spread of the regions' tilts (a sheet: all level; a dome or a fold: many),
+    # each region shared between the two nearest of the 15-degree steps
+    weight = area / max(float(area.sum()), 1e-300)
+    step = np.degrees(np.arccos(np.clip(np.abs(normal[:, 2]), 0.0, 1.0))) / 15
+    low = np.minimum(np.floor(step).astype(np.int64), _TILTS - 1)
+    up = np.clip(step - low, 0.0, 1.0)
+    tilts = (np.bincount(low, weight * (1 - up), _TILTS)
+             + np.bincount(np.minimum(low + 1, _TILTS - 1), weight * up, _TILTS))
+    down = float(weight[normal[:, 2] < 0].sum())
+    return np.concatenate([outline, height, tilts, [min(down, 1 - down)]])
+
+
+def _blocks() -> list[slice]:
+    a, b = _RAYS, _RAYS + _GRID * _GRID
+    return [slice(0, a), slice(a, b), slice(b, b + _TILTS + 1)]
+
+
+def _farthest(x: np.ndarray, k: int) -> list[int]:
+    """``k`` rows of ``x`` (sorted best first) chosen one by one, each the farthest from those already
+    chosen (the first: the best); ties to the better."""
+    chosen = [0]
+    nearest = ((x - x[0]) ** 2).sum(axis=1)
+    while len(chosen) < min(k, len(x)):
+        i = int(np.argmax(nearest))       # argmax: the first, so the better of equals
+        if not nearest[i] > 0:            # every form left is a copy of one chosen
+            break
+        chosen.append(i)
+        nearest = np.minimum(nearest, ((x - x[i]) ** 2).sum(axis=1))
+    return chosen
+
+
+def _criteria_features(table: pa.Table) -> np.ndarray:
+    """A phenotype without a surface's descriptors: its standardised criteria and log sizes."""
     crits = criteria_of(table.schema)
     features = [as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits]
     features += [np.log1p(as_numpy(table[size_column(s)], 0).astype(np.float64))
@@ -175,19 +254,60 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     fill = np.nanmedian(np.where(np.isnan(x).all(axis=0), 0.0, x), axis=0) if len(x) else 0.0
     x = np.where(np.isnan(x), fill, x)
     spread = x.std(axis=0)
-    x = (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
-    k = min(k, len(x))
-    model = KMeans(n_clusters=k, n_init=10, random_state=0).fit(x)
-    labels = model.labels_
-    picks, sizes, ids = [], [], []
-    for c in range(k):
-        members = np.flatnonzero(labels == c)
-        if not members.size:
-            continue
-        nearest = members[np.argmin(((x[members] - model.cluster_centers_[c]) ** 2).sum(axis=1))]
-        picks.append(int(nearest))
-        sizes.append(int(members.size))
-        ids.append([table["id"][int(m)].as_py() for m in members])
+    return (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
+
+
+def _form_features(store: Any, table: pa.Table) -> np.ndarray:
+    """Each row's ``form_descriptors`` (its text developed again under its configuration), the outline,
+    height-field and curvature blocks each scaled to one unit of spread, so that each counts alike;
+    the criteria's features when any row is not a surface."""
+    from genr8_dist.history._run import config_of, phenotype_for
+
+    rows = table.select(["text", "config_version"]).to_pylist()
+    configs: dict[int, tuple[Any, Any]] = {}
+    found = []
+    for row in rows:
+        version = int(row["config_version"])
+        if version not in configs:
+            config = config_of(store, version)
+            configs[version] = (config, phenotype_for(store, config))
+        config, phenotype = configs[version]
+        try:
+            value = phenotype.develop(row["text"], config).value
+        except Exception:       # a plugin's phenotype may fail again as it failed then
+            value = None
+        d = form_descriptors(value)
+        if d is None:
+            return _criteria_features(table)
+        found.append(d)
+    x = np.vstack(found)
+    for block in _blocks():
+        spread = float(np.sqrt(x[:, block].var(axis=0).sum()))
+        x[:, block] = (x[:, block] - x[:, block].mean(axis=0)) / (spread if spread > 0 else 1.0)
+    return x
+
+
+def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
+             island: int | None = None) -> pa.Table:
+    """``k`` kinds of form among the run's best ``10 k`` distinct phenotypes (of ``generation``,
+    ``island``), chosen by what a person sees: each kind's representative is the design farthest, in
+    outline, height field and curvature (``form_descriptors``), from the kinds already chosen, the
+    first being the best; every design of the pool belongs to the kind it looks most like. Per kind:
+    its ``cluster`` number, how many ``members`` it has (largest first) and their ids
+    (``member_ids``, each form's best). A phenotype that is not a surface is told apart by its
+    standardised criteria and the logs of its sizes. Deterministic: no random draw."""
+    if k < 1:
+        raise HistoryError(f"clusters: k must be at least 1, got {k}")
+    store = open_run(run)
+    table = _distinct(store, generation, island, ["text", "config_version"])
+    table = table.slice(0, POOL_PER_KIND * k)    # best first
+    x = _form_features(store, table)
+    picks = _farthest(x, k)
+    centres = x[picks]
+    labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(axis=2), axis=1)
+    labels[picks] = np.arange(len(picks))     # a representative is in its own kind, even among copies
+    sizes = [int((labels == c).sum()) for c in range(len(picks))]
+    ids = [[table["id"][int(m)].as_py() for m in np.flatnonzero(labels == c)] for c in range(len(picks))]
     order = sorted(range(len(picks)), key=lambda i: (-sizes[i], picks[i]))
     rows = _with_top_columns(store, [table["id"][picks[i]].as_py() for i in order])
     rows = rows.append_column("cluster", pa.array(list(range(1, len(order) + 1)), pa.int32()))
