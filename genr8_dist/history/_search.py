@@ -8,9 +8,9 @@ Each takes a run (directory or open ``RunStore``) and returns an Arrow table of 
   weighted deviation as ``dev_<name>``;
 * ``archive``: the MAP-Elites archive after a generation (the best of each cell of the grid of
   ``[search]``), with ``cell`` and one ``bin_<descriptor>`` per axis;
-* ``clusters``: the kinds of form among the best distinct designs, told apart by what a person sees
-  (outline, height field, curvature: ``form_descriptors``), each kind's representative as far from the
-  others as the pool allows, with ``cluster`` and ``members``.
+* ``clusters``: the kinds of form among the best distinct designs, told apart by what a person
+  sees (a surface's outline, height field, curvature: ``genr8_dist.forms``), each kind's
+  representative as far from the others as the pool allows, with ``cluster`` and ``members``.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ from genr8_dist.store.schema import (
     sizes_of,
 )
 
-__all__ = ["archive", "clusters", "form_descriptors", "pareto_front"]
+__all__ = ["archive", "clusters", "pareto_front"]
 
 
 def _newest_config(store: Any) -> Any:
@@ -154,79 +154,6 @@ class _Row:
 
 
 POOL_PER_KIND = 10   # the kinds of form are found among the run's best 10 * k distinct designs
-_RAYS = 24           # outline: the perimeter's distance from the centre in 24 directions
-_GRID = 8            # height field: mean height on an 8 x 8 grid over the outline's square
-_TILTS = 6           # curvature: area share of the regions per 15 degrees of tilt from level
-
-
-def form_descriptors(surface: Any) -> np.ndarray | None:
-    """What a person sees of a surface in a gallery tile, at any size: its outline (how far from the
-    centre of its bounding square a ray in each of 24 directions leaves the perimeter, over the
-    farthest), its height field (the mean height above the surface's mean on an 8 x 8 grid over the
-    bounding square, over the square's side) and its curvature (the regions' area per 15 degrees of
-    tilt from level, and the share of area facing down: folds). Each varies continuously with the
-    vertices, so a form a hair away has descriptors a hair away. ``None`` for a phenotype that is not a surface or has no regions."""
-    if not all(hasattr(surface, a) for a in ("vertices", "regions", "perimeter")):
-        return None
-    v = np.asarray(surface.vertices, dtype=np.float64)
-    regions = surface.regions
-    if len(v) < 3 or not len(regions):
-        return None
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    side = float(max(hi[0] - lo[0], hi[1] - lo[1]))
-    if not side > 0:
-        return None
-    centre = (lo + hi) / 2
-    # outline: where a ray from the centre in each of 24 directions leaves the perimeter, the farthest
-    loop = v[np.asarray(surface.perimeter(), dtype=np.int64)][:, :2] - centre[:2]
-    angle = np.arange(_RAYS) * (2 * np.pi / _RAYS)
-    ray = np.column_stack([np.cos(angle), np.sin(angle)])
-    p, e = loop, np.roll(loop, -1, axis=0) - loop
-    cross = ray[:, None, 0] * e[None, :, 1] - ray[:, None, 1] * e[None, :, 0]       # (rays, sides)
-    safe = np.where(np.abs(cross) > 1e-12, cross, 1.0)
-    t = (p[None, :, 0] * e[None, :, 1] - p[None, :, 1] * e[None, :, 0]) / safe      # along the ray
-    u = (p[None, :, 0] * ray[:, None, 1] - p[None, :, 1] * ray[:, None, 0]) / safe  # along the side
-    hit = (np.abs(cross) > 1e-12) & (u >= 0) & (u <= 1) & (t > 0)
-    outline = np.where(hit, t, 0.0).max(axis=1)
-    outline /= max(float(outline.max()), 1e-12)
-    # height field: the vertices and the regions' centres, spread bilinearly over the grid's cells
-    areas, normals, centres = [], [], []
-    for cycle in regions:
-        q = v[cycle]
-        n = np.cross(q, np.roll(q, -1, axis=0)).sum(axis=0) / 2   # Newell: area times unit normal
-        areas.append(float(np.linalg.norm(n)))
-        normals.append(n)
-        centres.append(q.mean(axis=0))
-    area = np.asarray(areas)
-    normal = np.asarray(normals) / np.maximum(area, 1e-300)[:, None]
-    points = np.vstack([v, np.asarray(centres)])
-    z = (points[:, 2] - points[:, 2].mean()) / side
-    total, count = np.zeros(_GRID * _GRID), np.zeros(_GRID * _GRID)
-    g = np.clip((points[:, :2] - (centre[:2] - side / 2)) / side * _GRID - 0.5, 0.0, _GRID - 1.0)
-    i0 = np.minimum(np.floor(g).astype(np.int64), _GRID - 2)
-    f = g - i0
-    for dx in (0, 1):
-        for dy in (0, 1):
-            w = (f[:, 0] if dx else 1 - f[:, 0]) * (f[:, 1] if dy else 1 - f[:, 1])
-            cell = (i0[:, 0] + dx) * _GRID + i0[:, 1] + dy
-            total += np.bincount(cell, w * z, _GRID * _GRID)
-            count += np.bincount(cell, w, _GRID * _GRID)
-    height = np.where(count > 1e-9, total / np.maximum(count, 1e-9), 0.0)
-    # curvature: the spread of the regions' tilts (a sheet: all level; a dome or a fold: many),
-    # each region shared between the two nearest of the 15-degree steps
-    weight = area / max(float(area.sum()), 1e-300)
-    step = np.degrees(np.arccos(np.clip(np.abs(normal[:, 2]), 0.0, 1.0))) / 15
-    low = np.minimum(np.floor(step).astype(np.int64), _TILTS - 1)
-    up = np.clip(step - low, 0.0, 1.0)
-    tilts = (np.bincount(low, weight * (1 - up), _TILTS)
-             + np.bincount(np.minimum(low + 1, _TILTS - 1), weight * up, _TILTS))
-    down = float(weight[normal[:, 2] < 0].sum())
-    return np.concatenate([outline, height, tilts, [min(down, 1 - down)]])
-
-
-def _blocks() -> list[slice]:
-    a, b = _RAYS, _RAYS + _GRID * _GRID
-    return [slice(0, a), slice(a, b), slice(b, b + _TILTS + 1)]
 
 
 def _farthest(x: np.ndarray, k: int) -> list[int]:
@@ -258,14 +185,14 @@ def _criteria_features(table: pa.Table) -> np.ndarray:
 
 
 def _form_features(store: Any, table: pa.Table) -> np.ndarray:
-    """Each row's ``form_descriptors`` (its text developed again under its configuration), the outline,
-    height-field and curvature blocks each scaled to one unit of spread, so that each counts alike;
-    the criteria's features when any row is not a surface."""
+    """What each row looks like (its phenotype's ``looks``, its text developed again under its
+    configuration), each block of descriptors scaled to one unit of spread over the rows so that each
+    counts alike; the criteria's features when a phenotype has no ``looks``."""
     from genr8_dist.history._run import config_of, phenotype_for
 
     rows = table.select(["text", "config_version"]).to_pylist()
     configs: dict[int, tuple[Any, Any]] = {}
-    found = []
+    found: list[list[np.ndarray]] = []
     for row in rows:
         version = int(row["config_version"])
         if version not in configs:
@@ -273,25 +200,26 @@ def _form_features(store: Any, table: pa.Table) -> np.ndarray:
             configs[version] = (config, phenotype_for(store, config))
         config, phenotype = configs[version]
         try:
-            value = phenotype.develop(row["text"], config).value
+            looks = phenotype.looks(phenotype.develop(row["text"], config))
         except Exception:       # a plugin's phenotype may fail again as it failed then
-            value = None
-        d = form_descriptors(value)
-        if d is None:
+            looks = None
+        if looks is None:
             return _criteria_features(table)
-        found.append(d)
-    x = np.vstack(found)
-    for block in _blocks():
-        spread = float(np.sqrt(x[:, block].var(axis=0).sum()))
-        x[:, block] = (x[:, block] - x[:, block].mean(axis=0)) / (spread if spread > 0 else 1.0)
-    return x
+        found.append([np.asarray(b, dtype=np.float64).reshape(-1) for b in looks])
+    blocks = []
+    for j in range(len(found[0])):
+        x = np.vstack([f[j] for f in found])
+        spread = float(np.sqrt(x.var(axis=0).sum()))
+        blocks.append((x - x.mean(axis=0)) / (spread if spread > 0 else 1.0))
+    return np.hstack(blocks)
 
 
 def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
              island: int | None = None) -> pa.Table:
     """``k`` kinds of form among the run's best ``10 k`` distinct phenotypes (of ``generation``,
     ``island``), chosen by what a person sees: each kind's representative is the design farthest, in
-    outline, height field and curvature (``form_descriptors``), from the kinds already chosen, the
+    what it looks like (the phenotype's ``looks``: a surface's outline, height field and curvature,
+    ``genr8_dist.forms``), from the kinds already chosen, the
     first being the best; every design of the pool belongs to the kind it looks most like. Per kind:
     its ``cluster`` number, how many ``members`` it has (largest first) and their ids
     (``member_ids``, each form's best). A phenotype that is not a surface is told apart by its

@@ -69,7 +69,8 @@ def test_the_pareto_front_is_every_non_dominated_surface_and_nothing_else(pareto
 
 def test_kinds_cover_the_best_distinct_surfaces_once_look_apart_and_are_repeatable(pareto_run):
     from genr8_dist import history
-    from genr8_dist.history._search import POOL_PER_KIND, form_descriptors
+    from genr8_dist.history._search import POOL_PER_KIND
+    from genr8_dist.phenotype import SURFACES
 
     store, config = pareto_run
     a = history.clusters(store, 4)
@@ -79,12 +80,12 @@ def test_kinds_cover_the_best_distinct_surfaces_once_look_apart_and_are_repeatab
     pool = min(n, POOL_PER_KIND * 4)
     assert a.num_rows == 4 and sum(a["members"].to_pylist()) == pool
     members = [i for ids in a["member_ids"].to_pylist() for i in ids]
-    assert len(set(members)) == pool and all(r in ids for r, ids in zip(a["id"].to_pylist(),
-                                                                        a["member_ids"].to_pylist()))
+    assert len(set(members)) == pool
+    assert all(r in ids for r, ids in zip(a["id"].to_pylist(), a["member_ids"].to_pylist(), strict=True))
     assert a["members"].to_pylist() == sorted(a["members"].to_pylist(), reverse=True)
     # the best distinct surface is a kind, and no two kinds look alike
     assert history.top(store, 1)["id"][0].as_py() in a["id"].to_pylist()
-    seen = [form_descriptors(history.regrow(store, i).value) for i in a["id"].to_pylist()]
+    seen = [np.concatenate(SURFACES.looks(history.regrow(store, i).developed)) for i in a["id"].to_pylist()]
     gaps = [np.linalg.norm(seen[i] - seen[j]) for i in range(4) for j in range(i)]
     assert min(gaps) > 0.05
 
