@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import types
+from pathlib import Path
 
 import numpy as np
 
@@ -10,7 +11,7 @@ from genr8_dist.environment import Environment, load_environment
 from genr8_dist.forms import form_descriptors
 from genr8_dist.hemls import grow, load_system
 
-SHELL = "examples/environments/shell.toml"
+SHELL = Path(__file__).resolve().parents[1] / "examples" / "environments" / "shell.toml"
 
 
 def _view(vertices, surface):
