@@ -137,3 +137,23 @@ def test_grown_four_sided_tiles_round_trip_through_obj(tmp_path):
     assert mesh.area == pytest.approx(surface.n_regions * (1.5 ** 3 / 8) ** 2)  # 64 squares of side 1.5^3/8
     lines = export_scaffold(surface, tmp_path / "tiles-scaffold.obj").read_text().splitlines()
     assert sum(line.startswith("l ") for line in lines) == 144
+
+
+def test_pictures_blend_the_shading_across_each_triangle():
+    """A picture draws each triangle as its four midpoint triangles, coloured from the corners'
+    height and light, so neighbouring polygons differ by a fraction of a facet's step."""
+    import matplotlib
+
+    from genr8_dist.export import _face_colours
+
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0]])
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    polygons, colours = _face_colours(points, faces, matplotlib.colormaps["viridis"])
+    assert polygons.shape == (8, 3, 3) and colours.shape == (8, 4)
+
+    def area(t):
+        return np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum() / 2
+
+    assert area(polygons) == pytest.approx(area(points[faces]))      # the same surface drawn
+    low, high = colours[:, :3].sum(axis=1).min(), colours[:, :3].sum(axis=1).max()
+    assert len({tuple(c) for c in colours.round(6)}) > 2 and high > low  # shades vary within a face
