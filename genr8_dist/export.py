@@ -243,20 +243,39 @@ def smooth_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return result
 
 
+_SHADED_SPLIT = 12_000   # meshes of up to this many triangles are drawn split in four (smoother shading)
+
+
 def _face_colours(vertices: np.ndarray, faces: np.ndarray, cmap: Any, low: float = 0.15,
-                  span_: float = 0.7, dark: float = 0.45) -> np.ndarray:
-    """Colour by height, shaded by a fixed light through smooth (point-averaged) normals: each
-    triangle takes the mean of its corners' Lambert terms (two-sided), so no facet or seam shows."""
-    tri = vertices[faces]
-    lambert = np.abs(smooth_normals(vertices, faces) @ _LIGHT)[faces].mean(axis=1)
-    z = tri[:, :, 2].mean(axis=1)
-    span = float(np.ptp(z)) if len(z) else 0.0
-    level = (z - z.min()) / span if span > 1e-12 else np.full(len(z), 0.55)
-    colours = cmap(low + span_ * level)
-    colours[:, :3] *= (dark + (1.0 - dark) * lambert)[:, None]
+                  span_: float = 0.7, dark: float = 0.45) -> tuple[np.ndarray, np.ndarray]:
+    """The polygons drawn and their colours: colour by height, shaded by a fixed light through smooth
+    (point-averaged) normals, both taken at the points and blended across each triangle as Gouraud
+    shading does. A polygon takes one colour, so each triangle of a mesh up to ``_SHADED_SPLIT`` is
+    drawn as its four midpoint triangles, each the mean of its corners' colours: no facet or seam
+    shows. Returns (T, 3, 3) polygons and (T, 4) colours."""
+    lambert = np.abs(smooth_normals(vertices, faces) @ _LIGHT)
+    z = vertices[:, 2]
+    used = np.unique(faces)
+    zlo = float(z[used].min()) if len(used) else 0.0
+    span = float(np.ptp(z[used])) if len(used) else 0.0
+    level = (z - zlo) / span if span > 1e-12 else np.full(len(z), 0.55)
+    point_colours = cmap(low + span_ * np.clip(level, 0.0, 1.0))
+    point_colours[:, :3] *= (dark + (1.0 - dark) * lambert)[:, None]
+    point_colours[:, 3] = 1.0
+    tri, col = vertices[faces], point_colours[faces]          # (F, 3, 3), (F, 3, 4)
+    if len(faces) <= _SHADED_SPLIT:
+        mid = (tri + np.roll(tri, -1, axis=1)) / 2            # midpoints of ab, bc, ca
+        mcol = (col + np.roll(col, -1, axis=1)) / 2
+        a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+        ab, bc, ca = mid[:, 0], mid[:, 1], mid[:, 2]
+        ka, kb, kc = col[:, 0], col[:, 1], col[:, 2]
+        mab, mbc, mca = mcol[:, 0], mcol[:, 1], mcol[:, 2]
+        tri = np.concatenate([np.stack(t, 1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+        col = np.concatenate([np.stack(t, 1) for t in ((ka, mab, mca), (mab, kb, mbc), (mca, mbc, kc),
+                                                       (mab, mbc, mca))])
+    colours = col.mean(axis=1)
     colours[:, 3] = 1.0
-    result: np.ndarray = colours
-    return result
+    return tri, colours
 
 
 def _drawn(surface: SurfaceLike) -> tuple[np.ndarray, np.ndarray]:
@@ -280,8 +299,8 @@ def _add_surface(ax: Any, surface: SurfaceLike, plt: Any, *, low: float, span: f
     points, faces = _drawn(surface)
     extra = {} if zorder is None else {"zorder": zorder}
     if len(faces):
-        colours = _face_colours(points, faces, plt.get_cmap("viridis"), low, span, dark)
-        ax.add_collection3d(Poly3DCollection(points[faces], facecolors=colours, edgecolors=colours,
+        polygons, colours = _face_colours(points, faces, plt.get_cmap("viridis"), low, span, dark)
+        ax.add_collection3d(Poly3DCollection(polygons, facecolors=colours, edgecolors=colours,
                                              linewidths=0.1, antialiased=False, **extra))
     edges = np.asarray(surface.edges).reshape(-1, 2)
     if len(edges):

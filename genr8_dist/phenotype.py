@@ -137,6 +137,12 @@ class Phenotype(ABC):
         developing it); by default never trivial, and the text itself."""
         return False, text
 
+    def looks(self, developed: Developed) -> list[Any] | None:
+        """What a person sees of ``developed``, as blocks of numbers (arrays of a fixed length each,
+        each block counting alike), by which the kinds of form of a run are told apart
+        (``history.clusters``); by default ``None``: the criteria and sizes tell them apart."""
+        return None
+
     def describe(self, developed: Developed) -> str:
         """One line saying what was developed (``genr8 show``): its counts, else its kind."""
         parts = [f"{n} {k}" for k, n in developed.counts.items()]
@@ -245,6 +251,12 @@ class SurfacePhenotype(Phenotype):
 
         return render_png(developed.value, Path(path), title=title,
                           env=getattr(config, "environment", None))
+
+    def looks(self, developed: Developed) -> list[Any] | None:
+        """The surface's outline, height field and curvature (``genr8_dist.forms``)."""
+        from genr8_dist.forms import form_descriptors
+
+        return form_descriptors(developed.value)
 
     def draw(self, ax: Any, developed: Developed) -> None:
         """The shaded surface and its edges (nothing for a surface without vertices)."""

@@ -157,3 +157,23 @@ def test_every_surface_format_of_the_table_writes_its_file(tmp_path):
         assert len(download) > 0
     with pytest.raises(ConfigError, match=r"unknown surface format '\.dxf'; use one of \.obj"):
         export_surface(surface, tmp_path / "t.dxf")
+
+
+def test_pictures_blend_the_shading_across_each_triangle():
+    """A picture draws each triangle as its four midpoint triangles, coloured from the corners'
+    height and light, so neighbouring polygons differ by a fraction of a facet's step."""
+    import matplotlib
+
+    from genr8_dist.export import _face_colours
+
+    points = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0]])
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    polygons, colours = _face_colours(points, faces, matplotlib.colormaps["viridis"])
+    assert polygons.shape == (8, 3, 3) and colours.shape == (8, 4)
+
+    def area(t):
+        return np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum() / 2
+
+    assert area(polygons) == pytest.approx(area(points[faces]))      # the same surface drawn
+    low, high = colours[:, :3].sum(axis=1).min(), colours[:, :3].sum(axis=1).max()
+    assert len({tuple(c) for c in colours.round(6)}) > 2 and high > low  # shades vary within a face

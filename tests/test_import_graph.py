@@ -15,7 +15,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "genr8_dist"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "rng", "resources", "tomlfile", "files", "fields"),   # no genr8_dist import but these
     ("environment",),                   # the simulated environment: forces, boundaries, physics
-    ("hemls", "scaffold"),              # the language, growth in an environment, the surface
+    ("hemls", "scaffold", "forms"),     # the language, growth in an environment, the surface
     ("fitness", "export"),              # criteria over a surface; files and pictures of one
     ("grammar",),                       # universes: grammar, mapping, hooks, trust, discovery
     ("phenotype",),                     # what a universe's texts develop into

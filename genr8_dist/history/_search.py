@@ -8,8 +8,9 @@ Each takes a run (directory or open ``RunStore``) and returns an Arrow table of 
   weighted deviation as ``dev_<name>``;
 * ``archive``: the MAP-Elites archive after a generation (the best of each cell of the grid of
   ``[search]``), with ``cell`` and one ``bin_<descriptor>`` per axis;
-* ``clusters``: k-means (scikit-learn) over the standardised criteria and the logs of the phenotype's
-  sizes, one representative per cluster (the design nearest its centroid), with ``cluster`` and ``members``.
+* ``clusters``: the kinds of form among the best distinct designs, told apart by what a person
+  sees (a surface's outline, height field, curvature: ``genr8_dist.forms``), each kind's
+  representative as far from the others as the pool allows, with ``cluster`` and ``members``.
 """
 
 from __future__ import annotations
@@ -153,21 +154,25 @@ class _Row:
                          for k, v in row.items() if (c := criterion_of(k)) is not None}
 
 
-def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
-             island: int | None = None) -> pa.Table:
-    """``k`` clusters of the run's distinct phenotypes (or of ``generation``, ``island``) by k-means over
-    their standardised criteria and the logs of their sizes; per cluster the design nearest its
-    centroid, with its ``cluster`` number, how many ``members`` the cluster has (largest first),
-    their ids (``member_ids``, each form's best) and the range of each criterion and of the fitness
-    over them (``min_<name>``, ``max_<name>``; ``cluster_ranges`` reads them)."""
-    if k < 1:
-        raise HistoryError(f"clusters: k must be at least 1, got {k}")
-    try:
-        from sklearn.cluster import KMeans
-    except ImportError:
-        raise HistoryError("clustering needs scikit-learn: pip install 'genr8_dist[search]'") from None
-    store = open_run(run)
-    table = _distinct(store, generation, island, [])
+POOL_PER_KIND = 10   # the kinds of form are found among the run's best 10 * k distinct designs
+
+
+def _farthest(x: np.ndarray, k: int) -> list[int]:
+    """``k`` rows of ``x`` (sorted best first) chosen one by one, each the farthest from those already
+    chosen (the first: the best); ties to the better."""
+    chosen = [0]
+    nearest = ((x - x[0]) ** 2).sum(axis=1)
+    while len(chosen) < min(k, len(x)):
+        i = int(np.argmax(nearest))       # argmax: the first, so the better of equals
+        if not nearest[i] > 0:            # every form left is a copy of one chosen
+            break
+        chosen.append(i)
+        nearest = np.minimum(nearest, ((x - x[i]) ** 2).sum(axis=1))
+    return chosen
+
+
+def _criteria_features(table: pa.Table) -> np.ndarray:
+    """A phenotype without a surface's descriptors: its standardised criteria and log sizes."""
     crits = criteria_of(table.schema)
     features = [as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits]
     features += [np.log1p(as_numpy(table[size_column(s)], 0).astype(np.float64))
@@ -177,22 +182,67 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     fill = np.nanmedian(np.where(np.isnan(x).all(axis=0), 0.0, x), axis=0) if len(x) else 0.0
     x = np.where(np.isnan(x), fill, x)
     spread = x.std(axis=0)
-    x = (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
-    k = min(k, len(x))
-    model = KMeans(n_clusters=k, n_init=10, random_state=0).fit(x)
-    labels = model.labels_
+    return (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
+
+
+def _form_features(store: Any, table: pa.Table) -> np.ndarray:
+    """What each row looks like (its phenotype's ``looks``, its text developed again under its
+    configuration), each block of descriptors scaled to one unit of spread over the rows so that each
+    counts alike; the criteria's features when a phenotype has no ``looks``."""
+    from genr8_dist.history._run import config_of, phenotype_for
+
+    rows = table.select(["text", "config_version"]).to_pylist()
+    configs: dict[int, tuple[Any, Any]] = {}
+    found: list[list[np.ndarray]] = []
+    for row in rows:
+        version = int(row["config_version"])
+        if version not in configs:
+            config = config_of(store, version)
+            configs[version] = (config, phenotype_for(store, config))
+        config, phenotype = configs[version]
+        try:
+            looks = phenotype.looks(phenotype.develop(row["text"], config))
+        except Exception:       # a plugin's phenotype may fail again as it failed then
+            looks = None
+        if looks is None:
+            return _criteria_features(table)
+        found.append([np.asarray(b, dtype=np.float64).reshape(-1) for b in looks])
+    blocks = []
+    for j in range(len(found[0])):
+        x = np.vstack([f[j] for f in found])
+        spread = float(np.sqrt(x.var(axis=0).sum()))
+        blocks.append((x - x.mean(axis=0)) / (spread if spread > 0 else 1.0))
+    return np.hstack(blocks)
+
+
+def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
+             island: int | None = None) -> pa.Table:
+    """``k`` kinds of form among the run's best ``10 k`` distinct phenotypes (of ``generation``,
+    ``island``), chosen by what a person sees: each kind's representative is the design farthest, in
+    what it looks like (the phenotype's ``looks``: a surface's outline, height field and curvature,
+    ``genr8_dist.forms``), from the kinds already chosen, the
+    first being the best; every design of the pool belongs to the kind it looks most like. Per kind:
+    its ``cluster`` number, how many ``members`` it has (largest first), their ids
+    (``member_ids``, each form's best) and the range of each criterion and of the fitness over them
+    (``min_<name>``, ``max_<name>``; ``cluster_ranges`` reads them). A phenotype that is not a
+    surface is told apart by its standardised criteria and the logs of its sizes. Deterministic: no random draw."""
+    if k < 1:
+        raise HistoryError(f"clusters: k must be at least 1, got {k}")
+    store = open_run(run)
+    table = _distinct(store, generation, island, ["text", "config_version"])
+    table = table.slice(0, POOL_PER_KIND * k)    # best first
+    x = _form_features(store, table)
+    picks = _farthest(x, k)
+    centres = x[picks]
+    labels = np.argmin(((x[:, None, :] - centres[None]) ** 2).sum(axis=2), axis=1)
+    labels[picks] = np.arange(len(picks))     # a representative is in its own kind, even among copies
+    sizes = [int((labels == c).sum()) for c in range(len(picks))]
+    ids = [[table["id"][int(m)].as_py() for m in np.flatnonzero(labels == c)] for c in range(len(picks))]
     raw = {"fitness": as_numpy(table["fitness"], math.nan).astype(np.float64)}
-    raw.update({c: as_numpy(table[criterion_column(c)], math.nan).astype(np.float64) for c in crits})
-    picks, sizes, ids, ranges = [], [], [], []
-    for c in range(k):
-        members = np.flatnonzero(labels == c)
-        if not members.size:
-            continue
-        nearest = members[np.argmin(((x[members] - model.cluster_centers_[c]) ** 2).sum(axis=1))]
-        picks.append(int(nearest))
-        sizes.append(int(members.size))
-        ids.append([table["id"][int(m)].as_py() for m in members])
-        ranges.append({name: _finite_range(values[members]) for name, values in raw.items()})
+    raw.update({c: as_numpy(table[criterion_column(c)], math.nan).astype(np.float64)
+                for c in criteria_of(table.schema)})
+    ranges = [{name: _finite_range(values[labels == c]) for name, values in raw.items()}
+              for c in range(len(picks))]
     order = sorted(range(len(picks)), key=lambda i: (-sizes[i], picks[i]))
     rows = _with_top_columns(store, [table["id"][picks[i]].as_py() for i in order])
     rows = rows.append_column("cluster", pa.array(list(range(1, len(order) + 1)), pa.int32()))

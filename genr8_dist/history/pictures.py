@@ -468,16 +468,16 @@ def _regrown_tiles(store: RunStore, table: Any, label: Any) -> list[tuple[str, A
 
 def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = None,
                        island: int | None = None) -> tuple[Any, str]:
-    """A contact sheet of one representative per cluster (``history._search.clusters``)."""
+    """A contact sheet of one representative per kind of form (``history._search.clusters``)."""
     from genr8_dist.history._search import clusters
 
     store = open_run(run)
     table = clusters(store, k, generation=generation, island=island)
-    tiles = _regrown_tiles(store, table, lambda r: f"cluster {r['cluster']} ({r['members']})   "
+    tiles = _regrown_tiles(store, table, lambda r: f"kind {r['cluster']} ({r['members']})   "
                                                    f"{r['id']}  {r['fitness'] + 0.0:.3g}")
     where = "the whole run" if generation is None else f"generation {generation}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: {len(tiles)} kinds of form in {where} "
-             "(k-means; the design nearest each centroid, cluster size in brackets)")
+             "(told apart by outline, height field and curvature; designs alike in brackets)")
     return gallery_figure(tiles, title=title), f"{len(tiles)} clusters of {where}"
 
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 from genr8_dist.errors import Genr8Error
 from genr8_dist.history._regrow import export_formats
 from genr8_dist.history._run import RunLike, atomic_write, criteria_of, open_run, run_label
+from genr8_dist.history._search import POOL_PER_KIND
 from genr8_dist.store.schema import criterion_column
 
 if TYPE_CHECKING:
@@ -294,9 +295,9 @@ def _search_sections(store: RunStore, label: str, noun: str) -> list[str]:
                          f"<code>genr8 gallery {shown} --archive -o map.png</code>.</p>"))
     sections.append(_figure_section(
         "Kinds of form the run found", lambda: pictures.clusters_figure_of(store, 12), 80,
-        lambda info: f'<p class="note">The run\'s distinct {noun}s grouped by k-means over '
-                     "their criteria and sizes; each tile is the design "
-                     "nearest its cluster's centre, the cluster's size in brackets. "
+        lambda info: f'<p class="note">Among the run\'s best {POOL_PER_KIND * 12} distinct {noun}s, '
+                     "12 that look least alike (outline, height field, curvature), chosen from the "
+                     "best one on; in brackets, how many of those look most like each, largest first. "
                      f"<code>genr8 gallery {shown} --clusters 12 -o kinds.png</code>.</p>",
         failed="No clusters: "))
     return sections

@@ -67,17 +67,27 @@ def test_the_pareto_front_is_every_non_dominated_surface_and_nothing_else(pareto
     assert min(ranks) == 0 and all(r is not None for r in ranks)
 
 
-def test_clusters_cover_the_distinct_surfaces_once_and_are_repeatable(pareto_run):
+def test_kinds_cover_the_best_distinct_surfaces_once_look_apart_and_are_repeatable(pareto_run):
     from genr8_dist import history
+    from genr8_dist.history._search import POOL_PER_KIND
+    from genr8_dist.phenotype import SURFACES
 
     store, config = pareto_run
     a = history.clusters(store, 4)
     b = history.clusters(store, 4)
     assert a.equals(b)
     n = len(_distinct_devs(store, ["size"], config))
-    assert a.num_rows == 4 and sum(a["members"].to_pylist()) == n
-    assert len(set(a["id"].to_pylist())) == 4
+    pool = min(n, POOL_PER_KIND * 4)
+    assert a.num_rows == 4 and sum(a["members"].to_pylist()) == pool
+    members = [i for ids in a["member_ids"].to_pylist() for i in ids]
+    assert len(set(members)) == pool
+    assert all(r in ids for r, ids in zip(a["id"].to_pylist(), a["member_ids"].to_pylist(), strict=True))
     assert a["members"].to_pylist() == sorted(a["members"].to_pylist(), reverse=True)
+    # the best distinct surface is a kind, and no two kinds look alike
+    assert history.top(store, 1)["id"][0].as_py() in a["id"].to_pylist()
+    seen = [np.concatenate(SURFACES.looks(history.regrow(store, i).developed)) for i in a["id"].to_pylist()]
+    gaps = [np.linalg.norm(seen[i] - seen[j]) for i in range(4) for j in range(i)]
+    assert min(gaps) > 0.05
 
 
 def test_each_cluster_carries_the_ranges_of_its_members_criteria(pareto_run):

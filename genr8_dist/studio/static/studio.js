@@ -336,7 +336,7 @@ async function showDesigns(ids, generationRows) {
               polygonOffset: true, polygonOffsetFactor: 1, polygonOffsetUnits: 1 });
             o.userData.id = id;
           } else if (o.isLine || o.isLineSegments) {
-            o.material = new THREE.LineBasicMaterial({ color: 0x0e1116, transparent: true, opacity: 0.6 });  // the scaffold: B-spline curves of the region outlines
+            o.material = new THREE.LineBasicMaterial({ color: 0x0e1116, transparent: true, opacity: 0.45 });  // the scaffold: B-spline curves of the region outlines
           }
         });
         const box = new THREE.Box3().setFromObject(object);
