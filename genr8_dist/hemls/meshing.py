@@ -419,6 +419,37 @@ def _assemble(rings: _Rings, meshed: list[np.ndarray | None], inside: list[np.nd
     return points, triangles, regions, failed
 
 
+def _lifted(rings: _Rings, sizes: np.ndarray,
+            final: Callable[[int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None],
+            triangulate_polygons: Callable[..., np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh of every region from ``final(r)``: its flat mesh (points, the ring's first;
+    triangles) and its meshing-1 triangles' corners flat and in space, through which the added points
+    are lifted; a region ``final`` gives None for, or whose points fall outside those triangles, is
+    cut as meshing 1 cuts it (``_assemble``)."""
+    meshed: list[np.ndarray | None] = [None] * len(sizes)
+    inside: list[np.ndarray] = []
+    next_point = len(rings.points)
+    for r in range(len(sizes)):
+        if sizes[r] < 3:
+            meshed[r] = np.zeros((0, 3), dtype=np.int64)
+        got = final(r)
+        if got is None:
+            continue
+        points2, tri, corners2, corners3 = got
+        ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]     # as meshed (points renumbered since)
+        new = points2[len(ids):]
+        if len(new):
+            lifted = _lift(new, corners2, corners3)
+            if lifted is None:
+                continue
+            inside.append(lifted)
+        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
+        next_point += len(new)
+        meshed[r] = local_ids[tri]
+    return _assemble(rings, meshed, inside, triangulate_polygons)
+
+
 def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray]
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -463,29 +494,16 @@ def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coars
         rings = split.add(np.concatenate(found_edges), np.concatenate(found_t))
 
     coarse_start = np.searchsorted(owners, np.arange(n_regions + 1))
-    meshed: list[np.ndarray | None] = [None] * n_regions
-    inside: list[np.ndarray] = []
-    next_point = len(rings.points)
-    for r in range(n_regions):
-        frame = frames[r]
-        if sizes[r] < 3:
-            meshed[r] = np.zeros((0, 3), dtype=np.int64)
-        ids, xy, got = _in_plane(rings, r, centroid[r], frame, "Y")
-        if got is None or frame is None:
-            continue
-        points2, tri, _ = got
-        new = points2[len(ids):]
-        if len(new):
-            own = coarse[coarse_start[r]:coarse_start[r + 1]]
-            lifted = _lift(new, (vertices[own] - centroid[r]) @ frame.T, vertices[own])
-            if lifted is None:
-                continue
-            inside.append(lifted)
-        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
-        next_point += len(new)
-        meshed[r] = local_ids[tri]
-    return _assemble(rings, meshed, inside, triangulate_polygons)
 
+    def final(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        frame = frames[r]
+        _, _, got = _in_plane(rings, r, centroid[r], frame, "Y")
+        if got is None or frame is None:
+            return None
+        own = coarse[coarse_start[r]:coarse_start[r + 1]]
+        return got[0], got[1], (vertices[own] - centroid[r]) @ frame.T, vertices[own]
+
+    return _lifted(rings, sizes, final, triangulate_polygons)
 
 def _unfold(pos: np.ndarray, tri: np.ndarray) -> np.ndarray | None:
     """(m, 2) a region's cycle (``pos`` (m, 3)) laid flat by unfolding its meshing-1 triangles
@@ -583,14 +601,18 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
                      0.0)
     coarse_start = np.searchsorted(owners, np.arange(n_regions + 1))
     charts: list[np.ndarray | None] = [None] * n_regions
-    for r in range(n_regions):
+
+    def coarse_of(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Region r's cycle, its meshing-1 triangles, and those as indices into the cycle."""
         cyc = cycles[offsets[r]:offsets[r + 1]]
-        if sizes[r] < 3 or len(np.unique(cyc)) < len(cyc):
-            continue
         own = coarse[coarse_start[r]:coarse_start[r + 1]]
-        local = np.searchsorted(np.sort(cyc), own)
-        local = np.argsort(cyc)[local] if len(own) else local.reshape(-1, 3)
-        charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r])
+        local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), own)] if len(own) else own.reshape(-1, 3)
+        return cyc, own, local
+
+    for r in range(n_regions):
+        cyc, _, local = coarse_of(r)
+        if sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
+            charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r])
     simple = np.array([c is not None for c in charts], dtype=bool)
     split = _EdgeSplit(vertices, cycles, nxt, region_of, width, simple, n_regions)
     rings = split.rings
@@ -639,28 +661,12 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         for r in np.unique(region_of[np.isin(split.inverse, split.changed)]):
             done.pop(int(r), None)          # its sides have new points: meshed again
         pending = [r for r in range(n_regions) if simple[r] and r not in done]
-    meshed: list[np.ndarray | None] = [None] * n_regions
-    inside: list[np.ndarray] = []
-    next_point = len(rings.points)
-    for r in range(n_regions):
-        if sizes[r] < 3:
-            meshed[r] = np.zeros((0, 3), dtype=np.int64)
+    def final(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
         if r not in done:
-            continue
-        points2, tri = done[r]
-        ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]     # as meshed (points renumbered since)
-        new = points2[len(ids):]
-        if len(new):
-            own = coarse[coarse_start[r]:coarse_start[r + 1]]
-            cyc = cycles[offsets[r]:offsets[r + 1]]
-            uv = charts[r]
-            assert uv is not None
-            local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), own)]
-            lifted = _lift(new, uv[local], vertices[own])
-            if lifted is None:
-                continue
-            inside.append(lifted)
-        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
-        next_point += len(new)
-        meshed[r] = local_ids[tri]
-    return _assemble(rings, meshed, inside, triangulate_polygons)
+            return None
+        _, own, local = coarse_of(r)
+        uv = charts[r]
+        assert uv is not None
+        return done[r][0], done[r][1], uv[local], vertices[own]
+
+    return _lifted(rings, sizes, final, triangulate_polygons)
