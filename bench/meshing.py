@@ -1,20 +1,23 @@
-"""Meshing 1 against meshing 2 (issue 25): thin exported triangles, slivers, and meshing's CPU cost.
+"""Meshings 1, 2 and 3 (issue 25): thin exported triangles, slivers, and meshing's CPU cost.
 
     python bench/meshing.py --genomes 300                      # random genomes of each built-in universe
     python bench/meshing.py --genomes 0 --run /tmp/mesh/quick  # a run's best 12 distinct surfaces
 
-Printed per universe (random genomes, each grown in the empty environment, those with at least one
-region): surfaces, triangles under each meshing, the share of triangles whose smallest angle is below
-15 degrees (all, and inside regions whose own corners are all at least 20 degrees in their plane),
-the regions meshing 2 cut as meshing 1 does (not simple in their plane), and the CPU seconds per
-surface (``time.process_time``) of each meshing. With ``--run``: the same for the run's best 12
-distinct surfaces (regrown with meshing 1 and 2), and each one's ``slivers`` under both.
+Printed per universe (N random genomes, each grown in the empty environment, those with at least one
+region) and meshing: surfaces, triangles, the share of triangles whose smallest angle is below 15
+degrees (all; inside regions whose own corners are all at least 20 degrees in their plane; inside
+those of them that do not fold over themselves, i.e. no meshing-1 triangle faces against the
+region's normal), the regions cut as meshing 1 cuts them, and the CPU seconds per surface
+(``time.process_time``). With ``--run``: the same for the run's best 12 distinct surfaces, and each
+one's ``slivers`` under each meshing. ``--json FILE`` also writes the figures as JSON.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,7 +25,7 @@ import numpy as np
 from genr8_dist.environment import Environment
 from genr8_dist.fitness import slivers, triangle_min_angles
 from genr8_dist.hemls import Surface, grow, parse
-from genr8_dist.hemls.meshing import _frame, _region_geometry
+from genr8_dist.hemls.meshing import MESHINGS, _frame, _region_geometry
 
 UNIVERSES = ("default", "gecco", "probabilistic", "reversible", "symmetric", "symmetric_thesis", "tiles")
 
@@ -48,40 +51,61 @@ def corner_ok(s: Any) -> np.ndarray:
     return ok
 
 
+def folded(s: Any) -> np.ndarray:
+    """(F,) whether some meshing-1 triangle of each region faces against the region's normal (the
+    region folds over itself in space)."""
+    _, newell, _, _, _ = _region_geometry(s.vertices, s.region_offsets, s.region_vertices)
+    tri = s.triangles()
+    owners = np.repeat(np.arange(s.n_regions), np.maximum(s.region_sizes - 2, 0))
+    p = s.vertices[tri]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    out = np.zeros(s.n_regions, dtype=bool)
+    np.logical_or.at(out, owners, np.einsum("ij,ij->i", normal, newell[owners]) < 0)
+    return out
+
+
 def measure(surfaces: list[Any]) -> dict[str, float]:
-    out: dict[str, float] = {"surfaces": len(surfaces)}
-    for meshing in (1, 2):
-        tri = thin = good = good_thin = fallback = 0
+    out: dict[str, float] = {"surfaces": len(surfaces), "regions": sum(s.n_regions for s in surfaces)}
+    classes = [(corner_ok(s), corner_ok(s) & ~folded(s)) for s in surfaces]
+    out["good_regions"] = sum(int(g.sum()) for g, _ in classes)
+    out["flat_good_regions"] = sum(int(f.sum()) for _, f in classes)
+    for meshing in MESHINGS:
+        tri = thin = good = good_thin = flat = flat_thin = fallback = 0
         cpu = 0.0
-        for s in surfaces:
+        for s, (ok, flat_ok) in zip(surfaces, classes, strict=True):
             f = fresh(s, meshing)
             t0 = time.process_time()
             mesh = f.mesh()
             cpu += time.process_time() - t0
             angles = triangle_min_angles(mesh.points, mesh.triangles)
-            inside = corner_ok(s)[mesh.regions]
+            thin_ = angles < 15.0
             tri += len(angles)
-            thin += int(np.sum(angles < 15.0))
-            good += int(np.sum(inside))
-            good_thin += int(np.sum(inside & (angles < 15.0)))
-            fallback += len(mesh.fallback) if meshing == 2 else 0
+            thin += int(np.sum(thin_))
+            good += int(np.sum(ok[mesh.regions]))
+            good_thin += int(np.sum(ok[mesh.regions] & thin_))
+            flat += int(np.sum(flat_ok[mesh.regions]))
+            flat_thin += int(np.sum(flat_ok[mesh.regions] & thin_))
+            fallback += len(mesh.fallback) if meshing > 1 else 0
         out[f"tri{meshing}"] = tri
         out[f"thin{meshing}"] = thin / max(tri, 1)
         out[f"goodthin{meshing}"] = good_thin / max(good, 1)
+        out[f"flatthin{meshing}"] = flat_thin / max(flat, 1)
         out[f"cpu{meshing}"] = cpu / max(len(surfaces), 1)
-        if meshing == 2:
-            out["fallback"] = fallback / max(sum(s.n_regions for s in surfaces), 1)
+        out[f"fallback{meshing}"] = fallback / max(out["regions"], 1)
     return out
 
 
 def show(name: str, m: dict[str, float]) -> None:
-    print(f"| {name} | {m['surfaces']:.0f} | {m['tri1']:.0f} / {m['tri2']:.0f} | {m['thin1']:.1%} -> "
-          f"{m['thin2']:.2%} ({m['thin1'] / max(m['thin2'], 1e-12):.1f}x) | {m['goodthin1']:.1%} -> "
-          f"{m['goodthin2']:.2%} | {m['fallback']:.1%} | {m['cpu1'] * 1e3:.1f} / {m['cpu2'] * 1e3:.1f} ms |")
+    for v in MESHINGS:
+        ratio = "" if v == 1 else f" ({m['thin1'] / max(m[f'thin{v}'], 1e-12):.1f}x)"
+        print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
+              f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'fallback{v}']:.1%} | "
+              f"{m[f'cpu{v}'] * 1e3:.1f} ms |")
 
 
-HEADER = ("| set | surfaces | triangles m1 / m2 | under 15 deg m1 -> m2 | same, regions with corners "
-          ">= 20 deg | regions cut as m1 | CPU per surface m1 / m2 |\n|---|---|---|---|---|---|---|")
+HEADER = ("| set | meshing | surfaces | triangles | under 15 deg | same, regions with corners >= 20 deg | "
+          "same, of those not folded | regions cut as m1 | CPU per surface |\n"
+          "|---|---|---|---|---|---|---|---|---|")
 
 
 def random_surfaces(name: str, n: int) -> list[Any]:
@@ -100,7 +124,7 @@ def random_surfaces(name: str, n: int) -> list[Any]:
     return out
 
 
-def run_best(run: str) -> None:
+def run_best(run: str) -> dict[str, Any]:
     from genr8_dist.history import _regrow
     from genr8_dist.store import RunStore
 
@@ -117,25 +141,39 @@ def run_best(run: str) -> None:
             break
     surfaces = [_regrow.regrow(run, i).developed.value for i in best]
     print(f"\nrun {run} (meshing {store.meshing}): best 12 distinct\n" + HEADER)
-    show("best 12", measure(surfaces))
-    print("\n| id | slivers meshing 1 (triangles) | slivers meshing 2 (thin regions) |\n|---|---|---|")
+    figures = measure(surfaces)
+    show("best 12", figures)
+    print("\n| id | " + " | ".join(f"slivers meshing {v}" for v in MESHINGS) + " |\n|---|"
+          + "---|" * len(MESHINGS))
+    figures["slivers"] = {}
     for i, s in zip(best, surfaces, strict=True):
-        print(f"| {i} | {slivers(fresh(s, 1)):.3f} | {slivers(fresh(s, 2)):.3f} |")
+        values = [slivers(fresh(s, v)) for v in MESHINGS]
+        figures["slivers"][i] = values
+        print(f"| {i} | " + " | ".join(f"{x:.3f}" for x in values) + " |")
+    return figures
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--genomes", type=int, default=300)
+    parser.add_argument("--genomes", type=int, default=300, metavar="N",
+                        help="random genomes per universe (0: none)")
     parser.add_argument("--universes", default=",".join(UNIVERSES))
-    parser.add_argument("--run")
+    parser.add_argument("--run", help="a run directory: measure its best 12 distinct surfaces")
+    parser.add_argument("--json", metavar="FILE", help="also write the figures to FILE as JSON")
     args = parser.parse_args()
+    figures: dict[str, Any] = {"genomes": args.genomes, "universes": {}}
     if args.genomes:
         print(f"{args.genomes} random genomes per universe, empty environment\n" + HEADER)
         for name in args.universes.split(","):
-            show(name, measure(random_surfaces(name, args.genomes)))
+            figures["universes"][name] = measure(random_surfaces(name, args.genomes))
+            show(name, figures["universes"][name])
+            if args.json:
+                Path(args.json).write_text(json.dumps(figures, indent=1))
     if args.run:
-        run_best(args.run)
+        figures["run"] = {"path": args.run, **run_best(args.run)}
+    if args.json:
+        Path(args.json).write_text(json.dumps(figures, indent=1))
 
 
 if __name__ == "__main__":

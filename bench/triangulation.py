@@ -193,7 +193,7 @@ def kernels(surfaces: Sequence[Any], repeat: int) -> None:
         print("\n## kernels\n\nno compiled kernels here (numba missing, GENR8_COMPILED=0, or an older "
               "checkout)")
         return
-    module._LOAD_AFTER = 0     # compiled from the first triangulation on
+    module.KERNELS.load_after = 0     # compiled from the first triangulation on
     print("\n## kernels\n")
     print("| surfaces | triangles | reference s | compiled s | speed-up | identical |")
     print("| --- | --- | --- | --- | --- | --- |")

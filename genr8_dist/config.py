@@ -382,7 +382,7 @@ class RunConfig:
 
     universe: str = "default"
     seed: int = 0
-    meshing: int = 2             # how surfaces are cut into triangles (genr8_dist.hemls.meshing.MESHINGS)
+    meshing: int = 3             # how surfaces are cut into triangles (genr8_dist.hemls.meshing.MESHINGS)
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
     fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults

@@ -52,7 +52,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     parser.add_argument("--smooth", type=int, default=0, metavar="N",
                         help="Loop subdivision steps applied to the -o mesh (0-4; each x4 the triangles)")
     parser.add_argument("--meshing", type=int, default=None, metavar="V",
-                        help="meshing version (docs/run-config.md; default the current, 2; 1: the old "
+                        help="meshing version (docs/run-config.md; default the current, 3; 1: the old "
                         "cut of each region into m - 2 triangles)")
     parser.set_defaults(handler=_handle)
 

@@ -8,19 +8,35 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
 - **meshing 1** (runs created before meshing was recorded): each region of ``m`` vertices cut into
   ``m - 2`` triangles on its own vertices (``Surface.triangles``; ``surface.triangulate_polygons``).
   Long thin regions and regions whose sides carry runs of vertices become fans of slivers.
-- **meshing 2** (new runs, ``MESHING``): each region triangulated into well-shaped triangles with
-  added points. Every map edge is first split into equal pieces no longer than the thinner of the two
-  regions beside it is wide (``_SPACING`` x twice its area over its perimeter; at most ``_MAX_SPLIT``
-  pieces), so the two regions share the same points on it and the mesh stays watertight. Each region
-  is then mapped to 2D in its best-fit plane (orthogonal projection onto the plane through its
-  centroid normal to its Newell normal) and meshed there by Shewchuk's Triangle (the ``triangle``
-  package): the constrained Delaunay triangulation of its sides, refined with points inside it until
-  no angle is below ``_MIN_ANGLE`` degrees (Ruppert's refinement, no points added on its sides: they
-  are the shared ones). Each added point is lifted back to 3D by linear (barycentric) interpolation
-  over the region's meshing-1 triangles projected into the same plane, so the mesh lies on the
-  surface meshing 1 gave. A region that is not a simple polygon in that plane (it folds over or
-  touches itself, has a side of no length, or no area), or whose added points fall outside its
-  meshing-1 triangles, is cut as meshing 1 cuts it, with the shared points on its sides.
+- **meshing 2** (runs created in round 5, kept bit for bit): each region triangulated into
+  well-shaped triangles with added points. Every map edge is first split into equal pieces no longer
+  than the thinner of the two regions beside it is wide (``_SPACING`` x twice its area over its
+  perimeter; at most ``_MAX_SPLIT`` pieces), so the two regions share the same points on it and the
+  mesh stays watertight. Each region is then mapped to 2D in its best-fit plane (orthogonal
+  projection onto the plane through its centroid normal to its Newell normal) and meshed there by
+  Shewchuk's Triangle (the ``triangle`` package): the constrained Delaunay triangulation of its
+  sides, refined with points inside it until no angle is below ``_MIN_ANGLE`` degrees (Ruppert's
+  refinement). One free pass lets Triangle split the sides (those points then go on the map's edge,
+  for both regions), the last keeps them whole. Each added point is lifted back to 3D by linear
+  (barycentric) interpolation over the region's meshing-1 triangles mapped into the same plane, so
+  the mesh lies on the surface meshing 1 gave. A region that is not a simple polygon in that plane
+  (it folds over or touches itself, has a side of no length, or no area), or whose added points fall
+  outside its meshing-1 triangles, is cut as meshing 1 cuts it, with the shared points on its sides.
+- **meshing 3** (new runs, ``MESHING``): meshing 2 with two changes.
+  - *A region that crosses itself in its best-fit plane is unrolled* (``_unfold``): its meshing-1
+    triangles laid flat one by one across their shared diagonals, each keeping its three side
+    lengths (a polygon's triangulation has a tree of diagonals, so this is well defined). A curved
+    or bent region that overlaps itself in any plane lies flat so; it is meshed there and its points
+    lifted through the same triangles, so inside each meshing-1 triangle the mesh keeps its angles
+    in space. Only a region simple in neither chart is cut as meshing 1 cuts it.
+  - *The sides' points are settled, not fixed after one pass*: passes repeat (``_PASSES`` at most)
+    until no region's mesh puts a point on a side; each pass meshes again only the regions whose
+    sides gained points. A region may split its own sides in ``_OWN_SPLITS`` passes (Triangle's
+    refinement near a small corner would halve the sides there forever); after that it keeps them
+    whole. Triangle marks side j of a ring j + 2, so a point on a side names it exactly. Meshing 2
+    kept every side whole after one pass, so a side a neighbour split finely next to one it left
+    coarse left thin triangles that Triangle may not repair (3.6% of the triangles of regions whose
+    corners are all at least 20 degrees).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
@@ -38,8 +54,8 @@ from genr8_dist.errors import ConfigError
 
 __all__ = ["MESHING", "MESHINGS", "Mesh", "check_meshing", "mesh_surface", "region_roundness"]
 
-MESHINGS = (1, 2)   # every meshing version a surface can be cut with
-MESHING = 2         # what new runs (and surfaces grown outside a run) use
+MESHINGS = (1, 2, 3)   # every meshing version a surface can be cut with
+MESHING = 3         # what new runs (and surfaces grown outside a run) use
 
 _MIN_ANGLE = 28.0   # Triangle's quality bound (degrees) inside each region
 _SPACING = 2.0      # edge pieces at most this x the thinner neighbouring region's width (2 area/perimeter)
@@ -49,6 +65,8 @@ _STEINER_FLOOR = 256 # ... plus this many (a bound on the mesh's size where a re
 _FREE_PASSES = 1     # passes in which Triangle may split the sides (their points then shared)
 _SIMPLE_MAX = 4000  # regions of more vertices than this are cut as meshing 1 cuts them
 _TOL = 1e-9         # tolerance of orientation tests in a region's plane, scaled to unit extent
+_PASSES = 8         # meshing 3: passes settling the sides' points, at most ...
+_OWN_SPLITS = 3     # ... in at most this many of which one region may split its own sides
 _CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
 
 
@@ -93,7 +111,8 @@ def mesh_surface(surface: Any, meshing: int = MESHING, *,
                     _frozen(np.arange(len(sizes)), np.int64))
     if cut is None:
         raise ValueError("mesh_surface: meshing 2 needs meshing 1's cut (Surface.mesh passes it)")
-    points, triangles, regions, fallback = _refine(vertices, offsets, cycles, coarse, owners, cut)
+    refine = _refine if meshing == 2 else _refine3
+    points, triangles, regions, fallback = refine(vertices, offsets, cycles, coarse, owners, cut)
     return Mesh(_frozen(points, np.float64), _frozen(triangles, np.int64), _frozen(regions, np.int64),
                 _frozen(fallback, np.int64))
 
@@ -264,7 +283,8 @@ def _boundary_params(ring_xy: np.ndarray, found: np.ndarray) -> tuple[np.ndarray
     return segment, f[np.arange(len(found)), segment]
 
 
-def _triangulate_region(xy: np.ndarray, options: str) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+def _triangulate_region(xy: np.ndarray, options: str, marked: bool = False
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Triangle's mesh of the simple polygon ``xy`` (n, 2): (points (n + k, 2), the input first;
     triangles; markers, 1 for points on the polygon's sides), or None when it is not a mesh of it
     (triangles of no area, or not covering the polygon's area)."""
@@ -272,7 +292,10 @@ def _triangulate_region(xy: np.ndarray, options: str) -> tuple[np.ndarray, np.nd
 
     n = len(xy)
     segments = np.stack([np.arange(n), np.roll(np.arange(n), -1)], 1)
-    out = triangle.triangulate({"vertices": xy, "segments": segments}, options)
+    pslg = {"vertices": xy, "segments": segments}
+    if marked:
+        pslg["segment_markers"] = (np.arange(n, dtype=np.int32) + 2).reshape(-1, 1)
+    out = triangle.triangulate(pslg, options)
     tri = np.asarray(out.get("triangles", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     points2 = np.asarray(out["vertices"], dtype=np.float64)
     if len(points2) < n or not np.array_equal(points2[:n], xy) or not len(tri):
@@ -287,12 +310,151 @@ def _triangulate_region(xy: np.ndarray, options: str) -> tuple[np.ndarray, np.nd
     return points2, tri, markers
 
 
+def _in_plane(rings: _Rings, r: int, centroid: np.ndarray, frame: np.ndarray | None, keep: str
+              ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, np.ndarray] | None]:
+    """Meshing 2's mesh of region ``r``'s ring projected into its plane (``frame`` about ``centroid``;
+    None: no mesh): the ring's point ids, its plane coordinates and ``_triangulate_region``'s answer;
+    ``keep`` "Y" keeps the ring's sides whole, "" lets Triangle split them."""
+    ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]
+    if frame is None:
+        return ids, np.zeros((0, 2)), None
+    xy = (rings.points[ids] - centroid) @ frame.T
+    return ids, xy, _triangulate_region(xy, f"pq{_MIN_ANGLE:g}{keep}QS{_STEINER * len(ids) + _STEINER_FLOOR}")
+
+
+class _EdgeSplit:
+    """The points on the map's edges, shared by the two regions beside each: every edge first split
+    into equal pieces no longer than ``_SPACING`` x the thinner region's width beside it (at most
+    ``_MAX_SPLIT``), but an edge beside a region with no flat coordinates (``fixed``: it keeps its
+    own); then any points a region's mesh put on its sides (``add``)."""
+
+    def __init__(self, vertices: np.ndarray, cycles: np.ndarray, nxt: np.ndarray, region_of: np.ndarray,
+                 width: np.ndarray, simple: np.ndarray, n_regions: int) -> None:
+        n_vertices = len(vertices)
+        self.vertices, self.cycles, self.region_of, self.n_regions = vertices, cycles, region_of, n_regions
+        lo, hi = np.minimum(cycles, nxt), np.maximum(cycles, nxt)
+        keys, first, inverse = np.unique(lo * n_vertices + hi, return_index=True, return_inverse=True)
+        spacing = np.full(len(keys), np.inf)
+        np.minimum.at(spacing, inverse, _SPACING * width[region_of])
+        fixed = np.zeros(len(keys), dtype=bool)
+        np.logical_or.at(fixed, inverse, ~simple[region_of])
+        elo, ehi = lo[first], hi[first]
+        length = np.linalg.norm(vertices[ehi] - vertices[elo], axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pieces = np.where(spacing > 0, np.ceil(length / spacing * (1.0 - 1e-9)), 1.0)
+        pieces = np.clip(np.nan_to_num(pieces, nan=1.0, posinf=_MAX_SPLIT), 1, _MAX_SPLIT).astype(np.int64)
+        added = np.where(fixed, 0, pieces - 1)
+        self.edge_of_point = np.repeat(np.arange(len(keys)), added)
+        step = np.arange(len(self.edge_of_point)) \
+            - np.repeat(np.concatenate([[0], np.cumsum(added)[:-1]]), added) + 1
+        self.t_flat = step / pieces[self.edge_of_point]
+        self.forward = cycles == lo
+        self.lo, self.inverse, self.elo, self.ehi = lo, inverse, elo, ehi
+        self.fixed, self.added = fixed, added
+        self.changed = np.zeros(0, dtype=np.int64)
+        self.n_edges = len(keys)
+        self.rings = self._make()
+
+    def _make(self) -> _Rings:
+        return _rings(self.vertices, self.cycles, self.region_of, self.n_regions, self.lo, self.inverse,
+                      self.elo, self.ehi, self.added, self.t_flat)
+
+    def on_edges(self, rings: _Rings, r: int, segment: np.ndarray, frac: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The map edges and parameters of points ``frac`` of the way along region ``r``'s ring
+        segments ``segment`` (entry j to entry j + 1)."""
+        seg_at = rings.offsets[r] + segment
+        last = segment + 1 == rings.offsets[r + 1] - rings.offsets[r]
+        nxt_at = np.where(last, rings.offsets[r], seg_at + 1)
+        s = rings.side[seg_at]
+        t0 = rings.t[seg_at]
+        # the segment's far end: the next ring entry, or its side's end vertex (t 1 up, 0 down the edge)
+        same_side = rings.side[nxt_at] == s
+        t1 = np.where(same_side, rings.t[nxt_at], np.where(self.forward[s], 1.0, 0.0))
+        return self.inverse[s], t0 + frac * (t1 - t0)
+
+    def add(self, edges: np.ndarray, t: np.ndarray) -> _Rings:
+        """The rings once points at parameters ``t`` on map ``edges`` are added (but on fixed edges,
+        at an end, or within 1e-9 of a point there)."""
+        e_all = np.concatenate([self.edge_of_point, edges])
+        t_all = np.concatenate([self.t_flat, t])
+        order = np.lexsort((t_all, e_all))
+        e_all, t_all = e_all[order], t_all[order]
+        keep = (t_all > 1e-9) & (t_all < 1.0 - 1e-9) & ~self.fixed[e_all]
+        e_all, t_all = e_all[keep], t_all[keep]
+        close = np.zeros(len(t_all), dtype=bool)
+        close[1:] = (e_all[1:] == e_all[:-1]) & (t_all[1:] - t_all[:-1] <= 1e-9)
+        old_e, old_t = self.edge_of_point, self.t_flat
+        self.edge_of_point, self.t_flat = e_all[~close], t_all[~close]
+        added = np.bincount(self.edge_of_point, minlength=self.n_edges).astype(np.int64)
+        # the edges whose points changed (both lists sorted by edge, then parameter)
+        changed = added != self.added
+        same_old, same_new = ~changed[old_e], ~changed[self.edge_of_point]
+        changed[old_e[same_old][old_t[same_old] != self.t_flat[same_new]]] = True
+        self.changed = np.flatnonzero(changed)
+        self.added = added
+        self.rings = self._make()
+        return self.rings
+
+
+def _assemble(rings: _Rings, meshed: list[np.ndarray | None], inside: list[np.ndarray],
+              triangulate_polygons: Callable[..., np.ndarray]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Points, triangles, their regions and the regions cut as meshing 1 cuts them (those ``meshed``
+    None: meshing 1's cut of their ring, its sides' shared points included)."""
+    n_regions = len(meshed)
+    failed = np.array([r for r in range(n_regions) if meshed[r] is None], dtype=np.int64)
+    if len(failed):
+        parts_ = [rings.ring[rings.offsets[r]:rings.offsets[r + 1]] for r in failed]
+        fall_offsets = np.concatenate([[0], np.cumsum([len(x) for x in parts_])]).astype(np.int64)
+        fallback = triangulate_polygons(rings.points, fall_offsets, np.concatenate(parts_))
+        at = 0
+        for r, x in zip(failed, parts_, strict=True):
+            meshed[r] = fallback[at:at + len(x) - 2]
+            at += len(x) - 2
+    parts = [m for m in meshed if m is not None]
+    triangles = np.concatenate(parts) if parts else np.zeros((0, 3), dtype=np.int64)
+    regions = np.repeat(np.arange(n_regions), [len(m) if m is not None else 0 for m in meshed])
+    points = np.concatenate([rings.points, *inside]) if inside else rings.points
+    return points, triangles, regions, failed
+
+
+def _lifted(rings: _Rings, sizes: np.ndarray,
+            final: Callable[[int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None],
+            triangulate_polygons: Callable[..., np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The mesh of every region from ``final(r)``: its flat mesh (points, the ring's first;
+    triangles) and its meshing-1 triangles' corners flat and in space, through which the added points
+    are lifted; a region ``final`` gives None for, or whose points fall outside those triangles, is
+    cut as meshing 1 cuts it (``_assemble``)."""
+    meshed: list[np.ndarray | None] = [None] * len(sizes)
+    inside: list[np.ndarray] = []
+    next_point = len(rings.points)
+    for r in range(len(sizes)):
+        if sizes[r] < 3:
+            meshed[r] = np.zeros((0, 3), dtype=np.int64)
+        got = final(r)
+        if got is None:
+            continue
+        points2, tri, corners2, corners3 = got
+        ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]     # as meshed (points renumbered since)
+        new = points2[len(ids):]
+        if len(new):
+            lifted = _lift(new, corners2, corners3)
+            if lifted is None:
+                continue
+            inside.append(lifted)
+        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
+        next_point += len(new)
+        meshed[r] = local_ids[tri]
+    return _assemble(rings, meshed, inside, triangulate_polygons)
+
+
 def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray]
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 2 of checked arrays (``coarse``: the meshing-1 triangles, ``owners`` their regions):
     points, triangles, their regions, and the regions cut as meshing 1 cuts them."""
-    n_vertices = len(vertices)
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
@@ -307,39 +469,16 @@ def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coars
         extent = float(np.abs(xy0).max())
         if extent > 0 and _simple(xy0 / extent):
             frames[r] = frame
-    # every map edge split into equal pieces no longer than _SPACING x its thinner region's width, but
-    # for an edge beside a region cut as meshing 1 cuts it (not simple in its plane): that keeps its own
-    lo, hi = np.minimum(cycles, nxt), np.maximum(cycles, nxt)
-    keys, first, inverse = np.unique(lo * n_vertices + hi, return_index=True, return_inverse=True)
-    spacing = np.full(len(keys), np.inf)
-    np.minimum.at(spacing, inverse, _SPACING * width[region_of])
-    simple = np.array([f is not None for f in frames], dtype=bool)
-    fixed = np.zeros(len(keys), dtype=bool)
-    np.logical_or.at(fixed, inverse, ~simple[region_of])
-    elo, ehi = lo[first], hi[first]
-    length = np.linalg.norm(vertices[ehi] - vertices[elo], axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        pieces = np.where(spacing > 0, np.ceil(length / spacing * (1.0 - 1e-9)), 1.0)
-    pieces = np.clip(np.nan_to_num(pieces, nan=1.0, posinf=_MAX_SPLIT), 1, _MAX_SPLIT).astype(np.int64)
-    added = np.where(fixed, 0, pieces - 1)
-    edge_of_point = np.repeat(np.arange(len(keys)), added)
-    step = np.arange(len(edge_of_point)) - np.repeat(np.concatenate([[0], np.cumsum(added)[:-1]]), added) + 1
-    t_flat = step / pieces[edge_of_point]
-    forward = cycles == lo
-    rings = _rings(vertices, cycles, region_of, n_regions, lo, inverse, elo, ehi, added, t_flat)
-
+    split = _EdgeSplit(vertices, cycles, nxt, region_of, width,
+                       np.array([f is not None for f in frames], dtype=bool), n_regions)
+    rings = split.rings
     # free passes: Triangle free to split the sides; the points it puts there go on the map's edges,
     # for both regions beside each, so the last pass (sides kept) meshes every region watertight
     for _ in range(_FREE_PASSES):
         found_edges: list[np.ndarray] = []
         found_t: list[np.ndarray] = []
         for r in range(n_regions):
-            frame = frames[r]
-            if frame is None:
-                continue
-            ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]
-            xy = (rings.points[ids] - centroid[r]) @ frame.T
-            got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}QS{_STEINER * len(ids) + _STEINER_FLOOR}")
+            ids, xy, got = _in_plane(rings, r, centroid[r], frames[r], "")
             if got is None:
                 continue
             points2, _, markers = got
@@ -347,67 +486,187 @@ def _refine(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coars
             if not len(on_side):
                 continue
             segment, frac = _boundary_params(xy, points2[on_side])
-            seg_at = rings.offsets[r] + segment
-            nxt_at = np.where(segment + 1 == len(ids), rings.offsets[r], seg_at + 1)
-            s = rings.side[seg_at]
-            t0 = rings.t[seg_at]
-            # the segment's far end: the next ring entry, or its side's end vertex (t 1 up, 0 down the edge)
-            same_side = rings.side[nxt_at] == s
-            t1 = np.where(same_side, rings.t[nxt_at], np.where(forward[s], 1.0, 0.0))
-            found_edges.append(inverse[s])
-            found_t.append(t0 + frac * (t1 - t0))
+            edges, t = split.on_edges(rings, r, segment, frac)
+            found_edges.append(edges)
+            found_t.append(t)
         if not found_edges:
             break
-        e_all = np.concatenate([edge_of_point, *found_edges])
-        t_all = np.concatenate([t_flat, *found_t])
-        order = np.lexsort((t_all, e_all))
-        e_all, t_all = e_all[order], t_all[order]
-        keep = (t_all > 1e-9) & (t_all < 1.0 - 1e-9) & ~fixed[e_all]
-        e_all, t_all = e_all[keep], t_all[keep]
-        close = np.zeros(len(t_all), dtype=bool)
-        close[1:] = (e_all[1:] == e_all[:-1]) & (t_all[1:] - t_all[:-1] <= 1e-9)
-        e_all, t_all = e_all[~close], t_all[~close]
-        added = np.bincount(e_all, minlength=len(keys)).astype(np.int64)
-        rings = _rings(vertices, cycles, region_of, n_regions, lo, inverse, elo, ehi, added, t_all)
-        edge_of_point, t_flat = e_all, t_all
+        rings = split.add(np.concatenate(found_edges), np.concatenate(found_t))
 
     coarse_start = np.searchsorted(owners, np.arange(n_regions + 1))
-    meshed: list[np.ndarray | None] = [None] * n_regions
-    inside: list[np.ndarray] = []
-    next_point = len(rings.points)
-    for r in range(n_regions):
+
+    def final(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
         frame = frames[r]
-        if sizes[r] < 3:
-            meshed[r] = np.zeros((0, 3), dtype=np.int64)
-        if frame is None:
-            continue
-        ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]
-        xy = (rings.points[ids] - centroid[r]) @ frame.T
-        got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}YQS{_STEINER * len(ids) + _STEINER_FLOOR}")
-        if got is None:
-            continue
-        points2, tri, _ = got
-        new = points2[len(ids):]
-        if len(new):
-            own = coarse[coarse_start[r]:coarse_start[r + 1]]
-            lifted = _lift(new, (vertices[own] - centroid[r]) @ frame.T, vertices[own])
-            if lifted is None:
+        _, _, got = _in_plane(rings, r, centroid[r], frame, "Y")
+        if got is None or frame is None:
+            return None
+        own = coarse[coarse_start[r]:coarse_start[r + 1]]
+        return got[0], got[1], (vertices[own] - centroid[r]) @ frame.T, vertices[own]
+
+    return _lifted(rings, sizes, final, triangulate_polygons)
+
+def _unfold(pos: np.ndarray, tri: np.ndarray) -> np.ndarray | None:
+    """(m, 2) a region's cycle (``pos`` (m, 3)) laid flat by unfolding its meshing-1 triangles
+    (``tri`` (m - 2, 3), indices into the cycle, counter-clockwise) from the first, across their shared
+    diagonals (their dual graph is a tree), each keeping its three side lengths, each to the left of
+    the diagonal it shares; None if a triangle has a side of no length or a vertex is placed twice."""
+    m = len(pos)
+    uv = np.full((m, 2), np.nan)
+    by_edge = {(int(t[k]), int(t[(k + 1) % 3])): i for i, t in enumerate(tri) for k in range(3)}
+
+    def apex(p: int, q: int, w: int) -> bool:
+        """Place ``w`` left of p -> q at its 3D distances from ``p`` and ``q``; False if it cannot be."""
+        if not np.isnan(uv[w, 0]):
+            return False
+        d = uv[q] - uv[p]
+        span = math.hypot(float(d[0]), float(d[1]))
+        if not span > 0.0:
+            return False
+        dp2 = float(np.sum((pos[w] - pos[p]) ** 2))
+        dq2 = float(np.sum((pos[w] - pos[q]) ** 2))
+        x = (dp2 - dq2 + span * span) / (2.0 * span)
+        y = math.sqrt(max(dp2 - x * x, 0.0))
+        e = d / span
+        uv[w] = uv[p] + x * e + y * np.array([-e[1], e[0]])
+        return True
+
+    a, b, c = (int(v) for v in tri[0])
+    uv[a] = 0.0, 0.0
+    uv[b] = float(np.linalg.norm(pos[b] - pos[a])), 0.0
+    if not apex(a, b, c):
+        return None
+    queue, seen = [0], {0}
+    while queue:
+        t = tri[queue.pop(0)]
+        for k in range(3):
+            u, v = int(t[k]), int(t[(k + 1) % 3])
+            other = by_edge.get((v, u))
+            if other is None or other in seen:
                 continue
-            inside.append(lifted)
-        local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
-        next_point += len(new)
-        meshed[r] = local_ids[tri]
-    failed = np.array([r for r in range(n_regions) if meshed[r] is None], dtype=np.int64)
-    if len(failed):      # meshing 1's cut of the region's ring (its sides' shared points included)
-        parts_ = [rings.ring[rings.offsets[r]:rings.offsets[r + 1]] for r in failed]
-        fall_offsets = np.concatenate([[0], np.cumsum([len(x) for x in parts_])]).astype(np.int64)
-        fallback = triangulate_polygons(rings.points, fall_offsets, np.concatenate(parts_))
-        at = 0
-        for r, x in zip(failed, parts_, strict=True):
-            meshed[r] = fallback[at:at + len(x) - 2]
-            at += len(x) - 2
-    parts = [m for m in meshed if m is not None]
-    triangles = np.concatenate(parts) if parts else np.zeros((0, 3), dtype=np.int64)
-    regions = np.repeat(np.arange(n_regions), [len(m) if m is not None else 0 for m in meshed])
-    points = np.concatenate([rings.points, *inside]) if inside else rings.points
-    return points, triangles, regions, failed
+            seen.add(other)
+            queue.append(other)
+            w = next(int(x) for x in tri[other] if x != u and x != v)
+            if not apex(v, u, w):
+                return None
+    return None if np.isnan(uv).any() else uv
+
+
+def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.ndarray
+           ) -> np.ndarray | None:
+    """Meshing 3's flat coordinates (m, 2) of a region's cycle (``pos`` (m, 3), unique vertices): its
+    projection into its best-fit plane if simple there, else its unfolding (``_unfold``) if simple;
+    None if neither is."""
+    frame = _frame(normal)
+    if frame is None:
+        return None
+
+    def projected() -> np.ndarray | None:
+        return (pos - centroid) @ frame.T
+
+    def unfolded() -> np.ndarray | None:
+        uv = _unfold(pos, tri) if len(tri) == len(pos) - 2 and len(tri) else None
+        return None if uv is None else uv - uv.mean(axis=0)
+
+    for make in (projected, unfolded):
+        uv = make()
+        if uv is None:
+            continue
+        extent = float(np.abs(uv).max())
+        if extent > 0 and _simple(uv / extent):
+            return uv
+    return None
+
+
+def _sides_found(xy: np.ndarray, points2: np.ndarray, markers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The points Triangle put on the sides of a ring ``xy`` (n, 2; side j from entry j to j + 1, its
+    segment marker j + 2): their sides and how far along them (0 to 1)."""
+    n = len(xy)
+    on = np.flatnonzero(markers[n:] >= 2) + n
+    segment = markers[on] - 2
+    a, b = xy[segment], xy[(segment + 1) % n]
+    d = b - a
+    f = np.einsum("pk,pk->p", points2[on] - a, d) / np.maximum(np.einsum("pk,pk->p", d, d), 1e-300)
+    return segment, np.clip(f, 0.0, 1.0)
+
+
+def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
+             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray]
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
+    points settled by passes until no region's own mesh splits a side (``_PASSES`` at most)."""
+    sizes = np.diff(offsets)
+    n_regions = len(sizes)
+    centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
+    width = np.where(perimeter > 0, np.linalg.norm(newell, axis=1) / np.where(perimeter > 0, perimeter, 1.0),
+                     0.0)
+    coarse_start = np.searchsorted(owners, np.arange(n_regions + 1))
+    charts: list[np.ndarray | None] = [None] * n_regions
+
+    def coarse_of(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Region r's cycle, its meshing-1 triangles, and those as indices into the cycle."""
+        cyc = cycles[offsets[r]:offsets[r + 1]]
+        own = coarse[coarse_start[r]:coarse_start[r + 1]]
+        local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), own)] if len(own) else own.reshape(-1, 3)
+        return cyc, own, local
+
+    for r in range(n_regions):
+        cyc, _, local = coarse_of(r)
+        if sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
+            charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r])
+    simple = np.array([c is not None for c in charts], dtype=bool)
+    split = _EdgeSplit(vertices, cycles, nxt, region_of, width, simple, n_regions)
+    rings = split.rings
+    n_vertices = len(vertices)
+
+    def ring_xy(r: int) -> tuple[np.ndarray, np.ndarray]:
+        """Region r's ring ids and their chart coordinates (a side's points at their parameter)."""
+        at = slice(rings.offsets[r], rings.offsets[r + 1])
+        ids, s, t = rings.ring[at], rings.side[at], rings.t[at]
+        uv = charts[r]
+        assert uv is not None
+        k = s - offsets[r]
+        here, there = uv[k], uv[(k + 1) % sizes[r]]
+        fwd = split.forward[s][:, None]
+        p_lo, p_hi = np.where(fwd, here, there), np.where(fwd, there, here)
+        xy = p_lo + t[:, None] * (p_hi - p_lo)
+        corner = ids < n_vertices
+        xy[corner] = here[corner]
+        return ids, xy
+
+    done: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    splits = np.zeros(n_regions, dtype=np.int64)     # passes in which each region split its sides
+    pending = [r for r in range(n_regions) if simple[r]]
+    for pass_ in range(_PASSES + 1):
+        found_edges: list[np.ndarray] = []
+        found_t: list[np.ndarray] = []
+        for r in pending:
+            ids, xy = ring_xy(r)
+            keep = splits[r] >= _OWN_SPLITS or pass_ == _PASSES
+            got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}{'Y' if keep else ''}QS"
+                                          f"{_STEINER * len(ids) + _STEINER_FLOOR}", marked=True)
+            if got is None:
+                continue
+            points2, tri, markers = got
+            segment, frac = _sides_found(xy, points2, markers)
+            if not len(segment):
+                done[r] = (points2, tri)
+                continue
+            splits[r] += 1
+            edges, t = split.on_edges(rings, r, segment, frac)
+            found_edges.append(edges)
+            found_t.append(t)
+        if not found_edges:
+            break
+        rings = split.add(np.concatenate(found_edges), np.concatenate(found_t))
+        for r in np.unique(region_of[np.isin(split.inverse, split.changed)]):
+            done.pop(int(r), None)          # its sides have new points: meshed again
+        pending = [r for r in range(n_regions) if simple[r] and r not in done]
+    def final(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        if r not in done:
+            return None
+        _, own, local = coarse_of(r)
+        uv = charts[r]
+        assert uv is not None
+        return done[r][0], done[r][1], uv[local], vertices[own]
+
+    return _lifted(rings, sizes, final, triangulate_polygons)

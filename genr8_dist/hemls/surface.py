@@ -12,13 +12,14 @@ from __future__ import annotations
 import functools
 import hashlib
 import math
-import os
 from collections.abc import Callable
+from types import ModuleType
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from genr8_dist.errors import GrowthError
+from genr8_dist.hemls._kernels import KernelSwitch
 
 if TYPE_CHECKING:
     from genr8_dist.hemls.meshing import Mesh
@@ -317,48 +318,30 @@ _FLIPS_PER_TRIANGLE = 16  # edges tested for a flip per triangle of a large regi
 _CHUNK = 250_000         # elements of the (regions, triangles) cost arrays handled at once
 
 
-_LOAD_AFTER = 20_000      # region vertices the reference code triangulates in a process before it
-                          # loads the compiled kernels (about what loading them costs: ~0.4 s CPU)
-_reference_vertices = 0   # region vertices triangulated by the reference code in this process
-
-
-@functools.cache
-def _load_kernels():
-    """The compiled kernels (``genr8_dist.hemls._compiled``, numba), imported on first use; None, for
-    the numpy/Python reference code below, when numba is not installed or ``GENR8_COMPILED=0``."""
-    if os.environ.get("GENR8_COMPILED") == "0":
-        return None
-    try:
-        from genr8_dist.hemls import _compiled
-    except ImportError:
-        return None
-    assert (_compiled.EXACT_MAX, _compiled.QUALITY_FLOOR, _compiled.OUTSIDE, _compiled.EPS) == (
+def _check_kernels(module: ModuleType) -> None:
+    assert (module.EXACT_MAX, module.QUALITY_FLOOR, module.OUTSIDE, module.EPS) == (
         _EXACT_MAX, _QUALITY_FLOOR, _OUTSIDE, _EPS)
-    return _compiled
 
 
-def _kernels():
-    """The compiled kernels, or None for the reference code: both give the same triangles bit for
-    bit. A process loads them once it has triangulated ``_LOAD_AFTER`` region vertices (so a short
-    run does not pay for numba, a long one pays about twice the least it could), at once with
-    ``GENR8_COMPILED=1``, never with ``GENR8_COMPILED=0`` or without numba (the ``fast`` extra)."""
-    if _reference_vertices < _LOAD_AFTER and os.environ.get("GENR8_COMPILED") != "1":
-        return None
-    return _load_kernels()
+#: The compiled kernels load once a process has triangulated this many region vertices with the
+#: reference code (about what loading them costs: ~0.4 s CPU), so a short run does not pay for numba
+#: and a long one pays about twice the least it could (``_kernels.KernelSwitch``).
+KERNELS = KernelSwitch("genr8_dist.hemls._compiled", 20_000, _check_kernels)
+_load_kernels = KERNELS.load
+_kernels = KERNELS.kernels
 
 
 def triangulate_polygons(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray) -> np.ndarray:
     """(T, 3) triangles of ``vertices`` covering each polygon ``cycles[offsets[f]:offsets[f + 1]]``
     with ``m - 2`` triangles (polygons of fewer than 3 vertices get none), in polygon order and
     oriented like the polygons; deterministic. See the comment above for the rule."""
-    global _reference_vertices
     vertices = np.asarray(vertices, dtype=np.float64)
     offsets = np.asarray(offsets, dtype=np.int64)
     cycles = np.asarray(cycles, dtype=np.int64)
-    counted = _reference_vertices < _LOAD_AFTER
+    reference = KERNELS.reference_work < KERNELS.load_after
     tri = _triangulate(vertices, offsets, cycles)
-    if counted:                 # counted after the call, so that one call takes one path
-        _reference_vertices += len(cycles)
+    if reference:               # counted after the call, so that one call takes one path
+        KERNELS.count(len(cycles))
     return tri
 
 

@@ -23,7 +23,7 @@ if module._load_kernels() is None:   # numba is installed, so only GENR8_COMPILE
 def _compiled_at_once():
     """The kernels from the first triangulation on (a process loads them only after some work)."""
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(module, "_LOAD_AFTER", 0)
+        patch.setattr(module.KERNELS, "load_after", 0)
         yield
 
 
@@ -198,30 +198,30 @@ def test_kernels_are_off_when_asked(monkeypatch):
 
 
 def test_a_process_loads_the_kernels_after_some_reference_work(monkeypatch):
-    """Below ``_LOAD_AFTER`` region vertices the reference code runs (a short run pays nothing for
+    """Below ``KERNELS.load_after`` region vertices the reference code runs (a short run pays nothing for
     numba); the call that passes it still does, the next one is compiled; GENR8_COMPILED=1 loads the
     kernels at once."""
     paths = []
-    real = module._load_kernels
+    real = module.KERNELS.load
 
     def spy():
         paths.append("compiled")
         return real()
 
-    monkeypatch.setattr(module, "_load_kernels", spy)
-    monkeypatch.setattr(module, "_LOAD_AFTER", 100)
-    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.setattr(module.KERNELS, "load", spy)
+    monkeypatch.setattr(module.KERNELS, "load_after", 100)
+    monkeypatch.setattr(module.KERNELS, "reference_work", 0)
     monkeypatch.delenv("GENR8_COMPILED", raising=False)
     square = _polygons([_with_runs(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.0]]),
                                    np.full(4, 20))])                  # 80 vertices, a large region
     first = module.triangulate_polygons(*square)
-    assert paths == [] and module._reference_vertices == 80
+    assert paths == [] and module.KERNELS.reference_work == 80
     second = module.triangulate_polygons(*square)
-    assert paths == [] and module._reference_vertices == 160
+    assert paths == [] and module.KERNELS.reference_work == 160
     third = module.triangulate_polygons(*square)
-    assert paths and module._reference_vertices == 160
+    assert paths and module.KERNELS.reference_work == 160
     assert np.array_equal(first, second) and np.array_equal(first, third)
-    monkeypatch.setattr(module, "_reference_vertices", 0)
+    monkeypatch.setattr(module.KERNELS, "reference_work", 0)
     monkeypatch.setenv("GENR8_COMPILED", "1")
     paths.clear()
     module.triangulate_polygons(*square)
