@@ -7,7 +7,8 @@ Both encodings evolve as the paper's did: their own genomes and the paper's oper
 ``hooks.VARIATION``: random systems or strings, structural mutation and recombination, half and
 half), elitism 2, tournaments of 3, the same population, generations and seeds; the only difference
 is the encoding. The paper ran 100 individuals for 1,000 generations, 100 trials per encoding
-(``--paper``, for a cluster or a lent machine); the default fits a small shared machine.
+(``--paper``, for a cluster or a lent machine: 100-250 CPU-hours, docs/fidelity.md); the default
+fits a small shared machine. Each run prints a line to stderr as it ends.
 
 Reported per encoding, over the seeds (median [quartiles]): the best fitness (height x surface x
 stability / excess, maximised) every few generations; generation 0's and the final best, and the
@@ -19,7 +20,7 @@ call, bracket or block in a successor 1 each per symbol: 45x there) and the repe
 command string the turtle ran (its length / its zlib-compressed length); a Mann-Whitney U test on
 the final best fitness; and a plain verdict on the paper's claim. ``--json FILE`` writes it all.
 
-    python bench/tables.py                      # 10 seeds, 20 x 45 (about 5 minutes on 2 cores)
+    python bench/tables.py                      # 10 seeds, 20 x 60 (about 5 minutes on 2 cores)
     python bench/tables.py --seeds 20 --population 50 --generations 100 --workers 4
     python bench/tables.py --paper --workers 64 # 100 trials of 100 x 1,000 per encoding
 """
@@ -176,26 +177,36 @@ def _row(name: str, q: tuple[float, float, float], fmt: str = ".4g") -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--population", type=int, default=20)
-    parser.add_argument("--generations", type=int, default=45)
+    parser.add_argument("--seeds", type=int, help="seeds per encoding (10; --paper: 100)")
+    parser.add_argument("--population", type=int, help="individuals (20; --paper: 100)")
+    parser.add_argument("--generations", type=int, help="generations (60; --paper: 1,000)")
     parser.add_argument("--paper", action="store_true",
-                        help="the paper's size: 100 seeds of 100 individuals for 1,000 generations")
+                        help="the paper's size: 100 seeds of 100 individuals for 1,000 generations "
+                        "(--seeds, --population or --generations given as well win)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--every", type=int, default=5, help="print every N-th generation")
     parser.add_argument("--json", metavar="FILE", help="write every figure (and each run's) to FILE")
     parser.add_argument("--pictures", metavar="DIR", help="draw each encoding's final best table of "
                         "its best and its median seed into DIR/<universe>-{best,median}.png")
     args = parser.parse_args(argv)
+    for key, small, paper in (("seeds", 10, 100), ("population", 20, 100), ("generations", 60, 1000)):
+        if getattr(args, key) is None:
+            setattr(args, key, paper if args.paper else small)
     if args.paper:
-        args.seeds, args.population, args.generations = 100, 100, 1000
         args.every = max(args.every, 100)
 
     jobs = [(u, seed, args.population, args.generations)
             for seed in range(1, args.seeds + 1) for u in ENCODINGS]
     start, cpu = time.perf_counter(), time.process_time()
     with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
-        results = pool.map(one_run, jobs, chunksize=1)
+        results = []
+        for done, result in enumerate(pool.imap(one_run, jobs, chunksize=1), 1):
+            results.append(result)
+            print(f"  run {done}/{len(jobs)}: {result['universe']} seed {result['seed']}: best "
+                  f"{result['best'][0]:.4g} at generation 0, {result['best'][-1]:.4g} at the end; "
+                  f"{result['voxels']} voxels, top {result['top_filled']:.2f} filled, compression "
+                  f"{result['compression']:.3g}; {result['cpu_seconds']:.0f} CPU-s", file=sys.stderr,
+                  flush=True)
     wall = time.perf_counter() - start
     by = {u: [r for r in results if r["universe"] == u] for u in ENCODINGS}
     figures = summarise(by, args)

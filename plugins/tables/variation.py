@@ -37,6 +37,7 @@ limits 22 and -10, axiom ``P0(4, 10)``, all reachable).
 
 from __future__ import annotations
 
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -104,11 +105,28 @@ def write(system: voxels.System) -> str:
         return write_items(system.axiom) + "\n"
     (head,) = system.axiom
     lines = [f"{head[1]}({','.join(_arg(e) for e in head[2])}) iterations {system.iterations}"]
-    for production in system.productions.values():
-        pairs = " | ".join(f"{production.params[i]}>{_num(limit)} -> {write_items(items)}".rstrip()
-                           for i, limit, items in production.pairs)
-        lines.append(f"{production.name}({','.join(production.params)}): {pairs}")
+    lines += [_production_line(production) for production in system.productions.values()]
     return "\n".join(lines) + "\n"
+
+
+def _production_line(production: voxels.Production) -> str:
+    """One production's line (cached when it is all tuples, as the operators' children are: a child
+    shares all but one or two of its parent's lines; ``voxels.parse`` leaves lists inside)."""
+    try:
+        return _cached_line(production)
+    except TypeError:
+        return _line(production)
+
+
+@lru_cache(maxsize=8192)
+def _cached_line(production: voxels.Production) -> str:
+    return _line(production)
+
+
+def _line(production: voxels.Production) -> str:
+    pairs = " | ".join(f"{production.params[i]}>{_num(limit)} -> {write_items(items)}".rstrip()
+                       for i, limit, items in production.pairs)
+    return f"{production.name}({','.join(production.params)}): {pairs}"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -348,7 +366,7 @@ class Direct:
 
 def _two(values: list, pad: Any) -> list:
     """``values`` as the paper's two parameters: a third and later dropped, a missing one ``pad``."""
-    return (values + [pad, pad])[:2]
+    return [*values, pad, pad][:2]
 
 
 class _Rules:

@@ -247,38 +247,46 @@ def parse(text: str) -> System:
                           f"got {iterations:g}")
     productions: dict[str, Production] = {}
     for lineno, line in lines[1:]:
-        reader = _Line(line, lineno)
-        pname = reader.take()
-        if not re.fullmatch(r"P\d+", pname):
-            raise TablesError(f"line {lineno}: a production starts with its name Pk, got {pname!r}")
-        if pname in productions:
-            raise TablesError(f"line {lineno}: production {pname} is defined twice")
-        reader.take("(")
-        params = [reader.take()]
-        while reader.peek() == ",":
-            reader.i += 1
-            params.append(reader.take())
-        reader.take(")")
-        if any(not re.fullmatch(r"n\d+", p) for p in params) or len(set(params)) != len(params):
-            raise TablesError(f"line {lineno}: formal parameters are distinct names n0, n1, ..., got "
-                              f"{', '.join(params)}")
-        reader.params = tuple(params)
-        reader.take(":")
-        pairs = []
-        while True:
-            param = reader.take()
-            if param not in reader.params:
-                reader.i -= 1
-                raise reader.fail(f"a condition on one of {', '.join(params)}")
-            reader.take(">")
-            limit = reader.number()
-            reader.take("->")
-            pairs.append((reader.params.index(param), limit, tuple(reader.items(None, direct=False))))
-            if reader.done():
-                break
-            reader.take("|")
-        productions[pname] = Production(pname, reader.params, tuple(pairs))
+        production = _production(line, lineno)
+        if production.name in productions:
+            raise TablesError(f"line {lineno}: production {production.name} is defined twice")
+        productions[production.name] = production
     return System((("call", name, args),), int(iterations), productions)
+
+
+@lru_cache(maxsize=8192)
+def _production(line: str, lineno: int) -> Production:
+    """One production line (cached: a child of mutation or recombination shares all but one or two
+    of its parent's lines, so most of a new text is read once)."""
+    reader = _Line(line, lineno)
+    pname = reader.take()
+    if not re.fullmatch(r"P\d+", pname):
+        raise TablesError(f"line {lineno}: a production starts with its name Pk, got {pname!r}")
+    reader.take("(")
+    params = [reader.take()]
+    while reader.peek() == ",":
+        reader.i += 1
+        params.append(reader.take())
+    reader.take(")")
+    if any(not re.fullmatch(r"n\d+", p) for p in params) or len(set(params)) != len(params):
+        raise TablesError(f"line {lineno}: formal parameters are distinct names n0, n1, ..., got "
+                          f"{', '.join(params)}")
+    reader.params = tuple(params)
+    reader.take(":")
+    pairs = []
+    while True:
+        param = reader.take()
+        if param not in reader.params:
+            reader.i -= 1
+            raise reader.fail(f"a condition on one of {', '.join(params)}")
+        reader.take(">")
+        limit = reader.number()
+        reader.take("->")
+        pairs.append((reader.params.index(param), limit, tuple(reader.items(None, direct=False))))
+        if reader.done():
+            break
+        reader.take("|")
+    return Production(pname, reader.params, tuple(pairs))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -405,6 +413,44 @@ def command_string(word: tuple, *, calls: bool = True) -> str:
 _AXES = {"^": (0, 1), "v": (0, 1), "<": (0, 2), ">": (0, 2), "/": (1, 2), "\\": (1, 2)}
 
 
+def _rotated(frame: tuple, symbol: str, n: int) -> tuple:
+    """The turtle's frame (X heading, Y, Z as integer world vectors) after ``symbol(n)``."""
+    quarter = n % 4
+    if symbol in ("v", ">", "\\"):
+        quarter = (-quarter) % 4
+    a, b = _AXES[symbol]  # rotating about the third axis turns a into b
+    axes = [frame[0], frame[1], frame[2]]
+    for _ in range(quarter):
+        axes[a], axes[b] = axes[b], tuple(-c for c in axes[a])
+    return tuple(axes)
+
+
+def _orientations() -> tuple[list[tuple], dict[str, list[list[int]]]]:
+    """The 24 frames the turtle can take, and for each rotation symbol and quarter-turn count
+    (0..3) the frame each frame turns into (by index): a rotation is a table look-up."""
+    frames = [((1, 0, 0), (0, 1, 0), (0, 0, 1))]
+    index = {frames[0]: 0}
+    todo = [frames[0]]
+    while todo:
+        frame = todo.pop()
+        for symbol in _AXES:
+            turned = _rotated(frame, symbol, 1)
+            if turned not in index:
+                index[turned] = len(frames)
+                frames.append(turned)
+                todo.append(turned)
+    turns = {symbol: [[index[_rotated(f, symbol, q)] for f in frames] for q in range(4)]
+             for symbol in _AXES}
+    return frames, turns
+
+
+_FRAMES, _TURNS = _orientations()
+# A cell (x, y, z) is byte x * GRID * GRID + y * GRID + z of the flat grid; a frame's heading is one
+# axis: its index stride, and which coordinate it moves along (to stop a move at the grid's edge).
+_STRIDES = (GRID * GRID, GRID, 1)
+_HEADINGS = [next((axis, c) for axis, c in enumerate(f[0]) if c) for f in _FRAMES]
+
+
 @dataclass(frozen=True)
 class Table:
     """A developed structure: ``voxels`` (GRID^3 bool, indexed ``[x, y, z]``, ``y`` up) and how it
@@ -426,39 +472,41 @@ class Table:
 
 
 class _Turtle:
+    """The LOGO-style turtle over a flat byte grid (one byte a cell), its frame one of ``_FRAMES``."""
+
     def __init__(self, max_commands: int) -> None:
-        self.grid = np.zeros((GRID, GRID, GRID), dtype=bool)
-        self.pos = list(START)
-        self.grid[START] = True
-        # The turtle's frame: X (heading), Y (up at the start), Z, as integer world vectors.
-        self.frame = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
-        self.stack: list[tuple] = []
+        self.cells = bytearray(GRID ** 3)
+        x, y, z = START
+        self.pos = [x, y, z]
+        self.cells[x * GRID * GRID + y * GRID + z] = 1
+        self.frame = 0
         self.left = max_commands
         self.run = 0
+
+    @property
+    def grid(self) -> np.ndarray:
+        return np.frombuffer(bytes(self.cells), dtype=np.uint8).reshape(GRID, GRID, GRID).astype(bool)
 
     def move(self, n: float, sign: int) -> None:
         steps = int(n)  # truncation towards zero
         if steps < 0:
             steps, sign = -steps, -sign
-        hx, hy, hz = (sign * c for c in self.frame[0])
-        x, y, z = self.pos
-        grid = self.grid
-        for _ in range(min(steps, GRID)):
-            nx, ny, nz = x + hx, y + hy, z + hz
-            if not (0 <= nx < GRID and 0 <= ny < GRID and 0 <= nz < GRID):
-                break
-            x, y, z = nx, ny, nz
-            grid[x, y, z] = True
-        self.pos = [x, y, z]
-
-    def rotate(self, symbol: str, n: float) -> None:
-        quarter = int(n) % 4
-        if symbol in ("v", ">", "\\"):
-            quarter = (-quarter) % 4
-        a, b = _AXES[symbol]  # rotating about the third axis turns a into b
-        frame = self.frame
-        for _ in range(quarter):
-            frame[a], frame[b] = frame[b], [-c for c in frame[a]]
+        axis, c = _HEADINGS[self.frame]
+        c *= sign
+        pos = self.pos
+        at = pos[axis]
+        room = GRID - 1 - at if c > 0 else at      # cells left before the grid's edge
+        if steps > room:
+            steps = room
+        if steps <= 0:
+            return
+        stride = _STRIDES[axis]
+        here = pos[0] * GRID * GRID + pos[1] * GRID + pos[2]
+        if c > 0:
+            self.cells[here + stride:here + stride * (steps + 1):stride] = _ONES[steps]
+        else:
+            self.cells[here - stride * steps:here:stride] = _ONES[steps]
+        pos[axis] = at + c * steps
 
     def run_items(self, items: tuple) -> None:
         for item in items:
@@ -468,21 +516,25 @@ class _Turtle:
             if kind == "c":
                 self.left -= 1
                 self.run += 1
-                if item[1] == "f":
+                symbol = item[1]
+                if symbol == "f":
                     self.move(item[2], 1)
-                elif item[1] == "b":
+                elif symbol == "b":
                     self.move(item[2], -1)
                 else:
-                    self.rotate(item[1], item[2])
+                    self.frame = _TURNS[symbol][int(item[2]) % 4][self.frame]
             elif kind == "[":
-                self.stack.append((list(self.pos), [list(v) for v in self.frame]))
+                pos, frame = list(self.pos), self.frame
                 self.run_items(item[1])
-                self.pos, self.frame = self.stack.pop()
+                self.pos, self.frame = pos, frame
             elif kind == "{" and _has_command(item[2]):  # repeating nothing would only cost time
                 for _ in range(max(0, int(item[1]))):
                     if self.left <= 0:
                         return
                     self.run_items(item[2])
+
+
+_ONES = [b"\x01" * k for k in range(GRID + 1)]
 
 
 def _has_command(items: tuple) -> bool:
@@ -562,6 +614,15 @@ def hull_area(cells: np.ndarray) -> float:
     return abs(twice) / 2.0
 
 
+@lru_cache(maxsize=4096)
+def _layer_area(packed: bytes) -> float:
+    """The hull area of one layer, its cells packed as bits (cached: a table's legs repeat one
+    layer many times, and a child shares most layers with its parent)."""
+    layer = np.unpackbits(np.frombuffer(packed, dtype=np.uint8), count=GRID * GRID).reshape(GRID, GRID)
+    xs, zs = np.nonzero(layer)
+    return hull_area(np.column_stack([xs, zs]))
+
+
 def criteria(voxels: np.ndarray) -> dict[str, float]:
     """``height``, ``surface``, ``stability``, ``excess`` and the ``voxels`` count of a structure."""
     layers = voxels.sum(axis=(0, 2))
@@ -573,8 +634,7 @@ def criteria(voxels: np.ndarray) -> dict[str, float]:
     surface = int(layers[top])
     stability = 0.0
     for y in filled[filled < top]:
-        xs, zs = np.nonzero(voxels[:, y, :])
-        stability += hull_area(np.column_stack([xs, zs]))
+        stability += _layer_area(np.packbits(voxels[:, y, :]).tobytes())
     return {"height": float(top), "surface": float(surface), "stability": stability,
             "excess": float(total - surface), "voxels": float(total)}
 

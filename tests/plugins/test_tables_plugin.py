@@ -167,6 +167,77 @@ def test_any_command_string_builds_one_connected_structure(commands):
     assert V.is_connected(table.voxels)
 
 
+def _reference_turtle(word) -> np.ndarray:
+    """Table 1 read plainly: a frame of three world vectors turned a quarter at a time, a move
+    one cell at a time that stops at the grid's edge, push/pop of position and frame; at most
+    ``MAX_COMMANDS`` commands run."""
+    grid = np.zeros((V.GRID,) * 3, dtype=bool)
+    grid[V.START] = True
+    left = [V.MAX_COMMANDS]
+    about = {"^": (0, 1), "v": (0, 1), "<": (0, 2), ">": (0, 2), "/": (1, 2), "\\": (1, 2)}
+
+    def run(items, pos, frame):
+        for item in items:
+            if left[0] <= 0:
+                break
+            if item[0] == "[":
+                run(item[1], list(pos), [list(v) for v in frame])
+            elif item[0] == "{":
+                for _ in range(max(0, int(item[1]))):
+                    pos, frame = run(item[2], pos, frame)
+            elif item[1] in "fb":
+                left[0] -= 1
+                n, sign = int(item[2]), 1 if item[1] == "f" else -1
+                sign, n = (-sign, -n) if n < 0 else (sign, n)
+                for _ in range(n):
+                    nxt = [p + sign * d for p, d in zip(pos, frame[0], strict=True)]
+                    if not all(0 <= c < V.GRID for c in nxt):
+                        break
+                    pos = nxt
+                    grid[tuple(pos)] = True
+            else:
+                left[0] -= 1
+                a, b = about[item[1]]
+                turns = int(item[2]) % 4 if item[1] in "^</" else (-int(item[2])) % 4
+                for _ in range(turns):
+                    frame[a], frame[b] = frame[b], [-c for c in frame[a]]
+        return pos, frame
+
+    run(word, list(V.START), [[1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    return grid
+
+
+def _hull_of_each_layer(voxels: np.ndarray) -> float:
+    layers = np.flatnonzero(voxels.sum(axis=(0, 2)))
+    total = 0.0
+    for y in layers[:-1]:
+        xs, zs = np.nonzero(voxels[:, y, :])
+        total += V.hull_area(np.column_stack([xs, zs]))
+    return total
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]", "{"]), st.integers(-7, 45)),
+                min_size=1, max_size=50))
+def test_the_turtle_fills_the_cells_a_plain_reading_of_table_1_fills(commands):
+    opened, parts = [], []
+    for symbol, n in commands:
+        if symbol in "[{":
+            opened.append(symbol)
+            parts.append(symbol)
+        elif symbol == "]":   # closes what is open, a bracket with ']', a block with '} ( n )'
+            if opened:
+                parts.append("]" if opened.pop() == "[" else f"}} ( {n % 4} )")
+        else:
+            parts.append(f"{symbol} ( {n} )")
+    parts += ["]" if symbol == "[" else "} ( 3 )" for symbol in reversed(opened)]
+    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {' '.join(parts)}\n"
+    table = V.develop(text)
+    word = V.derive(V.parse(text))[0]
+    assert np.array_equal(table.voxels, _reference_turtle(word))
+    assert V.criteria(table.voxels)["stability"] == _hull_of_each_layer(table.voxels)
+
+
 def test_the_mesh_is_watertight_with_the_voxels_volume_and_the_same_bytes_each_time(tmp_path):
     import trimesh
 
