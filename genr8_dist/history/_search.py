@@ -220,12 +220,12 @@ def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
     """``k`` kinds of form among the run's best ``10 k`` distinct phenotypes (of ``generation``,
     ``island``), chosen by what a person sees: each kind's representative is the design farthest, in
     what it looks like (the phenotype's ``looks``: a surface's outline, height field and curvature,
-    ``genr8_dist.forms``), from the kinds already chosen, the
-    first being the best; every design of the pool belongs to the kind it looks most like. Per kind:
-    its ``cluster`` number, how many ``members`` it has (largest first), their ids
-    (``member_ids``, each form's best) and the range of each criterion and of the fitness over them
-    (``min_<name>``, ``max_<name>``; ``cluster_ranges`` reads them). A phenotype that is not a
-    surface is told apart by its standardised criteria and the logs of its sizes. Deterministic: no random draw."""
+    ``genr8_dist.forms``), from the kinds already chosen, the first being the best; every design of
+    the pool belongs to the kind it looks most like. Per kind: its ``cluster`` number, how many
+    ``members`` it has (largest first), their ids (``member_ids``, each form's best) and the range of
+    each criterion and of the fitness over them (``min_<name>``, ``max_<name>``; ``cluster_ranges``
+    reads them). A phenotype that is not a surface is told apart by its standardised criteria and the
+    logs of its sizes. Deterministic: no random draw."""
     if k < 1:
         raise HistoryError(f"clusters: k must be at least 1, got {k}")
     store = open_run(run)
