@@ -142,7 +142,7 @@ def register(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     view = p.add_mutually_exclusive_group()
     view.add_argument("--clusters", type=int32, metavar="K",
                       help="instead: K kinds of form among the whole run's distinct designs "
-                           "(k-means over criteria and counts), the design nearest each centroid")
+                           "(the least alike in outline, height field and curvature)")
     view.add_argument("--archive", action="store_true",
                       help="instead: the MAP-Elites archive after the generation, as a map")
     p.add_argument("-o", "--output", required=True, metavar="OUT.png", help="the PNG to write")

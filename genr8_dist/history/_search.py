@@ -275,7 +275,7 @@ def _finite_range(values: np.ndarray) -> tuple[float | None, float | None]:
 
 def cluster_ranges(kinds: pa.Table, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """The per-cluster statistics of a ``clusters`` table: per cluster its number, size, the design
-    nearest its centre and ``ranges``: fitness and each criterion (of ``names``, default all) ->
+    representative and ``ranges``: fitness and each criterion (of ``names``, default all) ->
     ``(min, max)`` over its members (``None`` where no member has a finite value)."""
     kept = None if names is None else {"fitness", *names}
     columns = set(kinds.column_names)

@@ -304,7 +304,7 @@ def _search_sections(store: RunStore, label: str, noun: str) -> list[str]:
 
 
 def _cluster_statistics_section(store: Any, noun: str) -> str:
-    """Per kind of form (the 12 clusters drawn above): its size, the design nearest its centre and
+    """Per kind of form (the 12 clusters drawn above): its size, its representative and
     the range of the fitness and of each weighted criterion over its members."""
     from genr8_dist.history._search import cluster_ranges, clusters, format_range, weighted_criteria
 
@@ -315,7 +315,7 @@ def _cluster_statistics_section(store: Any, noun: str) -> str:
         return _section(title, f'<p class="note">No clusters: {html.escape(str(exc))}</p>')
     names = list(stats[0]["ranges"]) if stats else []
     head = "".join(f"<th>{html.escape(h)}</th>" for h in
-                   ["kind", f"{noun}s", "nearest its centre", *[n.replace("_", " ") for n in names]])
+                   ["kind", f"{noun}s", "representative", *[n.replace("_", " ") for n in names]])
     rows = "".join(
         f'<tr><td class="num">{s["cluster"]}</td><td class="num">{s["members"]}</td>'
         f"<td><code>{html.escape(s['id'])}</code></td>"

@@ -416,10 +416,9 @@ class RunView:
     def clusters(self, generation: int | None = None, k: int = KINDS, island: int | None = None
                  ) -> dict[str, Any]:
         """The kinds of form of ``generation`` (default: the newest), as Biomorpher shows them: its
-        distinct valid surfaces (of ``island``, or all) in ``k`` clusters by k-means over their
-        criteria and counts (``history.clusters``), one representative per cluster (the design
-        nearest its centre) with the cluster's size, largest first. Without scikit-learn:
-        ``unavailable`` says which extra to install."""
+        distinct valid surfaces (of ``island``, or all) as ``k`` kinds told apart by outline, height
+        field and curvature (``history.clusters``), one representative per kind with the kind's size
+        and criterion ranges, largest first."""
         from genr8_dist.errors import HistoryError
         from genr8_dist.history import clusters
         from genr8_dist.history._search import cluster_ranges, weighted_criteria
@@ -432,11 +431,6 @@ class RunView:
         g = newest if generation is None or generation < 0 else min(int(generation), max(committed.values()))
         if not 1 <= k <= MAX_KINDS:
             raise ConfigError(f"k {k}: the studio shows 1 to {MAX_KINDS} kinds of form")
-        try:
-            import sklearn.cluster  # noqa: F401  (the search extra)
-        except ImportError:
-            return {"generation": g, "k": k, "representatives": [],
-                    "unavailable": "kinds of form need scikit-learn: pip install 'genr8_dist[search]'"}
         key = (g, k, island)
         with self._lock:
             found = self._kinds.get(key)

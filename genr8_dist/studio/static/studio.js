@@ -443,21 +443,20 @@ async function loadGeneration(g) {
   drawArchive(data.generation).catch(() => {});
   drawCurves();
 }
-// the kinds of form of a generation (Biomorpher's 12): one design per k-means cluster, nearest its centre
+// the kinds of form of a generation (Biomorpher's 12): the least alike in outline, height field and curvature
 async function loadKinds(g, island) {
   const panel = $("kinds-panel"), list = $("kinds-list");
   panel.classList.remove("hidden");
   list.innerHTML = `<div class="note">clustering generation ${g}…</div>`;
   let k;
   try { k = await getJSON(`/api/clusters?g=${g}&k=12&island=${island}`); } catch (e) { list.innerHTML = `<div class="note">${escapeHTML(e.message)}</div>`; return null; }
-  if (k.unavailable || !k.representatives.length) {
-    list.innerHTML = `<div class="note">${escapeHTML(k.unavailable || k.message || "no valid design to cluster")}` +
-      `${k.unavailable ? " · showing the best 12" : ""}</div>`;
+  if (!k.representatives.length) {
+    list.innerHTML = `<div class="note">${escapeHTML(k.message || "no valid design to cluster")}</div>`;
     $("kinds-note").textContent = "";
     return null;
   }
   ui.kinds = k;
-  $("kinds-note").textContent = `${k.representatives.length} clusters of the ${k.surfaces} distinct surfaces · the design nearest each centre`;
+  $("kinds-note").textContent = `${k.representatives.length} kinds among the best ${k.surfaces} distinct surfaces · the least alike in outline, height and curvature`;
   list.innerHTML = k.representatives.map((r) =>
     `<div data-id="${r.id}" class="${r.id === ui.selected ? "selected" : ""}">` +
     `<b><i style="color:${islandColour(r.island)}">■</i> kind ${r.cluster} · ${r.id}</b>` +
