@@ -46,7 +46,10 @@ a branch (no region can ever split: trivial), or whose *effective* text (the rul
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
 (``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
 too, from its first parent (its own variation broke what made the parent split its regions, so
-its neighbourhood is mostly trivial), as is one whose growth was capped.
+its neighbourhood is mostly trivial), as is one whose growth was capped; trivial again after
+``_TRIVIAL_RETRIES`` such re-variations, it is kept (``IslandStats.kept_trivial``): a parent whose
+neighbourhood is mostly trivial would cost growth after growth (quick.toml: 1.24 evaluations per
+stored individual with no bound, 1.11 with one re-variation, 3-4% of offspring kept trivial).
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
@@ -119,6 +122,7 @@ class IslandStats:
     unresolved: int = 0         # offspring or founders still repeating after every retry
     revaried_trivial: int = 0   # offspring varied again because their surface was trivial (one region)
     screened: int = 0           # drawn or varied again from the text alone, never developed
+    kept_trivial: int = 0       # offspring kept trivial after _TRIVIAL_RETRIES trivial re-variations
 
 
 @dataclass(frozen=True, slots=True)
@@ -136,6 +140,9 @@ class Birth:
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
 _MATE_RETRIES = 5
+# A trivial offspring is varied again from its first parent this many times; one trivial again
+# after them is kept (its parent's neighbourhood is mostly trivial: more growths there are wasted).
+_TRIVIAL_RETRIES = 1
 _SCREENS = 20   # genomes drawn or varied again, from their text alone, before one is grown
 
 
@@ -335,6 +342,7 @@ class Island:
             unresolved=counted.unresolved,
             revaried_trivial=counted.revaried_trivial,
             screened=counted.screened,
+            kept_trivial=counted.kept_trivial,
         )
         for hook in self.hooks:
             hook(population)
@@ -739,10 +747,17 @@ class Island:
                 or trivial(ev)
 
         rng = None
+        trivials = 0   # trivial growths of this offspring so far
         for _ in range(self.config.ea.unique_retries):
             evaluation = self._settled(genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
+            if trivial(evaluation) and evaluation.phenotype_digest not in seen \
+                    and evaluation.phenotype_digest not in birth.avoid:
+                trivials += 1
+                if trivials > _TRIVIAL_RETRIES:   # its first parent's neighbourhood is mostly trivial
+                    self.stats.kept_trivial += 1
+                    return genome, self.evaluator.measure(genome, evaluation), origin
             if trivial(evaluation):
                 self.stats.revaried_trivial += 1
             elif evaluation.valid:

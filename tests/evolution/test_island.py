@@ -527,3 +527,33 @@ def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_ne
     assert island.evaluator.evaluations / stored <= 1.3
     assert sum(not ind.valid or ind.sizes["regions"] <= 1 for ind in later) <= 0.1 * len(later)
     assert grown and not any(screen(text)[0] for text in grown)   # no text called trivial was grown
+
+
+def test_an_offspring_trivial_again_after_its_re_variation_is_kept_and_saves_growths(monkeypatch):
+    """A child that grows trivial is varied again from its first parent ``_TRIVIAL_RETRIES`` times;
+    trivial again, it is kept (``IslandStats.kept_trivial`` counts it), so the growths a parent with
+    a mostly trivial neighbourhood costs stay bounded (quick.toml's settings, one island)."""
+    from genr8_dist.config import load_config
+    from genr8_dist.evolution import island as island_module
+
+    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
+    config = load_config(quick).replace(islands={"count": 1, "migrants": 0}, ea={"generations": 8})
+
+    def run() -> tuple[list[Individual], int, int]:
+        island = Island(config, 0)
+        kept: list[int] = []
+        island.hooks.append(lambda population: kept.append(island.stats.kept_trivial))
+        hist = island.run()
+        later = [ind for gen in hist[1:] for ind in gen if ind.origin in _OFFSPRING_ORIGINS]
+        return later, sum(kept), island.evaluator.evaluations
+
+    later, kept, evaluations = run()
+    trivial = [ind for ind in later if ind.valid and ind.sizes["regions"] <= 1]
+    assert kept > 0 and len(trivial) == kept < 0.1 * len(later)
+    monkeypatch.setattr(island_module, "_TRIVIAL_RETRIES", 1000)
+    later, kept, unbounded = run()
+    assert kept == 0 and not any(ind.valid and ind.sizes["regions"] <= 1 for ind in later)
+    assert unbounded > evaluations
+
+
+_OFFSPRING_ORIGINS = ("crossover", "mutation", "crossover+mutation")
