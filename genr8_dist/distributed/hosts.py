@@ -1,8 +1,11 @@
 """The pool of island hosts (Ray actors): how many, how much CPU each reserves, and replacing dead ones.
 
-Islands can outnumber cores: the pool starts ``min(islands, free CPUs)`` hosts, each reserving one CPU
-(a fraction when the cluster offers less than one), and deals the islands out round-robin, so every
-host has work and no actor waits for a CPU that will never be free. A run that cannot be scheduled
+A run uses the CPUs it is given, whatever its island count: the pool starts one host per free CPU
+(``max_hosts`` at most), each reserving one CPU (a fraction when the cluster offers less than one), and
+deals the islands out round-robin. When islands outnumber CPUs a host holds several; when CPUs outnumber
+islands the hosts holding none evaluate genomes of the others' generations (``actors``), so a 4-island
+run on 16 CPUs evaluates on 16. Every host reserves its CPU from Ray, so a cluster with an autoscaler
+adds nodes for a run that asks for more CPUs than it has (cluster/README.md). A run that cannot be scheduled
 (no free CPU, or hosts not started within ``timeout`` seconds) is refused with a ``RunError``.
 
 When a host dies (its process or its node), ``replace`` starts a new host when a CPU is free and deals
@@ -36,7 +39,7 @@ class HostPlan:
 
 
 def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -> HostPlan:
-    """``min(islands, free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
+    """``min(free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
     if n_islands < 1:
         raise RunError(f"a run needs at least one island, got {n_islands}")
     if not free_cpus > 0:
@@ -44,7 +47,7 @@ def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -
             f"the Ray cluster has no free CPU for {n_islands} island(s); "
             "free some, add a node, or give the local Ray more CPUs"
         )
-    hosts = min(n_islands, max(1, math.floor(free_cpus)))
+    hosts = max(1, math.floor(free_cpus))
     if max_hosts is not None:
         hosts = max(1, min(hosts, max_hosts))
     return HostPlan(hosts=hosts, num_cpus=1.0 if free_cpus >= 1 else float(free_cpus))
@@ -130,6 +133,10 @@ class HostPool:
     def host_of(self, island: int) -> Any:
         """The actor handle holding ``island``."""
         return self._hosts[self.placement[island]]
+
+    def placement_of(self, island: int) -> int:
+        """The number of the host holding ``island``."""
+        return self.placement[island]
 
     def islands_on(self, host: int) -> list[int]:
         """The islands dealt to host number ``host``."""

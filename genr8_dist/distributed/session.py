@@ -402,8 +402,10 @@ def hold_run_lock(store: RunStore, lock: RunLock | None = None) -> Iterator[None
 def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
           on_generation: Callable[[Coordinator, int], None] | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
-          stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
-    """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
+          stop: StopRequest | None = None, hosts: Any = None,
+          on_island: Callable[[Coordinator, int, int, Any], None] | None = None) -> RunSummary:
+    """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught);
+    the hooks are the coordinator's."""
     _preload()
     from genr8_dist.distributed.coordinator import Coordinator, StopRequest
     from genr8_dist.distributed.hosts import HostPool
@@ -426,7 +428,7 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
 
     try:
         coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
-                                  live=True, progress=None)
+                                  on_island=on_island, live=True, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
         with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):

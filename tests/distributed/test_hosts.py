@@ -1,4 +1,5 @@
-"""Sizing the island hosts: islands may outnumber CPUs; no free CPU is refused, not left waiting."""
+"""Sizing the island hosts: one per free CPU whatever the islands (hosts with no island help the
+others); islands may outnumber CPUs; no free CPU is refused, not left waiting."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ from genr8_dist.distributed.hosts import plan_hosts
 from genr8_dist.errors import RunError
 
 
-def test_one_host_per_island_when_cpus_allow():
+def test_one_host_per_cpu_even_with_fewer_islands():
     plan = plan_hosts(3, free_cpus=8)
-    assert (plan.hosts, plan.num_cpus) == (3, 1.0)
+    assert (plan.hosts, plan.num_cpus) == (8, 1.0)
 
 
 def test_islands_outnumbering_cpus_share_hosts():
