@@ -797,6 +797,7 @@ class Pipeline:
         low = min(after.values())
         for g in [g for g in self.migrants_after if g < low and len(self.migrants_after[g]) == run.n_islands]:
             del self.migrants_after[g]
+        run._migrated = {g for g in run._migrated if g >= low}   # no island migrates before low again
         if committed and run.on_commit is not None:
             run.on_commit(run, dict(after))
 

@@ -43,7 +43,8 @@ class RunOptions:
     """How to run: where Ray is, how many CPUs a local Ray gets, and what to print."""
 
     address: str | None = None
-    num_cpus: int | None = None           # a local Ray's CPUs (default: all of this machine's)
+    num_cpus: int | None = None           # a local Ray's CPUs (default: all of this machine's); on a
+                                          # cluster, the CPUs the run asks for (its autoscaler adds nodes)
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
@@ -417,7 +418,7 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
     if hosts is None:
         latest = latest_config(store)
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout)
+                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
     stop = stop if stop is not None else StopRequest()
     live = store.live()   # the hosts write each island's completed generation there (advance's live)
 
@@ -437,6 +438,13 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         live.clear()
         if own_hosts:
             hosts.shutdown()
+
+
+def _cluster_cpus(options: RunOptions) -> int | None:
+    """The CPUs a run on a cluster asks for (``--cpus`` with an address, or inside a Ray job); a local
+    Ray is started with ``num_cpus`` instead."""
+    joined = options.address is not None or bool(os.environ.get("RAY_ADDRESS"))
+    return options.num_cpus if joined else None
 
 
 def _stop_request(given: Any) -> Any:
@@ -507,7 +515,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
             connect_ray(options.address, options.num_cpus, meanwhile=_preload), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout)
+                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
         try:
             lock = _lock_new_run(run_dir)
             stack.callback(lock.release)
@@ -562,7 +570,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
-                             timeout=options.schedule_timeout)
+                             timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
         else:
             hosts.rebind(str(store.path), n)
         try:

@@ -376,3 +376,25 @@ def test_a_crash_while_an_epoch_commits_and_the_next_runs_leaves_whole_epochs(re
     assert summary.status == "complete"
     assert rows(run_dir) == rows(reference[0])
 
+
+
+def test_the_driver_keeps_no_history_that_grows_with_the_run(pool, tmp_path):
+    """What the coordinator holds between commits (uncommitted generations, migrants, events,
+    emigrant candidates, offers of help, migrations recorded) is the same size at the sixth commit as
+    at the second: nothing accumulates with the run's length."""
+    toml = tiny_toml(generations=12)
+    run_dir = tmp_path / "run"
+    new_run(run_dir, toml)
+    sizes = []
+
+    def measure(coordinator, after):
+        pipeline = coordinator._now
+        sizes.append((sum(len(r) for r in pipeline.results.values()), len(pipeline.migrants_after),
+                      sum(len(e) for e in pipeline.events.values()), len(coordinator._candidates),
+                      len(pipeline.offers) // 65, len(coordinator._migrated)))
+
+    summary, _ = drive_to_end(run_dir, pool, on_commit=measure)
+    assert summary.status == "complete" and len(sizes) >= 6
+    peak = [max(column) for column in zip(*sizes[1:], strict=True)]
+    # at most two epochs of 3 islands x 2 generations, two migrations' worth of the rest
+    assert all(x <= y for x, y in zip(peak, (3 * 2 * 2, 2, 2, 2, 0, 2), strict=True)), sizes
