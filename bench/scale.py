@@ -17,7 +17,9 @@ It prints, and with ``--json`` writes one JSON object with: ``islands``, ``cpus`
 last commit; Ray's and the hosts' start-up are ``startup_s``), ``ideal_s`` (the seconds waited by every
 evaluation the run stored, divided by the CPUs), ``efficiency`` (ideal / wall), ``coordinator_share``
 (the driver's time outside waiting for hosts, / wall; ``coordinator_cpu_share``: the driver's CPU
-seconds / wall), ``commit_p50_s``, ``commit_p99_s`` (the driver's commit of an epoch), ``commit_max_s``,
+seconds / wall), ``commit_p50_s``, ``commit_p99_s`` (the driver's commit of an epoch: a thread of
+its own while the next epoch runs), ``commit_max_s``, ``compactions`` and ``compaction_max_s``
+(the compactions that thread made after an epoch's commit, once small files held a merged file's rows),
 ``driver_bytes_per_row`` (bytes of the objects the driver received from hosts, pickled, per row),
 ``driver_peak_rss_mb`` (the driver process's peak resident memory), ``rows_per_epoch``, and the
 machine's load average before and after (the machine may be shared: the waits are wall time, so
@@ -27,6 +29,8 @@ longest evaluation, so the wall time is at least the largest sum over an island'
 their longest waits; ``efficiency_bound`` is the efficiency a run can reach with it (ideal over the
 larger of ideal and critical). ``driver_cpu_s`` and ``driver_cpu_per_epoch_s``: the driver's CPU
 seconds (the bench's own instruments left out), which a loaded machine distorts less than wall time.
+``--trace-memory`` adds ``driver_traced_mb_by_commit``: the Python memory the driver holds after each
+commit (tracemalloc), which stays flat when the driver keeps no history of the run.
 
 The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
 driver's time.
@@ -51,6 +55,7 @@ import statistics  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+import tracemalloc  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -94,6 +99,8 @@ class Instruments:
         self.commits: list[float] = []
         self.received_bytes = 0
         self.overhead = 0.0
+        self.compactions: list[float] = []   # seconds of each compaction (after a commit, same thread)
+        self.traced: list[float] = []   # the driver's traced memory (MiB) after each commit
 
     def install(self) -> None:
         from genr8_dist.distributed import coordinator
@@ -107,8 +114,20 @@ class Instruments:
                 return commit(self, *a, **k)
             finally:
                 instruments.commits.append(time.perf_counter() - t)
+                if tracemalloc.is_tracing():
+                    instruments.traced.append(tracemalloc.get_traced_memory()[0] / 2**20)
 
         coordinator.Coordinator._commit = timed_commit  # type: ignore[method-assign]
+        compact = coordinator.Coordinator._compact
+
+        def timed_compact(self: Any) -> bool:
+            t = time.perf_counter()
+            done = compact(self)
+            if done:
+                instruments.compactions.append(time.perf_counter() - t)
+            return done
+
+        coordinator.Coordinator._compact = timed_compact  # type: ignore[method-assign]
         receive = coordinator.Pipeline.receive
 
         def counted_receive(self: Any, island: int, g: int, population: Any, *a: Any, **k: Any) -> Any:
@@ -145,6 +164,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             cluster.add_node(num_cpus=per_node)
         cluster.wait_for_nodes()
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
+        if args.trace_memory:
+            tracemalloc.start()
         cpu0 = time.process_time()
         profiler = cProfile.Profile() if args.profile else None
         if profiler is not None:
@@ -196,10 +217,14 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "store_s": summary.store_seconds,
         "commit_p50_s": statistics.median(commits) if commits else 0.0,
         "commit_p99_s": _percentile(commits, 0.99), "commit_max_s": max(commits, default=0.0),
+        "compactions": len(instruments.compactions),
+        "compaction_max_s": max(instruments.compactions, default=0.0),
         "driver_bytes_per_row": instruments.received_bytes / rows if rows else 0.0,
         "driver_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in load_after],
         "status": summary.status,
+        **({"driver_traced_mb_by_commit": [round(x, 2) for x in instruments.traced]}
+           if args.trace_memory else {}),
     }
 
 
@@ -218,6 +243,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")
     parser.add_argument("--json", default=None, help="write the figures to this file as one JSON object")
+    parser.add_argument("--trace-memory", action="store_true",
+                        help="trace the driver's memory (tracemalloc; slows it): its size after each commit")
     parser.add_argument("--profile", default=None,
                         help="profile the driver's thread (cProfile) into this file; print its top functions")
     args = parser.parse_args(argv)

@@ -25,6 +25,7 @@ owner.
 
 from __future__ import annotations
 
+import functools
 import os
 import socket
 import threading
@@ -317,10 +318,12 @@ class IslandHost:
             del self._islands[key]
 
 
+@functools.lru_cache(maxsize=8)
 def remote_host_class(num_cpus: float) -> Any:
     """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), spread over the
     cluster's nodes (a lost node takes few islands with it), never restarted by Ray itself: the
-    coordinator replaces a dead host and reloads its islands from the store."""
+    coordinator replaces a dead host and reloads its islands from the store. One class per CPU
+    reservation: Ray exports a class once (pickling its code), not once per host."""
     import ray
 
     actor = ray.remote(concurrency_groups={OFFERS: 1, HELPING: 1})(IslandHost)

@@ -49,6 +49,7 @@ a caller watch the run (tests use them to inject faults; the studio's live view,
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import json
 import threading
@@ -388,7 +389,7 @@ class Coordinator:
         islands = config.islands
         if not islands.migrants or self.n_islands < 2:
             return ()
-        found = sources(islands.topology, self.n_islands, int(config.seed), generation)[island]
+        found = _sources(islands.topology, self.n_islands, int(config.seed), generation)[island]
         return tuple(sorted({*found, island})) if islands.emigrants == "novel" else found
 
     def migration_event(self, generation: int, config: RunConfig,
@@ -503,19 +504,39 @@ class Coordinator:
             every, self.store.compact_every = self.store.compact_every, None
             try:
                 self.store.commit_parts(parts, events=events)
-                self._small_rows += sum(p.rows for p in parts)
-                if self._compacts and self._small_rows >= COMPACT_ROWS:
-                    self.store.compact(COMPACT_ROWS)
-                    self._small_rows = self._count_small_rows()
             finally:
                 self.store.compact_every = every
+        self._small_rows += sum(p.rows for p in parts)
         self.summary.individuals += sum(p.rows for p in parts)
         return True
+
+    def _compact(self) -> bool:
+        """Compact the run once its small files hold a merged file's rows (a commit of its own,
+        after an epoch's); whether it did."""
+        if not self._compacts or self._small_rows < COMPACT_ROWS:
+            return False
+        with self._writing:
+            self.store.compact(COMPACT_ROWS)
+            self._small_rows = self._count_small_rows()
+        return True
+
+    def _commit_epoch(self, parts: Sequence[Any], events: Sequence[Any], after: Mapping[int, int]) -> bool:
+        """The commit thread's work for one epoch: its commit, then compaction when due."""
+        done = self._commit(parts, events, after)
+        self._compact()
+        return done
 
     def _count_small_rows(self) -> int:
         """The rows of the run's individuals files smaller than a compacted one."""
         return sum(int(e["rows"]) for e in self.store.manifest["individuals"]
                    if int(e["rows"]) < COMPACT_ROWS)
+
+
+@functools.lru_cache(maxsize=8)
+def _sources(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
+    """``migration.sources``, computed once per migration (each island asks it, each time it may
+    start)."""
+    return sources(topology, n_islands, seed, generation)
 
 
 def _answers(refs: Sequence[Any]) -> dict[Any, Any]:
@@ -559,6 +580,7 @@ class Pipeline:
         self.cursor = dict(committed)     # island -> its newest generation done (committed or not)
         self.results: dict[int, dict[int, Any]] = {i: {} for i in committed}
         self.pending: dict[Any, tuple[int, int]] = {}   # ref of a generation under way -> (island, g)
+        self.busy: set[int] = set()         # the islands of ``pending``
         self.tickets: dict[Any, int] = {}
         self.lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
         self.helpers: dict[Any, int] = {}   # ref of a generation under way -> hosts lent to it
@@ -601,7 +623,8 @@ class Pipeline:
     # -- islands --------------------------------------------------------------------------------
 
     def busy_islands(self) -> set[int]:
-        return {i for i, _ in self.pending.values()}
+        """The islands with a generation under way."""
+        return self.busy
 
     def free(self) -> list[int]:
         """The hosts with no generation of their own under way and not lent already."""
@@ -627,11 +650,12 @@ class Pipeline:
                 self.events.setdefault(self.boundary(g + 1), []).append(event)
         return held[island]
 
-    def ready(self, island: int) -> tuple[Any, ...] | None:
-        """What ``island``'s next generation is submitted with, if it may start now."""
+    def ready(self, island: int, limit: int | None = None) -> tuple[Any, ...] | None:
+        """What ``island``'s next generation is submitted with, if it may start now (``limit``:
+        ``limit()``, when the caller has it)."""
         run = self.run_
         g = self.cursor[island] + 1
-        if g > min(run.last, self.limit()) or island in self.busy_islands():
+        if g > min(run.last, self.limit() if limit is None else limit) or island in self.busy:
             return None
         version, config = run.config_for(g)
         migrants: Sequence[Individual] = ()
@@ -642,11 +666,11 @@ class Pipeline:
             migrants = found
         return g, version, config, migrants
 
-    def submit(self, island: int, prepared: tuple[Any, ...] | None = None) -> bool:
+    def submit(self, island: int, limit: int | None = None) -> bool:
         """Ask ``island``'s host for its next generation if it may start, naming free hosts as its
         helpers; whether it was submitted."""
         run = self.run_
-        prepared = prepared or self.ready(island)
+        prepared = self.ready(island, limit)
         if prepared is None:
             return False
         g, version, config, migrants = prepared
@@ -666,17 +690,30 @@ class Pipeline:
                                   [run.hosts.handle(n) for n in helpers], ticket, hand, write,
                                   emigrants, bool(getattr(run, "live", False)))
         self.pending[ref] = (island, g)
+        self.busy.add(island)
         self.tickets[ref] = ticket
         self.helpers[ref] = len(helpers)
         self.lent.update(dict.fromkeys(helpers, ref))
         return True
 
-    def submit_ready(self) -> None:
-        """Submit every island's next generation that may start."""
-        busy = self.busy_islands()
-        for island in sorted(self.cursor):
-            if island not in busy:
-                self.submit(island)
+    def submit_ready(self, islands: Any = None) -> None:
+        """Submit the next generation of every island (of ``islands``) that may start."""
+        limit = self.limit()
+        for island in sorted(self.cursor if islands is None else islands):
+            if island not in self.busy and self.cursor[island] < limit:
+                self.submit(island, limit)
+
+    def affected(self, island: int, g: int) -> set[int]:
+        """The islands that may start now that ``island`` completed ``g``: itself, and after a
+        migration generation the islands its emigrants go to."""
+        run = self.run_
+        out = {island}
+        if is_migration_generation(g, run.interval):
+            config = run.config_for(g + 1)[1]
+            for dest in range(run.n_islands):
+                if island in run.sources_of(dest, g, config):
+                    out.add(dest)
+        return out
 
     def release(self, ref: Any) -> tuple[int, int]:
         """Forget the generation ``ref`` (done or lost) and free the hosts lent to it."""
@@ -684,7 +721,9 @@ class Pipeline:
             del self.lent[n]
         self.helpers.pop(ref, None)
         self.tickets.pop(ref, None)
-        return self.pending.pop(ref)
+        found = self.pending.pop(ref)
+        self.busy.discard(found[0])
+        return found
 
     def lend(self) -> None:
         """Offer each free host to a generation under way: the one with the fewest helpers, then
@@ -762,16 +801,17 @@ class Pipeline:
             from concurrent.futures import ThreadPoolExecutor
 
             self._commits = ThreadPoolExecutor(1, thread_name_prefix="genr8-commit")
-        self.inflight = (self._commits.submit(self.run_._commit, parts, events, after), end, after)
+        self.inflight = (self._commits.submit(self.run_._commit_epoch, parts, events, after), end, after)
 
-    def collect(self, wait: bool = False) -> None:
+    def collect(self, wait: bool = False) -> bool:
         """The commit under way, if done (``wait``: once done): its islands' generations are
-        durable, what the next migration needs is kept and the rest dropped, ``on_commit`` sees it."""
+        durable, what the next migration needs is kept and the rest dropped, ``on_commit`` sees it.
+        Whether one was collected."""
         if self.inflight is None:
-            return
+            return False
         future, _, after = self.inflight
         if not wait and not future.done():
-            return
+            return False
         self.inflight = None
         t = time.perf_counter()
         try:
@@ -780,6 +820,7 @@ class Pipeline:
             if wait:
                 self.run_.summary.store_seconds += time.perf_counter() - t
         self._committed(after, committed)
+        return True
 
     def _committed(self, after: Mapping[int, int], committed: bool = True) -> None:
         run = self.run_
@@ -829,8 +870,10 @@ class Pipeline:
         end = min(run.last, self.hold) if self.hold is not None else run.last
         try:
             self.submit_ready()
+            dirty: set[int] | None = set()   # the islands that may start since (None: any)
             while not run.stop:
-                self.collect()
+                if self.collect():
+                    dirty = None   # a commit: the look-ahead moved on
                 self.commit_due()
                 end = min(run.last, self.hold) if self.hold is not None else run.last
                 if not self.pending and self.inflight is None and (
@@ -856,6 +899,7 @@ class Pipeline:
                         population = answers[ref] if ref in answers else ray.get(ref)
                     except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
                         self.recover(island, exc)
+                        dirty = None
                         continue
                     except ray.exceptions.RayTaskError as exc:
                         cause = getattr(exc, "cause", None)
@@ -865,8 +909,11 @@ class Pipeline:
                         raise RunError(f"island {island} failed at generation {g} on its host: "
                                        f"{what.strip().splitlines()[0]}") from exc
                     self.receive(island, g, population)
+                    if dirty is not None:
+                        dirty |= self.affected(island, g)
                 if not run.stop:
-                    self.submit_ready()
+                    self.submit_ready(dirty)
+                    dirty = set()
                     if not self.pending and self.inflight is None and not self.due():
                         raise RunError(f"the run cannot go on from generations {self.cursor} (committed: "
                                        f"{self.committed}); resume it")

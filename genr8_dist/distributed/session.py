@@ -422,8 +422,15 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
     stop = stop if stop is not None else StopRequest()
     live = store.live()   # the hosts write each island's completed generation there (advance's live)
 
+    dropping = threading.Lock()
+
+    def drop(after: Any) -> None:
+        with dropping, contextlib.suppress(OSError):
+            live.drop_committed(after)
+
     def committed(coordinator: Coordinator, after: Any) -> None:
-        live.drop_committed(after)
+        # deleting an epoch's live files (one per island and generation) is left to a thread
+        threading.Thread(target=drop, args=(dict(after),), name="genr8-live", daemon=True).start()
         if on_commit is not None:
             on_commit(coordinator, after)
 
@@ -435,7 +442,8 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         with stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True)):
             return coordinator.run()
     finally:
-        live.clear()
+        with dropping:
+            live.clear()
         if own_hosts:
             hosts.shutdown()
 

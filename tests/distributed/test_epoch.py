@@ -61,11 +61,12 @@ def _run(n_islands: int = 2, interval: int = 10, last: int = 1000):
         _emigrant_pool=lambda s, g, spec, done=None: [f"pool-{s}-{g}"],
         migration_event=lambda g, config, moves: Coordinator._event("migration", g, None, {}),
         _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
-        _event=Coordinator._event, _candidates={}, on_commit=None, stop=None,
+        _event=Coordinator._event, _candidates={}, _migrated=set(), on_commit=None, stop=None,
         progress=SimpleNamespace(message=messages.append),
         _show=lambda g, results: shown.append(g), _island_done=lambda island, g, done: None,
         last=last, emigrant_spec=lambda config: (2, "best"),
         _parts=lambda committed, results, upto=None: Coordinator._parts(None, committed, results, upto),
+        _commit_epoch=lambda parts, events, after: run._commit(parts, events, after),
         _commit=lambda parts, events, after: commits.append((parts, events, dict(after))) or True)
     return run, shown, messages, commits
 
