@@ -682,8 +682,10 @@ class Pipeline:
         host = run.hosts.host_of(island)
         send = (id(host), version) not in run._sent
         run._sent.add((id(host), version))
+        # The first generation under way gets one helper at once; ``lend`` spreads the free hosts
+        # over the generations under way right after.
         own = run.hosts.placement_of(island)
-        helpers = [n for n in self.free() if n != own] if not self.pending else []   # the first one
+        helpers = [n for n in self.free() if n != own][:1] if not self.pending else []
         ticket = next(_TICKETS)
         write = g == self.boundary(g) or g == self.hold
         ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,

@@ -83,7 +83,7 @@ def _part(island, lo, hi):
     return SimpleNamespace(islands={str(island): [lo, hi]}, rows=hi - lo + 1)
 
 
-def test_submit_sends_a_configuration_once_per_host_and_lends_the_free_hosts():
+def test_submit_sends_a_configuration_once_per_host_and_lends_a_free_host():
     run, _, _, _ = _run()
     pipeline = Pipeline(run, {0: 0, 1: 3})
     run.last = 3                                    # island 1 is done: its host is free
