@@ -17,11 +17,20 @@ It prints, and with ``--json`` writes one JSON object with: ``islands``, ``cpus`
 last commit; Ray's and the hosts' start-up are ``startup_s``), ``ideal_s`` (the seconds waited by every
 evaluation the run stored, divided by the CPUs), ``efficiency`` (ideal / wall), ``coordinator_share``
 (the driver's time outside waiting for hosts, / wall; ``coordinator_cpu_share``: the driver's CPU
-seconds / wall), ``commit_p50_s``, ``commit_p99_s`` (the driver's commit of an epoch), ``commit_max_s``,
+seconds / wall), ``commit_p50_s``, ``commit_p99_s`` (the driver's commit of an epoch: a thread of
+its own while the next epoch runs), ``commit_max_s``, ``compactions`` and ``compaction_max_s``
+(the compactions that thread made after an epoch's commit, once small files held a merged file's rows),
 ``driver_bytes_per_row`` (bytes of the objects the driver received from hosts, pickled, per row),
 ``driver_peak_rss_mb`` (the driver process's peak resident memory), ``rows_per_epoch``, and the
 machine's load average before and after (the machine may be shared: the waits are wall time, so
-another process's load shows as lost efficiency).
+another process's load shows as lost efficiency). ``critical_s`` is the longest chain of waits no
+scheduling can shorten: an island's generations follow one another, and each lasts at least its
+longest evaluation, so the wall time is at least the largest sum over an island's generations of
+their longest waits; ``efficiency_bound`` is the efficiency a run can reach with it (ideal over the
+larger of ideal and critical). ``driver_cpu_s`` and ``driver_cpu_per_epoch_s``: the driver's CPU
+seconds (the bench's own instruments left out), which a loaded machine distorts less than wall time.
+``--trace-memory`` adds ``driver_traced_mb_by_commit``: the Python memory the driver holds after each
+commit (tracemalloc), which stays flat when the driver keeps no history of the run.
 
 The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
 driver's time.
@@ -35,15 +44,18 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import cProfile  # noqa: E402
 import io  # noqa: E402
 import json  # noqa: E402
 import pickle  # noqa: E402
+import pstats  # noqa: E402
 import resource  # noqa: E402
 import shutil  # noqa: E402
 import statistics  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
+import tracemalloc  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -87,6 +99,8 @@ class Instruments:
         self.commits: list[float] = []
         self.received_bytes = 0
         self.overhead = 0.0
+        self.compactions: list[float] = []   # seconds of each compaction (after a commit, same thread)
+        self.traced: list[float] = []   # the driver's traced memory (MiB) after each commit
 
     def install(self) -> None:
         from genr8_dist.distributed import coordinator
@@ -100,9 +114,21 @@ class Instruments:
                 return commit(self, *a, **k)
             finally:
                 instruments.commits.append(time.perf_counter() - t)
+                if tracemalloc.is_tracing():
+                    instruments.traced.append(tracemalloc.get_traced_memory()[0] / 2**20)
 
         coordinator.Coordinator._commit = timed_commit  # type: ignore[method-assign]
-        receive = coordinator.Epoch.receive
+        compact = coordinator.Coordinator._compact
+
+        def timed_compact(self: Any) -> bool:
+            t = time.perf_counter()
+            done = compact(self)
+            if done:
+                instruments.compactions.append(time.perf_counter() - t)
+            return done
+
+        coordinator.Coordinator._compact = timed_compact  # type: ignore[method-assign]
+        receive = coordinator.Pipeline.receive
 
         def counted_receive(self: Any, island: int, g: int, population: Any, *a: Any, **k: Any) -> Any:
             t = time.perf_counter()
@@ -110,7 +136,7 @@ class Instruments:
             instruments.overhead += time.perf_counter() - t
             return receive(self, island, g, population, *a, **k)
 
-        coordinator.Epoch.receive = counted_receive  # type: ignore[method-assign]
+        coordinator.Pipeline.receive = counted_receive  # type: ignore[method-assign]
 
 
 def run(args: argparse.Namespace) -> dict[str, Any]:
@@ -138,9 +164,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             cluster.add_node(num_cpus=per_node)
         cluster.wait_for_nodes()
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
+        if args.trace_memory:
+            tracemalloc.start()
         cpu0 = time.process_time()
+        profiler = cProfile.Profile() if args.profile else None
+        if profiler is not None:
+            profiler.enable()
         summary = start_run(config_path, str(run_dir), RunOptions(quiet=True, schedule_timeout=600.0),
                             out=io.StringIO())
+        if profiler is not None:
+            profiler.disable()
+            profiler.dump_stats(args.profile)
+            pstats.Stats(profiler, stream=sys.stderr).sort_stats("tottime").print_stats(25)
         driver_cpu = time.process_time() - cpu0
         total = time.perf_counter() - t0
     finally:
@@ -148,10 +183,19 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         cluster.shutdown()
     load_after = os.getloadavg()
     store = RunStore.open(str(run_dir))
-    table = store.individuals(columns=["crit_wait", "grow_seconds"])
+    table = store.individuals(columns=["island", "generation", "crit_wait", "grow_seconds"])
     waits = table.column("crit_wait").to_pylist()
     grown = table.column("grow_seconds").to_pylist()
     waited = sum(w for w, g in zip(waits, grown, strict=True) if w is not None and g > 0) * args.scale
+    longest: dict[tuple[int, int], float] = {}   # (island, generation) -> its longest evaluation
+    for i, g, w, grew in zip(table.column("island").to_pylist(), table.column("generation").to_pylist(),
+                             waits, grown, strict=True):
+        if w is not None and grew > 0:
+            longest[(i, g)] = max(longest.get((i, g), 0.0), w * args.scale)
+    chains: dict[int, float] = {}
+    for (i, _), w in longest.items():
+        chains[i] = chains.get(i, 0.0) + w
+    critical = max(chains.values(), default=0.0)
     rows = table.num_rows
     shutil.rmtree(work, ignore_errors=True)
     wall = summary.wall_seconds
@@ -165,15 +209,22 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "rows_per_epoch": rows / len(commits) if commits else 0.0,
         "wall_s": wall, "startup_s": total - wall, "ideal_s": ideal,
         "efficiency": ideal / wall if wall > 0 else 0.0,
+        "critical_s": critical, "efficiency_bound": ideal / max(ideal, critical) if ideal > 0 else 0.0,
+        "driver_cpu_s": driver_cpu - instruments.overhead,
+        "driver_cpu_per_epoch_s": (driver_cpu - instruments.overhead) / len(commits) if commits else 0.0,
         "coordinator_share": driver_busy / wall if wall > 0 else 0.0,
         "coordinator_cpu_share": max(0.0, driver_cpu - instruments.overhead) / wall if wall > 0 else 0.0,
         "store_s": summary.store_seconds,
         "commit_p50_s": statistics.median(commits) if commits else 0.0,
         "commit_p99_s": _percentile(commits, 0.99), "commit_max_s": max(commits, default=0.0),
+        "compactions": len(instruments.compactions),
+        "compaction_max_s": max(instruments.compactions, default=0.0),
         "driver_bytes_per_row": instruments.received_bytes / rows if rows else 0.0,
         "driver_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in load_after],
         "status": summary.status,
+        **({"driver_traced_mb_by_commit": [round(x, 2) for x in instruments.traced]}
+           if args.trace_memory else {}),
     }
 
 
@@ -192,6 +243,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")
     parser.add_argument("--json", default=None, help="write the figures to this file as one JSON object")
+    parser.add_argument("--trace-memory", action="store_true",
+                        help="trace the driver's memory (tracemalloc; slows it): its size after each commit")
+    parser.add_argument("--profile", default=None,
+                        help="profile the driver's thread (cProfile) into this file; print its top functions")
     args = parser.parse_args(argv)
     if args.cpus < 1 or args.nodes < 1 or args.cpus < args.nodes:
         parser.error("--cpus and --nodes must be at least 1, and --cpus at least --nodes")

@@ -25,7 +25,8 @@ def _ray_options(parser: argparse.ArgumentParser) -> None:
                         help="a Ray cluster to run on: 'auto' (the one on this machine), HOST:PORT or "
                              "ray://HOST:PORT; default: start a local Ray inside this command")
     parser.add_argument("--cpus", type=int, default=None, metavar="N",
-                        help="CPUs of the local Ray (default: all of this machine's); ignored with --address")
+                        help="CPUs of the local Ray (default: all of this machine's); with --address or "
+                             "in a Ray job, the CPUs the run asks the cluster for (an autoscaler adds nodes)")
     parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
     parser.add_argument("--dashboard", action=argparse.BooleanOptionalAction, default=None,
                         help="Ray's dashboard: a local Ray starts it (needs ray[default]) and its URL is "

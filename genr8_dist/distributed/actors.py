@@ -10,17 +10,22 @@ it adopted an island from one) reads it from the run store: per-generation traff
 restarted actor rebuilds its state from the last commit. Because ``Island.step`` is a pure function of
 its inputs, the rebuilt island produces exactly what the lost one would have.
 
-A host with nothing left to do in an epoch helps another: the coordinator names idle hosts as the
-``helpers`` of a generation it submits, or ``offer``s one to a generation under way (the offer is
-served by a thread of its own while ``advance`` runs). The owner of the island hands each helper an
-equal share of the genomes it has not evaluated yet (``evaluate``), evaluates its own share, and
-completes the generation. Evaluation is a pure function of (genome, configuration), so the generation
-is the one the owner would have built alone; a helper that dies meanwhile only means its share is
-evaluated by the owner.
+Every host lends its CPU to generations of other hosts' islands when it has none of its own to advance
+(a run starts one host per CPU, so a run with fewer islands than CPUs has hosts that only help): the
+coordinator names idle hosts as the ``helpers`` of a generation it submits, or ``offer``s one to a
+generation under way (the offer is served by a thread of its own while ``advance`` runs). The owner of
+the generation deals its genomes out as they are needed (work stealing at the genome level): a thread
+of the owner keeps each helper busy with a small batch of the genomes not yet taken (``evaluate``,
+served beside ``advance``), smaller as fewer are left, while the owner evaluates the others one by one,
+so a slow evaluation holds only the host evaluating it. A host evaluates one genome at a time, whoever
+it is for. Evaluation is a pure function of (genome, configuration), so the generation is the one the
+owner would have built alone; a helper that dies meanwhile only means its batch is evaluated by the
+owner.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import socket
 import threading
@@ -35,10 +40,16 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.store import RunStore
 
-__all__ = ["OFFERS", "Generated", "IslandHost", "remote_host_class"]
+__all__ = ["HELPING", "OFFERS", "Generated", "IslandHost", "remote_host_class"]
 
-# The actor's concurrency group serving ``offer`` while ``advance`` runs in the default one.
+# The actor's concurrency groups serving ``offer`` and ``evaluate`` (for other hosts) while ``advance``
+# runs in the default one.
 OFFERS = "offers"
+HELPING = "helping"
+# At most this many genomes go to a helper at once (fewer as fewer are left: ``_Deal.batch``).
+BATCH = 8
+# Seconds the owner's dealing thread waits for a helper's answer before it looks for offers again.
+DEAL_POLL = 0.02
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,7 +78,9 @@ class IslandHost:
 
     def __init__(self, run_dir: str) -> None:
         self._offers: deque[Any] = deque()   # helpers offered while a generation is under way
+        self._offered = threading.Event()     # set by ``offer``: the dealing thread looks at once
         self._helped = 0                      # genomes evaluated for other hosts' islands
+        self._cpu = threading.Lock()          # one evaluation at a time, whoever it is for
         self.bind(run_dir)
 
     def bind(self, run_dir: str) -> None:
@@ -202,60 +215,96 @@ class IslandHost:
         """Offer ``helper`` (an idle host) to the generation submitted with ``ticket``. Tickets grow
         in the order the coordinator submits, which is the order a host runs its generations in, so
         an offer for a generation already done is dropped (its helper may be busy again by then)."""
-        self._offers.append((ticket, helper))
+        self._offers.append((ticket, _helping(helper)))
+        self._offered.set()
         return True
+
+    def _taken_offers(self, ticket: int | None) -> list[Any]:
+        """The helpers offered to the generation of ``ticket``; offers for later ones are kept."""
+        mine, later = [], []
+        while self._offers:
+            offered_for, helper = self._offers.popleft()
+            if ticket is not None and offered_for == ticket:
+                mine.append(helper)
+            elif ticket is None or offered_for > ticket:   # for a generation queued behind this one
+                later.append((offered_for, helper))
+        self._offers.extend(later)
+        return mine
 
     def _evaluate(self, model: Any, genomes: list[tuple[int, ...]], helpers: Sequence[Any],
                   ticket: int | None) -> dict[tuple[int, ...], Any]:
-        """``genomes`` evaluated here, but for the shares handed to ``helpers`` and to helpers
-        offered meanwhile: each takes an interleaved share of what is left when it comes."""
-        todo = deque(genomes)
-        offered = list(helpers)
-        shares: list[tuple[Any, list[tuple[int, ...]]]] = []
-        out: dict[tuple[int, ...], Any] = {}
+        """``genomes`` evaluated, here and by ``helpers`` and the helpers offered meanwhile: a thread
+        deals batches to the helpers (``_deal``) while this one evaluates what is left, one at a
+        time; a batch whose helper failed goes back to be evaluated by whoever takes it next."""
+        deal = _Deal(genomes)
+        dealer = threading.Thread(target=self._deal, name="genr8-deal", daemon=True,
+                                  args=(model, deal, [_helping(h) for h in helpers], ticket))
+        dealer.start()
         while True:
-            later = []
-            while self._offers:
-                offered_for, helper = self._offers.popleft()
-                if ticket is not None and offered_for == ticket:
-                    offered.append(helper)
-                elif ticket is None or offered_for > ticket:   # for a generation queued behind this one
-                    later.append((offered_for, helper))
-            self._offers.extend(later)
-            if offered and len(todo) > 1:
-                left = list(todo)
-                parts = min(len(offered) + 1, len(left))
-                todo = deque(left[0::parts])
-                for k, helper in enumerate(offered[:parts - 1], start=1):
-                    share = left[k::parts]
-                    shares.append((helper.evaluate.remote(model.config_version, model.config, share), share))
-            offered = []
-            if not todo:
+            genome = deal.take_one(wait=dealer.is_alive)
+            if genome is None:
                 break
-            genome = todo.popleft()
-            out[genome] = model.evaluate(genome)
-        if shares:
-            import ray
+            with self._cpu:
+                deal.out[genome] = model.evaluate(genome)
+        dealer.join()
+        if deal.error is not None:
+            raise deal.error
+        return deal.out
 
-            for ref, share in shares:
-                try:
-                    found = ray.get(ref)
-                except ray.exceptions.RayError:   # the helper died or failed: its share is evaluated here
-                    found = [model.evaluate(genome) for genome in share]
-                out.update(zip(share, found, strict=True))
-        return out
+    def _deal(self, model: Any, deal: _Deal, helpers: list[Any], ticket: int | None) -> None:
+        """The dealing thread of one generation: keep each helper busy with one batch until no genome
+        is left untaken, collect the answers; ends when every batch dealt has come back."""
+        import ray
+
+        try:
+            idle = list(helpers)
+            out: dict[Any, tuple[Any, list[tuple[int, ...]]]] = {}
+            while True:
+                idle.extend(self._taken_offers(ticket))
+                while idle:
+                    batch = deal.take(deal.batch(len(idle) + len(out) + 1))
+                    if not batch:
+                        break
+                    helper = idle.pop()
+                    ref = helper.remote(model.config_version, model.config, batch)
+                    out[ref] = (helper, batch)
+                if not out:
+                    if deal.finished():
+                        return
+                    self._offered.wait(DEAL_POLL)
+                    self._offered.clear()
+                    continue
+                done, _ = ray.wait(list(out), num_returns=1, timeout=DEAL_POLL)
+                for ref in done:
+                    helper, batch = out.pop(ref)
+                    try:
+                        found = ray.get(ref)
+                    except ray.exceptions.RayError:   # the helper died or failed: its batch goes back
+                        deal.give_back(batch)
+                        continue
+                    deal.done(zip(batch, found, strict=True))
+                    idle.append(helper)
+        except BaseException as exc:   # met again by the owner's thread
+            deal.error = exc
+        finally:
+            deal.close()
 
     def evaluate(self, config_version: int, config: RunConfig,
                  genomes: Sequence[Sequence[int]]) -> list[Any]:
         """The evaluations of ``genomes`` under configuration version ``config_version`` (``config``),
-        for the host of another island."""
+        for the host of another island (served beside this host's own ``advance``, one evaluation at
+        a time with it)."""
         from genr8_dist.evolution.evaluate import Evaluator
 
         evaluator = self._evaluators.get(config_version)
         if evaluator is None:
             evaluator = self._evaluators[config_version] = Evaluator(config)
         self._helped += len(genomes)
-        return [evaluator.evaluate(genome) for genome in genomes]
+        out = []
+        for genome in genomes:
+            with self._cpu:
+                out.append(evaluator.evaluate(genome))
+        return out
 
     def helped(self) -> int:
         """How many genomes this host has evaluated for other hosts' islands."""
@@ -270,11 +319,72 @@ class IslandHost:
             del self._islands[key]
 
 
+@functools.lru_cache(maxsize=8)
 def remote_host_class(num_cpus: float) -> Any:
     """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), spread over the
     cluster's nodes (a lost node takes few islands with it), never restarted by Ray itself: the
-    coordinator replaces a dead host and reloads its islands from the store."""
+    coordinator replaces a dead host and reloads its islands from the store. One class per CPU
+    reservation: Ray exports a class once (pickling its code), not once per host."""
     import ray
 
-    actor = ray.remote(concurrency_groups={OFFERS: 1})(IslandHost)
+    actor = ray.remote(concurrency_groups={OFFERS: 1, HELPING: 1})(IslandHost)
     return actor.options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0, scheduling_strategy="SPREAD")
+
+
+def _helping(helper: Any) -> Any:
+    """A helper's ``evaluate``, served beside its own ``advance`` (resolved in the thread that got the
+    handle: a handle's methods are not found from another thread of an actor)."""
+    return helper.evaluate.options(concurrency_group=HELPING)
+
+
+class _Deal:
+    """The genomes of one generation being evaluated by its owner and helpers (two threads)."""
+
+    def __init__(self, genomes: Sequence[tuple[int, ...]]) -> None:
+        self.todo: deque[tuple[int, ...]] = deque(genomes)
+        self.out: dict[tuple[int, ...], Any] = {}
+        self.away = 0                  # genomes dealt to helpers, not back yet
+        self.error: BaseException | None = None
+        self.open = True               # the dealing thread runs
+        self._cond = threading.Condition()
+
+    def batch(self, workers: int) -> int:
+        """How many genomes a helper takes now: a share of what is left, at most ``BATCH``."""
+        return max(1, min(BATCH, len(self.todo) // (2 * max(1, workers))))
+
+    def take(self, n: int) -> list[tuple[int, ...]]:
+        """Up to ``n`` genomes for a helper."""
+        with self._cond:
+            batch = [self.todo.popleft() for _ in range(min(n, len(self.todo)))]
+            self.away += len(batch)
+            return batch
+
+    def take_one(self, wait: Any) -> tuple[int, ...] | None:
+        """The next genome for the owner; ``None`` when none is left and none can come back."""
+        with self._cond:
+            while not self.todo:
+                if not self.open or not wait():
+                    return None
+                self._cond.wait(DEAL_POLL)
+            return self.todo.popleft()
+
+    def done(self, pairs: Any) -> None:
+        with self._cond:
+            for genome, evaluation in pairs:
+                self.out[genome] = evaluation
+                self.away -= 1
+
+    def give_back(self, batch: list[tuple[int, ...]]) -> None:
+        with self._cond:
+            self.todo.extendleft(reversed(batch))
+            self.away -= len(batch)
+            self._cond.notify_all()
+
+    def finished(self) -> bool:
+        with self._cond:
+            return not self.todo and not self.away
+
+    def close(self) -> None:
+        with self._cond:
+            self.open = False
+            self._cond.notify_all()

@@ -1,36 +1,46 @@
-"""The coordinator: runs a run's epochs on the island hosts and commits every generation to the store.
+"""The coordinator: runs a run's generations on the island hosts and commits every epoch to the store.
 
-An *epoch* takes every island from its last committed generation to the next migration generation
-(a multiple of ``islands.migration_interval``, or the run's last generation). Each island advances one
-generation per actor call, so an interrupt waits for no more than what is already complete. No row
+An *epoch* is the generations after one migration generation (a multiple of
+``islands.migration_interval``) up to the next, or to the run's last generation. Each island advances
+one generation per actor call, so an interrupt waits for no more than what is already complete. No row
 comes back to the driver: at the end of an epoch each island's host writes the epoch's rows as a part
 file (``store.parts``) and returns it with the generation's fitness values and emigrant candidates
-(``actors.Generated``); the coordinator commits all parts at once (one manifest: ``commit_parts``), then
-computes the migrants from the candidates of each island's last generation
-(``migration.plan_migration``; the stored generation after a resume or an edit of the migration
-settings) and sends them with the first generation of the next epoch. On a stop, hosts flush what
-they completed, so that it is committed. ``on_island`` sees each island's generation as it completes
-(a ``Generated``; with ``live``, the hosts also write it to the studio's live view, ``store/live.py``).
+(``actors.Generated``); once every island has completed the epoch, the coordinator commits all its
+parts and events at once (one manifest: ``commit_parts``), in a thread of its own.
+
+There is no barrier but migration's own (``Pipeline``): an island starts its next generation as soon as
+it has completed one, and after a migration generation as soon as the islands its migrants come from
+have completed it (``migration.migrants_for``, from the candidates in memory: the commit is not
+awaited), no more than one epoch ahead of the oldest epoch not yet committed. So the commit of epoch
+``k`` overlaps the evaluation of epoch ``k + 1``, and an island that finishes early goes on. A crash
+leaves whole epochs: each is one manifest, and whatever was not committed is recomputed. On a stop,
+hosts flush what they completed, so that it is committed. ``on_island`` sees each island's generation
+as it completes (a ``Generated``; with ``live``, the hosts also write it to the studio's live view,
+``store/live.py``).
 
 Generation ``g`` uses the configuration version in effect at ``g`` (``store.config_for(g)``), and the
 individuals a user injected for ``g`` (recorded in the ``intervention`` event). Everything an island
-computes is a pure function of the committed history, so:
+computes is a pure function of the committed history, so the rows are the same whatever the order the
+islands ran in, and:
 
 - interrupted (``Ctrl-C``, ``SIGTERM``, or a killed driver) and resumed, a run produces the rows an
   uninterrupted one produces: whatever was not committed is recomputed identically;
 - when a host dies (its process, or its node), its islands restart from their last committed
   generation on a new host (``recovery`` event) and the run's rows are those of a fault-free run.
 
-Islands develop phenotypes of different cost, so some hosts finish an epoch early. A host with no island
-left to advance in the epoch is lent to one generation at a time: named as a helper of the next
-generation submitted, or offered to one under way (the island with the most generations left). It
-evaluates a share of that generation's genomes (``actors.IslandHost``), which changes where the work
-is done, never what it computes.
+A run has one host per CPU (``hosts``), so when islands are fewer than CPUs some hosts hold none, and
+islands develop phenotypes of different cost, so some hosts run out of work early. A host with no
+generation of its own under way is lent to one generation at a time: named as a helper of the first
+generation submitted, or offered to one under way (the one with the fewest helpers, then the island
+with the most generations left). The owner deals it genomes in small batches as it asks for them
+(``actors.IslandHost``), which changes where the work is done, never what it computes.
 
-Interventions queued while the run runs (``genr8 edit`` on a running run, the studio) are taken
-before each epoch and, as each generation completes, inside one (in force from the first generation no
-island has started), and recorded as ``genr8 edit`` records them (``intervene.take_queued``); a queued
-``pause`` holds the run between epochs, with Ray up, until a ``continue``.
+Interventions queued while the run runs (``genr8 edit`` on a running run, the studio) are taken before
+the run starts and, as each generation completes, in force from the first generation no island has
+started, and recorded as ``genr8 edit`` records them (``intervene.take_queued``). A request that must
+wait for an epoch's end (a ``pause``, an edit of the epochs themselves) holds the run: no island starts
+a generation after the end of the epoch under way, and when everything up to it is committed the
+request is taken there; a ``pause`` holds the run, with Ray up, until a ``continue``.
 
 Hooks (``on_generation``, ``on_commit``, ``on_island``: one island's generation, before its commit) let
 a caller watch the run (tests use them to inject faults; the studio's live view, ``store/live.py``).
@@ -39,15 +49,18 @@ a caller watch the run (tests use them to inject faults; the studio's live view,
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import json
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import wait as wait_futures
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.distributed.actors import OFFERS
-from genr8_dist.distributed.migration import is_migration_generation, plan_migration
+from genr8_dist.distributed.migration import is_migration_generation, migrants_for, sources
 from genr8_dist.distributed.progress import ProgressDisplay
 from genr8_dist.errors import Genr8Error, RunError
 from genr8_dist.evolution.individual import Individual
@@ -58,7 +71,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Coordinator",
-    "Epoch",
+    "Pipeline",
     "RunSummary",
     "StopRequest",
     "StoredEvent",
@@ -71,6 +84,10 @@ __all__ = [
 
 # Submission tickets: increasing in submission order within this process (see ``IslandHost.offer``).
 _TICKETS = itertools.count(1)
+# The rows of a file the coordinator's compaction writes (``RunStore.compact``'s ``target_rows``).
+COMPACT_ROWS = 100_000
+# Offers of help kept unanswered before the answered ones are let go (``Pipeline.lend``).
+OFFERS_KEPT = 64
 
 
 def last_generation(config: RunConfig) -> int:
@@ -171,6 +188,11 @@ class Coordinator:
         self.live = live   # hosts write each completed generation to the live view (store/live.py)
         self.poll_seconds = poll_seconds
         self._created = time.perf_counter()
+        self._writing = threading.RLock()   # the store: the driver's thread or the commit thread
+        # Compaction reads small files' rows in the driver: done here, once they hold a whole merged
+        # file's rows (each row is then read once, not at every commit), not by every commit.
+        self._compacts = bool(store.compact_every)
+        self._small_rows = self._count_small_rows() if self._compacts else 0
         self.summary = RunSummary(hosts=hosts.size)
         self._versions = self._load_versions()
         latest = self._versions[-1][2]
@@ -190,14 +212,16 @@ class Coordinator:
         self._pending_events: list[Any] = []
         self._sent: set[tuple[int, int]] = set()   # (host, configuration version) already sent
         self._hand = self._load_hand(history)
-        self._now: Epoch | None = None   # the epoch under way
+        self._now: Pipeline | None = None   # the generations under way
 
     # -- reading the store ----------------------------------------------------------------------
 
     def _timed_store(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """``fn(...)`` on the store, timed, one at a time with the commit thread's commits."""
         t = time.perf_counter()
         try:
-            return fn(*args, **kwargs)
+            with self._writing:
+                return fn(*args, **kwargs)
         finally:
             self.summary.store_seconds += time.perf_counter() - t
 
@@ -287,9 +311,13 @@ class Coordinator:
     def _population(self, island: int, generation: int) -> list[Individual]:
         return list(self._timed_store(self.store.load_generation, island, generation))
 
-    def _emigrant_pool(self, island: int, generation: int, spec: tuple[int, str]) -> list[Individual]:
+    def _emigrant_pool(self, island: int, generation: int, spec: tuple[int, str],
+                       done: Any = None) -> list[Individual]:
         """What ``island``'s emigrants after ``generation`` are chosen from: the candidates its host
-        returned when they were chosen for ``spec`` (``(k, mode)``), else the stored generation."""
+        returned when they were chosen for ``spec`` (``(k, mode)``; ``done``: its ``Generated``, not
+        committed yet), else the stored generation."""
+        if done is not None and getattr(done, "emigrants", None) is not None and done.emigrants_for == spec:
+            return list(done.emigrants)
         held = self._candidates.get(generation, {}).get(island)
         if held is not None and held[0] == spec:
             return list(held[1])
@@ -308,11 +336,12 @@ class Coordinator:
         return {i: int(found.get(i, -1)) for i in range(self.n_islands)}
 
     def run(self) -> RunSummary:
-        """Run epochs until the last generation is committed or a stop is requested.
+        """Run the generations until the last one is committed or a stop is requested.
 
         ``wall_seconds`` counts from this coordinator's creation (its reads of the store included) to
         its last write; ``wait_seconds`` is the time spent waiting for islands, ``store_seconds`` the
-        time in the store, and ``coordinator_seconds`` the rest."""
+        time in the store (in the driver's own thread: a commit made while islands run is not counted),
+        and ``coordinator_seconds`` the rest."""
         committed = self.committed()
         try:
             while not self.stop:
@@ -322,8 +351,7 @@ class Coordinator:
                     self._take_interventions()
                 if self.stop or min(committed.values()) >= self.last:
                     break
-                end = epoch_end(min(committed.values()), self.interval, self.last)
-                committed = self._epoch(committed, end)
+                committed = self._pipeline(committed)
         finally:
             self.summary.committed = committed
             self._close_books()
@@ -347,22 +375,35 @@ class Coordinator:
         s.wall_seconds = time.perf_counter() - self._created
         s.coordinator_seconds = max(0.0, s.wall_seconds - s.wait_seconds - s.store_seconds)
 
-    def _migrants(self, generation: int, config: RunConfig) -> dict[int, list[Individual]]:
-        """The migrants that move after ``generation`` (from its committed populations)."""
-        spec = self.emigrant_spec(config)
-        populations = {i: self._emigrant_pool(i, generation, spec) for i in range(self.n_islands)}
+    def migrants_for(self, island: int, generation: int, pools: Mapping[int, Sequence[Individual]],
+                     config: RunConfig) -> list[Individual]:
+        """The migrants ``island`` receives after ``generation``, from ``pools`` (its sources'
+        emigrant candidates: ``sources_of``)."""
         islands = config.islands
-        plan = plan_migration(populations, islands.topology, int(islands.migrants), int(config.seed),
-                              generation, islands.emigrants)
+        return migrants_for(island, pools, self.n_islands, islands.topology, int(islands.migrants),
+                            int(config.seed), generation, islands.emigrants)
+
+    def sources_of(self, island: int, generation: int, config: RunConfig) -> tuple[int, ...]:
+        """The islands whose generation ``generation`` ``island``'s migrants after it come from (its
+        own included for novel emigrants, which depend on the destination)."""
+        islands = config.islands
+        if not islands.migrants or self.n_islands < 2:
+            return ()
+        found = _sources(islands.topology, self.n_islands, int(config.seed), generation)[island]
+        return tuple(sorted({*found, island})) if islands.emigrants == "novel" else found
+
+    def migration_event(self, generation: int, config: RunConfig,
+                        moves: Mapping[int, Sequence[Individual]]) -> Any:
+        """The ``migration`` event after ``generation`` (``moves``: every island's migrants), once."""
+        islands = config.islands
         if self.n_islands > 1 and islands.migrants:
             self.progress.message(f"migration after generation {generation}: {islands.migrants} "
                                   f"migrant(s) per island, {islands.topology} topology")
-        if generation not in self._migrated:
-            self._migrated.add(generation)
-            moves = {str(dest): [m.id for m in migrants] for dest, migrants in plan.items()}
-            self._pending_events.append(self._event(
-                "migration", generation, None, {"topology": islands.topology, "moves": moves}))
-        return plan
+        if generation in self._migrated:
+            return None
+        self._migrated.add(generation)
+        detail = {str(dest): [m.id for m in moves[dest]] for dest in sorted(moves)}
+        return self._event("migration", generation, None, {"topology": islands.topology, "moves": detail})
 
     @staticmethod
     def _event(kind: str, generation: int, island: int | None, detail: dict[str, Any]) -> Any:
@@ -370,8 +411,8 @@ class Coordinator:
 
         return Event(kind=kind, generation=max(0, generation), island=island, detail=detail)
 
-    def _epoch(self, committed: dict[int, int], end: int) -> dict[int, int]:
-        self._now = Epoch(self, committed, end)
+    def _pipeline(self, committed: dict[int, int]) -> dict[int, int]:
+        self._now = Pipeline(self, committed)
         try:
             return self._now.run()
         finally:
@@ -383,17 +424,31 @@ class Coordinator:
         self.progress.island(island, generation, done)
         if self.on_island is not None:
             self.on_island(self, island, generation, done)
-        self._take_during_epoch()
+        self._take_during()
 
-    def _take_during_epoch(self) -> None:
-        """The edits queued meanwhile, in force from the first generation of the epoch under way that
-        no island has started (``intervene.take_queued``'s ``during``)."""
-        epoch = self._now
-        if epoch is None or not self._timed_store(self.store.queued):
+    def _take_during(self) -> None:
+        """The edits queued meanwhile, in force from the first generation no island has started
+        (``intervene.take_queued``'s ``during``); a request that must wait for an epoch's end (a
+        pause, an edit of the epochs) holds the run at the end of the epoch under way."""
+        pipeline = self._now
+        if pipeline is None or pipeline.hold is not None or not self.store.queued():
             return
-        first = max([*epoch.cursor.values(), *(g for _, g in epoch.pending.values())]) + 1
-        if first <= epoch.end:
+        first = pipeline.first_unstarted()
+        if first <= self.last:
             self._take_interventions(during=first)
+        if self.store.queued():
+            pipeline.hold_at(first - 1)
+
+    @staticmethod
+    def _settled(offers: Sequence[Any]) -> list[Any]:
+        """The offers of help not answered yet (the answers of the others collected)."""
+        import ray
+
+        done, left = ray.wait(list(offers), num_returns=len(offers), timeout=0)
+        for ref in done:
+            with contextlib.suppress(ray.exceptions.RayError):
+                ray.get(ref)
+        return list(left)
 
     @staticmethod
     def _settle(offers: Sequence[Any]) -> None:
@@ -415,13 +470,17 @@ class Coordinator:
         if self.on_generation is not None:
             self.on_generation(self, generation)
 
-    def _commit(self, committed: dict[int, int], results: Mapping[int, Mapping[int, Any]]) -> dict[int, int]:
-        """Commit the part files the hosts wrote for ``results`` (island -> generation -> ``Generated``)
-        and the pending events, in one manifest; returns the committed generations after it."""
+    def _parts(self, committed: Mapping[int, int], results: Mapping[int, Mapping[int, Any]],
+               upto: int | None = None) -> tuple[list[Any], dict[int, int]]:
+        """The part files the hosts wrote for ``results`` (island -> generation -> ``Generated``)
+        that follow ``committed``, up to generation ``upto``; and the committed generations after
+        them."""
         parts = []
         after = dict(committed)
         for i in sorted(results):
             for g in sorted(results[i]):
+                if upto is not None and g > upto:
+                    break
                 part = getattr(results[i][g], "part", None)
                 if part is None:
                     continue
@@ -429,25 +488,69 @@ class Coordinator:
                 if span is not None and span[0] == after[i] + 1:
                     parts.append(part)
                     after[i] = span[1]
-        events = list(self._pending_events)
+        return parts, after
+
+    def _commit(self, parts: Sequence[Any], events: Sequence[Any], after: Mapping[int, int]) -> bool:
+        """Commit ``parts`` and ``events`` in one manifest (the run's ``complete`` event too when
+        ``after`` reaches its last generation); whether anything was committed. Runs in the commit
+        thread while islands go on (``Pipeline``), or in the driver's own at a stop."""
+        events = list(events)
         if not self._completed and min(after.values()) >= self.last:   # the run ends with this commit
             events.append(self._event("complete", self.last, None,
                                       {"committed": {str(i): g for i, g in after.items()}}))
             self._completed = True
         if not parts and not events:
-            return committed
-        self._timed_store(self.store.commit_parts, parts, events=events)
-        self._pending_events.clear()
+            return False
+        with self._writing:
+            every, self.store.compact_every = self.store.compact_every, None
+            try:
+                self.store.commit_parts(parts, events=events)
+            finally:
+                self.store.compact_every = every
+        self._small_rows += sum(p.rows for p in parts)
         self.summary.individuals += sum(p.rows for p in parts)
-        # Keep only what the next migration needs in memory: the newest generation's candidates.
-        self._candidates = {}
-        for i, gens in results.items():
-            done = gens.get(after[i])
-            if done is not None and after[i] > committed[i] and getattr(done, "emigrants", None) is not None:
-                self._candidates.setdefault(after[i], {})[i] = (done.emigrants_for, done.emigrants)
-        if self.on_commit is not None:
-            self.on_commit(self, after)
-        return after
+        return True
+
+    def _compact(self) -> bool:
+        """Compact the run once its small files hold a merged file's rows (a commit of its own,
+        after an epoch's); whether it did."""
+        if not self._compacts or self._small_rows < COMPACT_ROWS:
+            return False
+        with self._writing:
+            self.store.compact(COMPACT_ROWS)
+            self._small_rows = self._count_small_rows()
+        return True
+
+    def _commit_epoch(self, parts: Sequence[Any], events: Sequence[Any], after: Mapping[int, int]) -> bool:
+        """The commit thread's work for one epoch: its commit, then compaction when due."""
+        done = self._commit(parts, events, after)
+        self._compact()
+        return done
+
+    def _count_small_rows(self) -> int:
+        """The rows of the run's individuals files smaller than a compacted one."""
+        return sum(int(e["rows"]) for e in self.store.manifest["individuals"]
+                   if int(e["rows"]) < COMPACT_ROWS)
+
+
+@functools.lru_cache(maxsize=8)
+def _sources(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
+    """``migration.sources``, computed once per migration (each island asks it, each time it may
+    start)."""
+    return sources(topology, n_islands, seed, generation)
+
+
+def _answers(refs: Sequence[Any]) -> dict[Any, Any]:
+    """The values of ``refs`` (done), fetched at once; none when one of them failed (each is then
+    fetched alone, and its error met where it is handled)."""
+    import ray
+
+    if len(refs) < 2:
+        return {}
+    try:
+        return dict(zip(refs, ray.get(list(refs)), strict=True))
+    except ray.exceptions.RayError:
+        return {}
 
 
 def _with_part(done: Any, part: Any) -> Any:
@@ -457,41 +560,121 @@ def _with_part(done: Any, part: Any) -> Any:
     return dataclasses.replace(done, part=part)
 
 
-class Epoch:
-    """One epoch: every island advanced, one generation per host call, from its committed generation
-    to ``end``, idle hosts lent to generations under way, lost hosts' islands restarted; then one
-    commit. Its bookkeeping (which generation each island is at, what is under way, which hosts are
-    lent) is plain data, so each step (``submit``, ``release``, ``lend``, ``recover``, ``receive``)
-    can be exercised alone; ``run`` is the loop that waits on Ray."""
+class Pipeline:
+    """The run's generations from the committed ones on, with no barrier but migration's own: each
+    island advances one generation per host call as soon as it may, idle hosts are lent to
+    generations under way, lost hosts' islands restart, and each epoch is committed (one manifest) in a
+    thread of its own once every island has completed it, while the next epoch runs.
 
-    def __init__(self, coordinator: Coordinator, committed: Mapping[int, int], end: int) -> None:
+    An island may start generation ``g + 1`` when it has completed ``g`` and, after a migration
+    generation, when the islands its migrants come from have completed ``g`` (their emigrant
+    candidates are in memory, not yet durable: a commit is not awaited); and no more than one epoch
+    beyond the oldest epoch not yet committed (what the hosts buffer stays bounded). Everything an
+    island computes is a pure function of committed or recomputable history, so the rows are the
+    same whatever the order. A crash leaves the epochs committed before it, whole: an epoch's parts
+    and events are one manifest. Its bookkeeping is plain data, so each step (``submit``, ``release``,
+    ``lend``, ``recover``, ``receive``) can be exercised alone; ``run`` is the loop that waits on Ray."""
+
+    def __init__(self, coordinator: Coordinator, committed: Mapping[int, int]) -> None:
         self.run_ = coordinator
-        self.committed = dict(committed)
-        self.end = end
+        self.committed = dict(committed)  # durable
         self.cursor = dict(committed)     # island -> its newest generation done (committed or not)
-        self.results: dict[int, dict[int, list[Individual]]] = {i: {} for i in committed}
+        self.results: dict[int, dict[int, Any]] = {i: {} for i in committed}
         self.pending: dict[Any, tuple[int, int]] = {}   # ref of a generation under way -> (island, g)
+        self.busy: set[int] = set()         # the islands of ``pending``
         self.tickets: dict[Any, int] = {}
         self.lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
+        self.helpers: dict[Any, int] = {}   # ref of a generation under way -> hosts lent to it
         self.offers: list[Any] = []
         self.migrants_after: dict[int, dict[int, list[Individual]]] = {}
+        self.events: dict[int, list[Any]] = {}   # epoch end -> events committed with it
         self.shown = min(committed.values())
+        self.hold: int | None = None        # no generation after this one is started (a drain)
+        self.inflight: Any = None           # the commit under way: (future, epoch end, after)
+        self._commits: Any = None           # its thread
+
+    # -- epochs ---------------------------------------------------------------------------------
+
+    def boundary(self, generation: int) -> int:
+        """The end of the epoch holding ``generation``."""
+        return epoch_end(generation - 1, self.run_.interval, self.run_.last)
+
+    def oldest(self) -> int:
+        """The end of the oldest epoch not committed (nor being committed)."""
+        low = min(self.committed.values())
+        if self.inflight is not None:
+            low = max(low, self.inflight[1])
+        return epoch_end(low, self.run_.interval, self.run_.last)
+
+    def first_unstarted(self) -> int:
+        """The first generation no island has started."""
+        return max([*self.cursor.values(), *(g for _, g in self.pending.values())]) + 1
+
+    def hold_at(self, started: int) -> None:
+        """Start nothing after the end of the epoch holding generation ``started`` (a request
+        queued for an epoch's end is taken there, when everything before it is committed)."""
+        self.hold = self.boundary(max(started, 0))
+
+    def limit(self) -> int:
+        """The newest generation an island may start now."""
+        oldest = self.oldest()
+        ahead = epoch_end(oldest, self.run_.interval, self.run_.last)
+        return min(ahead, self.hold) if self.hold is not None else ahead
+
+    # -- islands --------------------------------------------------------------------------------
+
+    def busy_islands(self) -> set[int]:
+        """The islands with a generation under way."""
+        return self.busy
 
     def free(self) -> list[int]:
-        """The hosts with no island left to advance in this epoch and not lent already."""
-        busy = {i for i, c in self.cursor.items() if c < self.end}
-        return [n for n in self.run_.hosts.idle(busy) if n not in self.lent]
+        """The hosts with no generation of their own under way and not lent already."""
+        return [n for n in self.run_.hosts.idle(self.busy_islands()) if n not in self.lent]
 
-    def submit(self, island: int) -> None:
-        """Ask ``island``'s host for its next generation, naming the free hosts as its helpers."""
+    def migrants(self, island: int, g: int, config: Any) -> list[Individual] | None:
+        """The migrants ``island`` receives after generation ``g`` (a migration generation), or
+        ``None`` while an island they come from has not completed ``g``."""
+        run = self.run_
+        held = self.migrants_after.setdefault(g, {})
+        if island in held:
+            return held[island]
+        spec = run.emigrant_spec(config)
+        pools = {}
+        for source in run.sources_of(island, g, config):
+            if self.cursor[source] < g:
+                return None
+            pools[source] = run._emigrant_pool(source, g, spec, self.results[source].get(g))
+        held[island] = run.migrants_for(island, g, pools, config)
+        if len(held) == run.n_islands:   # every island's: the migration is recorded with the epoch
+            event = run.migration_event(g, config, held)
+            if event is not None:
+                self.events.setdefault(self.boundary(g + 1), []).append(event)
+        return held[island]
+
+    def ready(self, island: int, limit: int | None = None) -> tuple[Any, ...] | None:
+        """What ``island``'s next generation is submitted with, if it may start now (``limit``:
+        ``limit()``, when the caller has it)."""
         run = self.run_
         g = self.cursor[island] + 1
+        if g > min(run.last, self.limit() if limit is None else limit) or island in self.busy:
+            return None
         version, config = run.config_for(g)
         migrants: Sequence[Individual] = ()
         if is_migration_generation(g - 1, run.interval):
-            if g - 1 not in self.migrants_after:
-                self.migrants_after[g - 1] = run._migrants(g - 1, config)
-            migrants = self.migrants_after[g - 1][island]
+            found = self.migrants(island, g - 1, config)
+            if found is None:
+                return None
+            migrants = found
+        return g, version, config, migrants
+
+    def submit(self, island: int, limit: int | None = None) -> bool:
+        """Ask ``island``'s host for its next generation if it may start, naming free hosts as its
+        helpers; whether it was submitted."""
+        run = self.run_
+        prepared = self.ready(island, limit)
+        if prepared is None:
+            return False
+        g, version, config, migrants = prepared
         injected = run._injections.get((g, island), ())
         hand = run._hand.get((g, island), ())
         emigrants = None
@@ -500,35 +683,80 @@ class Epoch:
         host = run.hosts.host_of(island)
         send = (id(host), version) not in run._sent
         run._sent.add((id(host), version))
-        helpers = self.free()
+        # The first generation under way gets one helper at once; ``lend`` spreads the free hosts
+        # over the generations under way right after.
+        own = run.hosts.placement_of(island)
+        helpers = [n for n in self.free() if n != own][:1] if not self.pending else []
         ticket = next(_TICKETS)
+        write = g == self.boundary(g) or g == self.hold
         ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                  [run.hosts.handle(n) for n in helpers], ticket, hand, g == self.end,
+                                  [run.hosts.handle(n) for n in helpers], ticket, hand, write,
                                   emigrants, bool(getattr(run, "live", False)))
         self.pending[ref] = (island, g)
+        self.busy.add(island)
         self.tickets[ref] = ticket
+        self.helpers[ref] = len(helpers)
         self.lent.update(dict.fromkeys(helpers, ref))
+        return True
+
+    def submit_ready(self, islands: Any = None) -> None:
+        """Submit the next generation of every island (of ``islands``) that may start."""
+        limit = self.limit()
+        for island in sorted(self.cursor if islands is None else islands):
+            if island not in self.busy and self.cursor[island] < limit:
+                self.submit(island, limit)
+
+    def affected(self, island: int, g: int) -> set[int]:
+        """The islands that may start now that ``island`` completed ``g``: itself, and after a
+        migration generation the islands its emigrants go to."""
+        run = self.run_
+        out = {island}
+        if is_migration_generation(g, run.interval):
+            config = run.config_for(g + 1)[1]
+            for dest in range(run.n_islands):
+                if island in run.sources_of(dest, g, config):
+                    out.add(dest)
+        return out
 
     def release(self, ref: Any) -> tuple[int, int]:
         """Forget the generation ``ref`` (done or lost) and free the hosts lent to it."""
         for n in [n for n, r in self.lent.items() if r == ref]:
             del self.lent[n]
-        return self.pending.pop(ref)
+        self.helpers.pop(ref, None)
+        self.tickets.pop(ref, None)
+        found = self.pending.pop(ref)
+        self.busy.discard(found[0])
+        return found
 
     def lend(self) -> None:
-        """Offer each free idle host to a generation under way, most generations left first."""
+        """Offer each free host to a generation under way: the one with the fewest helpers, then
+        the island with the most generations left before the hold or the run's end."""
         run = self.run_
-        targets = sorted(self.pending, key=lambda r: (self.cursor[self.pending[r][0]] - self.end,
-                                                      self.pending[r][0]))
-        for n, ref in zip(self.free(), targets, strict=False):
+        if len(self.offers) > OFFERS_KEPT:   # answered offers are let go: the list stays short
+            self.offers = run._settled(self.offers)
+        free = self.free()
+        if not free or not self.pending:
+            return
+        end = self.hold if self.hold is not None else run.last
+        running: dict[int, Any] = {}   # host -> its generation under way: the first submitted to it
+        for ref, (island, _) in self.pending.items():
+            n = run.hosts.placement_of(island)
+            if n not in running or self.tickets[ref] < self.tickets[running[n]]:
+                running[n] = ref
+        for n in free:
+            ref = min(running.values(), key=lambda r: (self.helpers[r], self.cursor[self.pending[r][0]] - end,
+                                                       self.pending[r][0]))
             owner = run.hosts.host_of(self.pending[ref][0])
             self.offers.append(owner.offer.options(concurrency_group=OFFERS).remote(
                 self.tickets[ref], run.hosts.handle(n)))
             self.lent[n] = ref
+            self.helpers[ref] += 1
 
     def recover(self, island: int, exc: BaseException) -> None:
-        """``island``'s host was lost: every island it held restarts from its committed generation."""
+        """``island``'s host was lost: every island it held restarts from its committed generation
+        (the commit under way is awaited first: it may hold their parts)."""
         run = self.run_
+        self.collect(wait=True)
         moved = run.hosts.replace(island)
         for isl in moved:
             for ref in [r for r, (i, _) in self.pending.items() if i == isl]:
@@ -536,52 +764,145 @@ class Epoch:
             self.results[isl].clear()
             self.cursor[isl] = self.committed[isl]
             run.summary.recoveries += 1
-            run._pending_events.append(run._event(
+            self.events.setdefault(self.oldest(), []).append(run._event(
                 "recovery", self.committed[isl] + 1, isl,
                 {"reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
                  "restarted_from": self.committed[isl]}))
             run.progress.message(
                 f"island {isl}: its host was lost; rebuilt from generation {self.committed[isl]}")
-            if self.cursor[isl] < self.end:
-                self.submit(isl)
 
     def receive(self, island: int, g: int, population: Any) -> None:
-        """Generation ``g`` of ``island`` is done (``population``: the host's ``Generated``): keep it,
-        ask for the next one, and show every generation all islands have now reached."""
+        """Generation ``g`` of ``island`` is done (``population``: the host's ``Generated``): keep it
+        and show every generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
         self.run_._island_done(island, g, population)
-        if g < self.end:
-            self.submit(island)
         low = min(self.cursor.values())
         while self.shown < low:
             self.shown += 1
             self.run_._show(self.shown, self.results)
 
+    # -- commits --------------------------------------------------------------------------------
+
+    def due(self) -> bool:
+        """Whether the run is at its end or its hold, or the oldest epoch can be committed."""
+        end = min(self.run_.last, self.hold) if self.hold is not None else self.run_.last
+        return min(self.cursor.values()) >= min(end, self.oldest())
+
+    def commit_due(self) -> None:
+        """Commit the oldest epoch in the commit thread once every island has completed it."""
+        if self.inflight is not None:
+            return
+        end = self.oldest()
+        if min(self.committed.values()) >= self.run_.last or min(self.cursor.values()) < end:
+            return
+        parts, after = self.run_._parts(self.committed, self.results, upto=end)
+        if min(after.values()) < end:   # a part is missing (a host lost after its generation)
+            return
+        events = [e for b in sorted(self.events) if b <= end for e in self.events.pop(b)]
+        if self._commits is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            self._commits = ThreadPoolExecutor(1, thread_name_prefix="genr8-commit")
+        self.inflight = (self._commits.submit(self.run_._commit_epoch, parts, events, after), end, after)
+
+    def collect(self, wait: bool = False) -> bool:
+        """The commit under way, if done (``wait``: once done): its islands' generations are
+        durable, what the next migration needs is kept and the rest dropped, ``on_commit`` sees it.
+        Whether one was collected."""
+        if self.inflight is None:
+            return False
+        future, _, after = self.inflight
+        if not wait and not future.done():
+            return False
+        self.inflight = None
+        t = time.perf_counter()
+        try:
+            committed = future.result()
+        finally:
+            if wait:
+                self.run_.summary.store_seconds += time.perf_counter() - t
+        self._committed(after, committed)
+        return True
+
+    def _committed(self, after: Mapping[int, int], committed: bool = True) -> None:
+        run = self.run_
+        before = self.committed
+        self.committed = dict(after)
+        kept: dict[int, dict[int, tuple[Any, tuple[Individual, ...]]]] = {}
+        for i, gens in self.results.items():
+            for g in [g for g in gens if g <= after[i]]:
+                done = gens.pop(g)
+                if g == after[i] and after[i] > before[i] and getattr(done, "emigrants", None) is not None:
+                    kept.setdefault(g, {})[i] = (done.emigrants_for, done.emigrants)
+        run._candidates = {g: c for g, c in run._candidates.items() if g >= min(after.values())}
+        for g, found in kept.items():
+            run._candidates.setdefault(g, {}).update(found)
+        low = min(after.values())
+        for g in [g for g in self.migrants_after if g < low and len(self.migrants_after[g]) == run.n_islands]:
+            del self.migrants_after[g]
+        run._migrated = {g for g in run._migrated if g >= low}   # no island migrates before low again
+        if committed and run.on_commit is not None:
+            run.on_commit(run, dict(after))
+
+    def finish(self) -> None:
+        """At a stop, an error or the end: await the commit under way; at a stop, each island's host
+        writes the generations it completed since its last part and they are committed, with the
+        events pending."""
+        try:
+            self.collect(wait=True)
+        finally:
+            if self._commits is not None:
+                self._commits.shutdown(wait=True)
+        run = self.run_
+        if not run.stop and min(self.cursor.values()) < run.last and self.hold is None:
+            return
+        if run.stop:
+            self.flush()
+        parts, after = run._parts(self.committed, self.results)
+        events = [e for b in sorted(self.events) for e in self.events.pop(b)]
+        if run._timed_store(run._commit, parts, events, after):
+            self._committed(after)
+
     def run(self) -> dict[int, int]:
-        """Run the epoch to its end (or a stop), commit what is complete, return the committed
-        generations."""
+        """Run until every island completed the run (or the hold) and it is committed, or a stop;
+        returns the committed generations."""
         import ray
 
         run = self.run_
-        for island in sorted(self.cursor):
-            if self.cursor[island] < self.end:
-                self.submit(island)
-        committed = self.committed
+        end = min(run.last, self.hold) if self.hold is not None else run.last
         try:
-            while self.pending and not run.stop:
+            self.submit_ready()
+            dirty: set[int] | None = set()   # the islands that may start since (None: any)
+            while not run.stop:
+                if self.collect():
+                    dirty = None   # a commit: the look-ahead moved on
+                self.commit_due()
+                end = min(run.last, self.hold) if self.hold is not None else run.last
+                if not self.pending and self.inflight is None and (
+                        min(self.committed.values()) >= end or min(self.cursor.values()) >= end):
+                    break
                 self.lend()
                 t = time.perf_counter()
-                ready, _ = ray.wait(list(self.pending), num_returns=1, timeout=run.poll_seconds)
+                ready: list[Any] = []
+                if self.pending:
+                    waits = list(self.pending)
+                    ready, _ = ray.wait(waits, num_returns=1, timeout=run.poll_seconds)
+                    if ready and len(waits) > 1:   # and every other one done meanwhile, at once
+                        ready, _ = ray.wait(waits, num_returns=len(waits), timeout=0)
+                elif self.inflight is not None:   # nothing may start before this commit
+                    wait_futures([self.inflight[0]], timeout=run.poll_seconds)
                 run.summary.wait_seconds += time.perf_counter() - t
+                answers = _answers(ready)
                 for ref in ready:
                     if ref not in self.pending:
                         continue
                     island, g = self.release(ref)
                     try:
-                        population = ray.get(ref)
+                        population = answers[ref] if ref in answers else ray.get(ref)
                     except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
                         self.recover(island, exc)
+                        dirty = None
                         continue
                     except ray.exceptions.RayTaskError as exc:
                         cause = getattr(exc, "cause", None)
@@ -591,16 +912,22 @@ class Epoch:
                         raise RunError(f"island {island} failed at generation {g} on its host: "
                                        f"{what.strip().splitlines()[0]}") from exc
                     self.receive(island, g, population)
+                    if dirty is not None:
+                        dirty |= self.affected(island, g)
+                if not run.stop:
+                    self.submit_ready(dirty)
+                    dirty = set()
+                    if not self.pending and self.inflight is None and not self.due():
+                        raise RunError(f"the run cannot go on from generations {self.cursor} (committed: "
+                                       f"{self.committed}); resume it")
         finally:
             run._settle(self.offers)
-            if run.stop:
-                self.flush()
-            committed = run._commit(self.committed, self.results)
-        return committed
+            self.finish()
+        return self.committed
 
     def flush(self) -> None:
-        """Stopping mid-epoch: each island's host writes the generations it completed since its
-        last part (served beside a generation under way), so that what is complete is committed."""
+        """Stopping: each island's host writes the generations it completed since its last part
+        (served beside a generation under way), so that what is complete is committed."""
         import ray
 
         asked = {}

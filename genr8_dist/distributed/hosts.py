@@ -1,8 +1,12 @@
 """The pool of island hosts (Ray actors): how many, how much CPU each reserves, and replacing dead ones.
 
-Islands can outnumber cores: the pool starts ``min(islands, free CPUs)`` hosts, each reserving one CPU
-(a fraction when the cluster offers less than one), and deals the islands out round-robin, so every
-host has work and no actor waits for a CPU that will never be free. A run that cannot be scheduled
+A run uses the CPUs it is given, whatever its island count: the pool starts one host per free CPU
+(``max_hosts`` at most), each reserving one CPU (a fraction when the cluster offers less than one), and
+deals the islands out round-robin. When islands outnumber CPUs a host holds several; when CPUs outnumber
+islands the hosts holding none evaluate genomes of the others' generations (``actors``), so a 4-island
+run on 16 CPUs evaluates on 16. Every host reserves its CPU from Ray; a run that asks a cluster for more
+CPUs than are free (``cpus``) asks the cluster's autoscaler for them first, so it adds nodes
+(cluster/README.md). A run that cannot be scheduled
 (no free CPU, or hosts not started within ``timeout`` seconds) is refused with a ``RunError``.
 
 When a host dies (its process or its node), ``replace`` starts a new host when a CPU is free and deals
@@ -12,6 +16,7 @@ generation from the run store.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Sequence
@@ -36,7 +41,7 @@ class HostPlan:
 
 
 def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -> HostPlan:
-    """``min(islands, free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
+    """``min(free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
     if n_islands < 1:
         raise RunError(f"a run needs at least one island, got {n_islands}")
     if not free_cpus > 0:
@@ -44,7 +49,7 @@ def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -
             f"the Ray cluster has no free CPU for {n_islands} island(s); "
             "free some, add a node, or give the local Ray more CPUs"
         )
-    hosts = min(n_islands, max(1, math.floor(free_cpus)))
+    hosts = max(1, math.floor(free_cpus))
     if max_hosts is not None:
         hosts = max(1, min(hosts, max_hosts))
     return HostPlan(hosts=hosts, num_cpus=1.0 if free_cpus >= 1 else float(free_cpus))
@@ -54,12 +59,19 @@ class HostPool:
     """The live island hosts of one run and which island each holds."""
 
     def __init__(self, run_dir: str, n_islands: int, *, max_hosts: int | None = None,
-                 timeout: float = 60.0, settle: float = 5.0) -> None:
-
+                 timeout: float = 60.0, settle: float = 5.0, cpus: int | None = None) -> None:
+        """``cpus``: the CPUs the run asks a cluster for (``genr8 run --cpus`` with ``--address``):
+        when fewer are free, the cluster's autoscaler is asked for them and the pool waits up to
+        ``timeout`` seconds for them, then uses what is free (at most ``cpus``)."""
         self.run_dir = run_dir
         self.n_islands = n_islands
         self.timeout = timeout
-        self.plan = plan_hosts(n_islands, self._free_cpus(n_islands, settle), max_hosts)
+        free = self._free_cpus(n_islands, settle)
+        if cpus is not None:
+            if free < cpus:
+                free = self._ask_for(cpus, timeout)
+            max_hosts = min(cpus, max_hosts) if max_hosts is not None else cpus
+        self.plan = plan_hosts(n_islands, free, max_hosts)
         self._hosts: list[Any] = []
         self._alive: list[bool] = []
         self.placement: dict[int, int] = {}
@@ -84,6 +96,24 @@ class HostPool:
             if free >= min(wanted, math.floor(total)) or time.monotonic() >= deadline:
                 return free
             time.sleep(0.1)
+
+    @staticmethod
+    def _ask_for(cpus: int, timeout: float) -> float:
+        """Ask the cluster's autoscaler for ``cpus`` CPUs (``request_resources``: it adds nodes up to
+        its ``max_workers``; a cluster without one ignores it) and wait up to ``timeout`` seconds for
+        them to be free; the CPUs free then."""
+        import ray
+
+        with contextlib.suppress(Exception):   # no autoscaler (a local Ray): nothing to ask
+            from ray.autoscaler.sdk import request_resources
+
+            request_resources(num_cpus=cpus)
+        deadline = time.monotonic() + timeout
+        while True:
+            free = float(ray.available_resources().get("CPU", 0.0))
+            if free >= cpus or time.monotonic() >= deadline:
+                return free
+            time.sleep(1.0)
 
     def _new_host(self, num_cpus: float) -> Any:
         from genr8_dist.distributed.actors import remote_host_class
@@ -130,6 +160,10 @@ class HostPool:
     def host_of(self, island: int) -> Any:
         """The actor handle holding ``island``."""
         return self._hosts[self.placement[island]]
+
+    def placement_of(self, island: int) -> int:
+        """The number of the host holding ``island``."""
+        return self.placement[island]
 
     def islands_on(self, host: int) -> list[int]:
         """The islands dealt to host number ``host``."""

@@ -34,9 +34,11 @@ __all__ = [
     "TOPOLOGIES",
     "destinations",
     "is_migration_generation",
+    "migrants_for",
     "plan_migration",
     "select_emigrants",
     "select_novel",
+    "sources",
 ]
 
 def _rank_key(individual: Individual) -> tuple[float, int, int]:
@@ -111,6 +113,41 @@ def destinations(topology: str, n_islands: int, seed: int, generation: int) -> d
         return {i: tuple(j for j in range(n_islands) if j != i) for i in range(n_islands)}
     order = [int(x) for x in stream(seed, "migration", generation).permutation(n_islands)]
     return {order[j]: (order[(j + 1) % n_islands],) for j in range(n_islands)}
+
+
+def sources(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
+    """For each destination island, the islands whose emigrants it receives after ``generation``
+    (what its migrants wait for: ``migrants_for``)."""
+    out: dict[int, list[int]] = {i: [] for i in range(n_islands)}
+    for source, targets in destinations(topology, n_islands, seed, generation).items():
+        for target in targets:
+            out[target].append(source)
+    return {i: tuple(found) for i, found in out.items()}
+
+
+def migrants_for(
+    target: int,
+    populations: Mapping[int, Sequence[Individual]],
+    n_islands: int,
+    topology: str,
+    k: int,
+    seed: int,
+    generation: int,
+    emigrants: str = "best",
+) -> list[Individual]:
+    """The migrants ``target`` receives after ``generation`` (at most ``k``, best first), from the
+    populations of its ``sources`` (and its own, for novel emigrants): ``plan_migration``'s answer for
+    that island alone (of ``n_islands``), available as soon as those islands have completed
+    ``generation``."""
+    if k == 0:
+        return []
+    if emigrants not in ("best", "novel"):
+        raise ConfigError(f"islands.emigrants: {emigrants!r} is not one of 'best', 'novel'")
+    arrived: list[Individual] = []
+    for source in sources(topology, n_islands, seed, generation)[target]:
+        arrived.extend(select_emigrants(populations[source], k) if emigrants == "best"
+                       else select_novel(populations[source], populations[target], k))
+    return sorted(arrived, key=_rank_key)[:k]
 
 
 def plan_migration(

@@ -43,7 +43,8 @@ class RunOptions:
     """How to run: where Ray is, how many CPUs a local Ray gets, and what to print."""
 
     address: str | None = None
-    num_cpus: int | None = None           # a local Ray's CPUs (default: all of this machine's)
+    num_cpus: int | None = None           # a local Ray's CPUs (default: all of this machine's); on a
+                                          # cluster, the CPUs the run asks for (its autoscaler adds nodes)
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
@@ -410,8 +411,10 @@ def hold_run_lock(store: RunStore, lock: RunLock | None = None) -> Iterator[None
 def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
           on_generation: Callable[[Coordinator, int], None] | None = None,
           on_commit: Callable[[Coordinator, Any], None] | None = None,
-          stop: StopRequest | None = None, hosts: Any = None) -> RunSummary:
-    """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught)."""
+          stop: StopRequest | None = None, hosts: Any = None,
+          on_island: Callable[[Coordinator, int, int, Any], None] | None = None) -> RunSummary:
+    """Run the coordinator on ``store`` until the run completes or is interrupted (signals caught);
+    the hooks are the coordinator's."""
     _preload()
     from genr8_dist.distributed.coordinator import Coordinator, StopRequest
     from genr8_dist.distributed.hosts import HostPool
@@ -423,18 +426,25 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
     if hosts is None:
         latest = latest_config(store)
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout)
+                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
     stop = stop if stop is not None else StopRequest()
     live = store.live()   # the hosts write each island's completed generation there (advance's live)
 
+    dropping = threading.Lock()
+
+    def drop(after: Any) -> None:
+        with dropping, contextlib.suppress(OSError):
+            live.drop_committed(after)
+
     def committed(coordinator: Coordinator, after: Any) -> None:
-        live.drop_committed(after)
+        # deleting an epoch's live files (one per island and generation) is left to a thread
+        threading.Thread(target=drop, args=(dict(after),), name="genr8-live", daemon=True).start()
         if on_commit is not None:
             on_commit(coordinator, after)
 
     try:
         coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
-                                  live=True, progress=None)
+                                  on_island=on_island, live=True, progress=None)
         coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
                                                quiet=options.quiet)
         def announce(text: str) -> None:   # above the progress table; said even when quiet
@@ -446,7 +456,8 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
         with stop_on_signals(stop, announce=announce):
             return coordinator.run()
     finally:
-        live.clear()
+        with dropping:
+            live.clear()
         if own_hosts:
             hosts.shutdown()
 
@@ -469,6 +480,13 @@ def _dashboard_options(options: RunOptions, out: TextIO) -> dict[str, Any]:
                   file=out, flush=True)
 
     return {"dashboard": bool(options.dashboard), "on_dashboard": None if options.dashboard is False else say}
+
+
+def _cluster_cpus(options: RunOptions) -> int | None:
+    """The CPUs a run on a cluster asks for (``--cpus`` with an address, or inside a Ray job); a local
+    Ray is started with ``num_cpus`` instead."""
+    joined = options.address is not None or bool(os.environ.get("RAY_ADDRESS"))
+    return options.num_cpus if joined else None
 
 
 def _stop_request(given: Any) -> Any:
@@ -540,7 +558,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                         **_dashboard_options(options, out)), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout)
+                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
         try:
             lock = _lock_new_run(run_dir)
             stack.callback(lock.release)
@@ -596,7 +614,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
-                             timeout=options.schedule_timeout)
+                             timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
         else:
             hosts.rebind(str(store.path), n)
         try:

@@ -1,6 +1,6 @@
 """The island host: it advances islands, keeps configurations it was sent, a new host rebuilds an
-island from the run store exactly, and idle hosts (Ray actors) evaluate shares of a generation
-without changing it."""
+island from the run store exactly, and idle hosts (Ray actors) evaluate batches of a generation's
+genomes without changing it."""
 
 from __future__ import annotations
 
@@ -56,7 +56,7 @@ def two_hosts(ray_local, tmp_path):
         ray_local.kill(host, no_restart=True)
 
 
-def test_a_helper_evaluates_half_of_a_generation_and_changes_nothing(two_hosts, ray_local):
+def test_a_helper_evaluates_a_share_of_a_generation_and_changes_nothing(two_hosts, ray_local):
     run_dir, (owner, helper) = two_hosts
     config = parse_config(tiny_toml(islands=2), "tiny")
     alone = IslandHost(str(run_dir))
@@ -65,7 +65,7 @@ def test_a_helper_evaluates_half_of_a_generation_and_changes_nothing(two_hosts, 
     assert len({ind.genome for ind in gen0}) == 6
     ray_local.get(owner.advance.remote(0, 0, config, 1, (), (), [helper]))
     assert _untimed(ray_local.get(owner.latest.remote(0))) == _untimed(gen0)
-    assert ray_local.get(helper.helped.remote()) == 3          # 6 new genomes, an interleaved half each
+    assert ray_local.get(helper.helped.remote()) >= 1          # it took batches of the 6 new genomes
 
     ray_local.kill(helper, no_restart=True)                     # a dead helper: the owner does it all
     ray_local.get(owner.advance.remote(0, 1, None, 1, (), (), [helper]))

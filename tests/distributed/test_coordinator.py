@@ -205,12 +205,15 @@ def test_a_run_that_cannot_be_scheduled_is_refused(pool, tmp_path):
 
 
 def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(reference, pool, tmp_path):
-    """A live run takes a queued edit (favour, hand fitness, a weight) at its next epoch without
-    stopping; the rows equal a run stopped there, edited with `genr8 edit`, and resumed. A queued
-    pause holds the run between epochs until a continue, and changes no row."""
+    """A live run takes a queued edit (favour, hand fitness, a weight) without stopping, from the first
+    generation no island has started (islands run up to an epoch ahead of the oldest uncommitted one,
+    so which one that is depends on timing: the event says); the rows equal a run edited from that
+    generation while stopped. A queued pause holds the run at the end of the epoch under way until a
+    continue, and changes no row."""
+    import re
     import threading
 
-    from genr8_dist.distributed.intervene import Edit, apply_edit
+    from genr8_dist.distributed.intervene import Edit, apply_edit, record_edit
     from genr8_dist.store import RunStore
 
     edit = Edit(assignments=["fitness.size.weight=5"], favour=["0-2-1"], hand_fitness=[("1-2-3", 0.0)])
@@ -232,27 +235,31 @@ def test_edits_queued_while_the_run_runs_equal_the_same_edit_of_a_stopped_run(re
     finally:
         lock.release()
     assert summary.status == "complete" and queued[0].queued
-    assert "paused before generation 5" in log and "continuing before generation 5" in log
     events = RunStore.open(live).events().to_pylist()
     kinds = [e["kind"] for e in events]
     assert kinds.index("intervention") < kinds.index("pause") < kinds.index("continue")
     (intervention,) = [e for e in events if e["kind"] == "intervention"]
+    start = intervention["generation"]
+    assert 5 <= start <= 6                      # islands had started 4 (and maybe 5) when it was taken
+    (paused,) = re.findall(r"paused before generation (\d+)", log)
+    assert int(paused) in (5, 7) and f"continuing before generation {paused}" in log   # an epoch's end
     detail = json.loads(intervention["detail"])
-    assert intervention["generation"] == 5 and detail["source"] == "studio"
+    assert detail["source"] == "studio"
     assert [h["id"] for h in detail["hand_fitness"]] == ["1-2-3"]
     got = rows(live)
     assert [r["parents"] for r in got if r["origin"] == "injected"] == [["0-2-1"]]
     assert ["1-2-3"] in [r["parents"] for r in got if r["origin"] == "elite" and r["island"] == 1
-                         and r["generation"] == 5]
+                         and r["generation"] == start]
 
     stopped = tmp_path / "stopped"
     new_run(stopped, tiny_toml())
-    drive_to_end(stopped, pool, on_generation=stop_at(4))
-    assert apply_edit(str(stopped), edit).effective_generation == 5
+    drive_to_end(stopped, pool, on_generation=stop_at(2))
+    assert max(RunStore.open(stopped).committed_generations().values()) < start
+    record_edit(RunStore.open(stopped), edit, effective=start)
     drive_to_end(stopped, pool)
     assert rows(stopped) == got
     ref = rows(reference[0])
-    assert [r for r in got if r["generation"] < 5] == [r for r in ref if r["generation"] < 5]
+    assert [r for r in got if r["generation"] < start] == [r for r in ref if r["generation"] < start]
 
 
 @pytest.mark.parametrize("search", [
@@ -323,3 +330,71 @@ def test_an_edit_queued_before_the_first_commit_takes_effect_at_once(pool, tmp_p
     record_edit(RunStore.open(recorded), later, source="studio", effective=starts[1])
     drive_to_end(recorded, pool)
     assert rows(recorded) == got
+
+
+class _Crash(BaseException):
+    """A driver dying (not a stop: nothing more is committed)."""
+
+
+def test_a_crash_while_an_epoch_commits_and_the_next_runs_leaves_whole_epochs(reference, pool, tmp_path,
+                                                                              monkeypatch):
+    """The commit of epoch 0..2 is slow; islands go on with generations 3 and 4 meanwhile (what the
+    hook sees), and the driver dies there. The store holds whole epochs only, and the resumed run
+    equals the uninterrupted one row for row."""
+    import time
+
+    from genr8_dist.store import RunStore
+
+    commit_parts = RunStore.commit_parts
+    threads = []
+
+    def slow_commit(self, parts, events=(), **kw):
+        import threading
+
+        threads.append(threading.current_thread().name)
+        time.sleep(2.0)
+        return commit_parts(self, parts, events, **kw)
+
+    monkeypatch.setattr(RunStore, "commit_parts", slow_commit)
+    seen = []
+
+    def crash(coordinator, island, generation, done):
+        pipeline = coordinator._now
+        if pipeline is not None and pipeline.inflight is not None and generation > 2:
+            seen.append((island, generation))
+            raise _Crash
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml())
+    with pytest.raises(_Crash):
+        drive_to_end(run_dir, pool, on_island=crash)
+    monkeypatch.setattr(RunStore, "commit_parts", commit_parts)
+    assert seen and threads and threads[0].startswith("genr8-commit")
+    committed = RunStore.open(run_dir).committed_generations()
+    assert committed == {0: 2, 1: 2, 2: 2}      # epoch 0..2, whole; nothing of 3 or 4
+    summary, _ = drive_to_end(run_dir, pool)
+    assert summary.status == "complete"
+    assert rows(run_dir) == rows(reference[0])
+
+
+
+def test_the_driver_keeps_no_history_that_grows_with_the_run(pool, tmp_path):
+    """What the coordinator holds between commits (uncommitted generations, migrants, events,
+    emigrant candidates, offers of help, migrations recorded) is the same size at the sixth commit as
+    at the second: nothing accumulates with the run's length."""
+    toml = tiny_toml(generations=12)
+    run_dir = tmp_path / "run"
+    new_run(run_dir, toml)
+    sizes = []
+
+    def measure(coordinator, after):
+        pipeline = coordinator._now
+        sizes.append((sum(len(r) for r in pipeline.results.values()), len(pipeline.migrants_after),
+                      sum(len(e) for e in pipeline.events.values()), len(coordinator._candidates),
+                      len(pipeline.offers) // 65, len(coordinator._migrated)))
+
+    summary, _ = drive_to_end(run_dir, pool, on_commit=measure)
+    assert summary.status == "complete" and len(sizes) >= 6
+    peak = [max(column) for column in zip(*sizes[1:], strict=True)]
+    # at most two epochs of 3 islands x 2 generations, two migrations' worth of the rest
+    assert all(x <= y for x, y in zip(peak, (3 * 2 * 2, 2, 2, 2, 0, 2), strict=True)), sizes

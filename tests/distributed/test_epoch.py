@@ -1,11 +1,13 @@
-"""The parts of an epoch alone, on stand-in hosts (no Ray): what is submitted with what, which hosts
-are lent to which generation, what a lost host restarts, when generations are shown."""
+"""The coordinator's pipeline alone, on stand-in hosts (no Ray): what is submitted with what and when,
+which hosts are lent to which generation, what a lost host restarts, when generations are shown and
+epochs committed."""
 
 from __future__ import annotations
 
+import threading
 from types import SimpleNamespace
 
-from genr8_dist.distributed.coordinator import Coordinator, Epoch, RunSummary
+from genr8_dist.distributed.coordinator import Coordinator, Pipeline, RunSummary
 
 
 class _Call:
@@ -37,6 +39,9 @@ class _Hosts:
     def host_of(self, island):
         return self._hosts[island]
 
+    def placement_of(self, island):
+        return island
+
     def handle(self, n):
         return f"host{n}"
 
@@ -45,95 +50,157 @@ class _Hosts:
         return [island]
 
 
-def _run(n_islands: int = 2, interval: int = 10):
+def _run(n_islands: int = 2, interval: int = 10, last: int = 1000):
     shown: list[int] = []
     messages: list[str] = []
+    commits: list = []
     run = SimpleNamespace(
         hosts=_Hosts(n_islands), interval=interval, config_for=lambda g: (1, f"config@{g}"),
-        _migrants=lambda g, config: {i: [f"migrant-{g}-{i}"] for i in range(n_islands)},
+        n_islands=n_islands, sources_of=lambda i, g, config: ((i - 1) % n_islands,),
+        migrants_for=lambda i, g, pools, config: [f"migrant-{g}-{i}-from-{sorted(pools)}"],
+        _emigrant_pool=lambda s, g, spec, done=None: [f"pool-{s}-{g}"],
+        migration_event=lambda g, config, moves: Coordinator._event("migration", g, None, {}),
         _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
-        _pending_events=[], _event=Coordinator._event,
+        _event=Coordinator._event, _candidates={}, _migrated=set(), on_commit=None, stop=None,
         progress=SimpleNamespace(message=messages.append),
         _show=lambda g, results: shown.append(g), _island_done=lambda island, g, done: None,
-        last=1000, emigrant_spec=lambda config: (2, "best"))
-    return run, shown, messages
+        last=last, emigrant_spec=lambda config: (2, "best"),
+        _parts=lambda committed, results, upto=None: Coordinator._parts(None, committed, results, upto),
+        _commit_epoch=lambda parts, events, after: run._commit(parts, events, after),
+        _commit=lambda parts, events, after: commits.append((parts, events, dict(after))) or True)
+    return run, shown, messages, commits
 
 
 def _advances(run):
     return [(entry[1], entry[2]) for entry in run.hosts.log if entry[0] == "advance"]
 
 
-def test_submit_sends_a_configuration_once_per_host_and_lends_the_free_hosts():
-    run, _, _ = _run()
-    epoch = Epoch(run, {0: 0, 1: 3}, end=3)          # island 1 is done: its host is free
-    epoch.submit(0)
+def _done(island, g, part=None):
+    return SimpleNamespace(island=island, generation=g, part=part, emigrants=None)
+
+
+def _part(island, lo, hi):
+    return SimpleNamespace(islands={str(island): [lo, hi]}, rows=hi - lo + 1)
+
+
+def test_submit_sends_a_configuration_once_per_host_and_lends_a_free_host():
+    run, _, _, _ = _run()
+    pipeline = Pipeline(run, {0: 0, 1: 3})
+    run.last = 3                                    # island 1 is done: its host is free
+    assert pipeline.submit(0)
     (island, args), = _advances(run)
     assert island == 0 and args[:4] == (0, 1, "config@1", 1) and args[6] == ["host1"]
-    assert list(epoch.pending.values()) == [(0, 1)] and epoch.lent == {1: next(iter(epoch.pending))}
-    epoch.receive(0, 1, ["pop"])                    # next generation: no configuration sent again
+    assert list(pipeline.pending.values()) == [(0, 1)] and pipeline.lent == {1: next(iter(pipeline.pending))}
+    pipeline.release(next(iter(pipeline.pending)))
+    pipeline.receive(0, 1, _done(0, 1))
+    assert pipeline.submit(0)                       # next generation: no configuration sent again
     assert _advances(run)[-1][1][:3] == (0, 2, None)
-    assert epoch.free() == []                       # host 1 was lent to generation 1, now to 2
 
 
 def test_release_frees_the_hosts_lent_to_a_generation():
-    run, _, _ = _run()
-    epoch = Epoch(run, {0: 0, 1: 3}, end=3)
-    epoch.submit(0)
-    ref = next(iter(epoch.pending))
-    assert epoch.release(ref) == (0, 1)
-    assert epoch.pending == {} and epoch.lent == {} and epoch.free() == [1]
+    run, _, _, _ = _run(last=3)
+    pipeline = Pipeline(run, {0: 0, 1: 3})
+    pipeline.submit(0)
+    ref = next(iter(pipeline.pending))
+    assert pipeline.release(ref) == (0, 1)
+    assert pipeline.pending == {} and pipeline.lent == {} and pipeline.free() == [0, 1]
 
 
-def test_lend_offers_free_hosts_to_the_island_with_most_generations_left():
-    run, _, _ = _run(n_islands=3)
-    epoch = Epoch(run, {0: 4, 1: 1, 2: 5}, end=5)   # island 2 done; island 1 has 4 left, island 0 one
-    epoch.submit(0)
-    epoch.submit(1)
-    epoch.lent.clear()                              # the helpers named at submission are back
-    epoch.lend()
-    offers = [entry for entry in run.hosts.log if entry[0] == "offer"]
-    assert [(o[1], o[2][1]) for o in offers] == [(1, "host2")]
-    assert epoch.pending[epoch.lent[2]] == (1, 2)
+def test_lend_offers_free_hosts_to_the_generation_with_fewest_helpers():
+    run, _, _, _ = _run(n_islands=4, last=5)
+    pipeline = Pipeline(run, {0: 4, 1: 1, 2: 5, 3: 5})   # islands 2 and 3 done: their hosts are free
+    pipeline.submit(0)
+    pipeline.submit(1)
+    pipeline.lent.clear()                                 # the helpers named at submission are back
+    pipeline.helpers = dict.fromkeys(pipeline.helpers, 0)
+    pipeline.lend()
+    offers = [(o[1], o[2][1]) for o in run.hosts.log if o[0] == "offer"]
+    assert sorted(offers) == [(0, "host3"), (1, "host2")]  # one each; the most generations left first
+    assert pipeline.pending[pipeline.lent[2]] == (1, 2)
 
 
-def test_migrants_are_planned_once_per_migration_and_sent_with_the_next_generation():
-    run, _, _ = _run(interval=2)
-    planned = []
-    run._migrants = lambda g, config: planned.append(g) or {0: ["m0"], 1: ["m1"]}
-    epoch = Epoch(run, {0: 2, 1: 2}, end=4)
-    epoch.submit(0)
-    epoch.submit(1)
-    assert planned == [2]
-    assert [args[4] for _, args in _advances(run)] == [["m0"], ["m1"]]
+def test_an_island_starts_after_a_migration_once_its_source_has_completed_it():
+    run, _, _, _ = _run(n_islands=2, interval=2)
+    pipeline = Pipeline(run, {0: 2, 1: 1})     # ring: island 0 receives from island 1, 1 from 0
+    pipeline.submit_ready()
+    assert [(i, args[1]) for i, args in _advances(run)] == [(1, 2)]   # island 0 waits for island 1
+    pipeline.release(next(iter(pipeline.pending)))
+    pipeline.receive(1, 2, _done(1, 2, _part(1, 2, 2)))
+    pipeline.submit_ready()
+    sent = {i: args for i, args in _advances(run)[1:]}
+    assert sent[0][1] == 3 and sent[0][4] == ["migrant-2-0-from-[1]"]
+    assert sent[1][1] == 3 and sent[1][4] == ["migrant-2-1-from-[0]"]
+    (event,) = pipeline.events[4]                    # recorded with the epoch the migrants enter
+    assert (event.kind, event.generation) == ("migration", 2)
+
+
+def test_no_island_runs_more_than_one_epoch_ahead_of_the_oldest_uncommitted_one():
+    run, _, _, _ = _run(n_islands=2, interval=2)
+    run.sources_of = lambda i, g, config: ()     # no migrants: only the look-ahead holds islands
+    pipeline = Pipeline(run, {0: 4, 1: 0})       # epoch 1..2 is the oldest not committed
+    assert pipeline.limit() == 4
+    assert not pipeline.submit(0)                # island 0 has done both epochs it may
+    assert pipeline.submit(1)
+
+
+def test_an_epoch_is_committed_while_the_next_one_runs():
+    run, _, _, commits = _run(n_islands=2, interval=2)
+    run.sources_of = lambda i, g, config: ()
+    started, gate = threading.Event(), threading.Event()
+
+    def slow_commit(parts, events, after):
+        started.set()
+        gate.wait(5)
+        commits.append((parts, dict(after)))
+        return True
+
+    run._commit = slow_commit
+    pipeline = Pipeline(run, {0: 0, 1: 0})
+    for g in (1, 2):
+        for i in (0, 1):
+            pipeline.receive(i, g, _done(i, g, _part(i, 1, 2) if g == 2 else None))
+    pipeline.commit_due()
+    assert started.wait(5) and pipeline.inflight is not None
+    assert pipeline.limit() == 6                 # the next epoch may start, and the one after it
+    assert pipeline.submit(0) and _advances(run)[-1][1][1] == 3
+    pipeline.collect()
+    assert pipeline.committed == {0: 0, 1: 0}    # not yet durable
+    gate.set()
+    pipeline.collect(wait=True)
+    assert pipeline.committed == {0: 2, 1: 2} and [c[1] for c in commits] == [{0: 2, 1: 2}]
+    assert pipeline.results == {0: {}, 1: {}}
+    pipeline._commits.shutdown()
 
 
 def test_recover_restarts_a_lost_hosts_islands_from_their_committed_generation():
-    run, _, messages = _run()
-    epoch = Epoch(run, {0: 0, 1: 0}, end=3)
-    epoch.submit(0)
-    epoch.submit(1)
-    epoch.receive(0, 1, ["done"])
-    lost = next(ref for ref, (i, _) in epoch.pending.items() if i == 0)
-    epoch.recover(0, RuntimeError("node died"))
-    assert run.hosts.replaced == [0] and lost not in epoch.pending
-    assert epoch.results[0] == {} and epoch.cursor[0] == 0
-    assert sorted(epoch.pending.values()) == [(0, 1), (1, 1)]
-    (event,) = run._pending_events
+    run, _, messages, _ = _run()
+    pipeline = Pipeline(run, {0: 0, 1: 0})
+    pipeline.submit(0)
+    pipeline.submit(1)
+    lost = next(ref for ref, (i, _) in pipeline.pending.items() if i == 0)
+    pipeline.release(lost)
+    pipeline.receive(0, 1, _done(0, 1))
+    pipeline.submit(0)
+    lost = next(ref for ref, (i, _) in pipeline.pending.items() if i == 0)
+    pipeline.recover(0, RuntimeError("node died"))
+    assert run.hosts.replaced == [0] and lost not in pipeline.pending
+    assert pipeline.results[0] == {} and pipeline.cursor[0] == 0
+    pipeline.submit_ready()
+    assert sorted(pipeline.pending.values()) == [(0, 1), (1, 1)]
+    (event,) = pipeline.events[10]
     assert (event.kind, event.generation, event.island) == ("recovery", 1, 0)
     assert event.detail == {"reason": "RuntimeError: node died", "restarted_from": 0}
     assert run.summary.recoveries == 1 and "rebuilt from generation 0" in messages[0]
 
 
 def test_a_generation_is_shown_once_every_island_has_reached_it():
-    run, shown, _ = _run()
-    epoch = Epoch(run, {0: 0, 1: 0}, end=2)
-    epoch.submit(0)
-    epoch.submit(1)
-    epoch.receive(0, 1, ["a"])
-    epoch.receive(0, 2, ["b"])
+    run, shown, _, _ = _run()
+    pipeline = Pipeline(run, {0: 0, 1: 0})
+    pipeline.receive(0, 1, "a")
+    pipeline.receive(0, 2, "b")
     assert shown == []
-    epoch.receive(1, 1, ["c"])
+    pipeline.receive(1, 1, "c")
     assert shown == [1]
-    epoch.receive(1, 2, ["d"])
-    assert shown == [1, 2] and epoch.cursor == {0: 2, 1: 2}
-    assert epoch.results == {0: {1: ["a"], 2: ["b"]}, 1: {1: ["c"], 2: ["d"]}}
+    pipeline.receive(1, 2, "d")
+    assert shown == [1, 2] and pipeline.cursor == {0: 2, 1: 2}
+    assert pipeline.results == {0: {1: "a", 2: "b"}, 1: {1: "c", 2: "d"}}

@@ -1,4 +1,5 @@
-"""Sizing the island hosts: islands may outnumber CPUs; no free CPU is refused, not left waiting."""
+"""Sizing the island hosts: one per free CPU whatever the islands (hosts with no island help the
+others); islands may outnumber CPUs; no free CPU is refused, not left waiting."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ from genr8_dist.distributed.hosts import plan_hosts
 from genr8_dist.errors import RunError
 
 
-def test_one_host_per_island_when_cpus_allow():
+def test_one_host_per_cpu_even_with_fewer_islands():
     plan = plan_hosts(3, free_cpus=8)
-    assert (plan.hosts, plan.num_cpus) == (3, 1.0)
+    assert (plan.hosts, plan.num_cpus) == (8, 1.0)
 
 
 def test_islands_outnumbering_cpus_share_hosts():
@@ -30,3 +31,19 @@ def test_max_hosts_caps_the_pool():
 def test_no_free_cpu_is_refused_with_a_message():
     with pytest.raises(RunError, match="no free CPU for 3 island"):
         plan_hosts(3, free_cpus=0)
+
+
+def test_a_run_asking_a_cluster_for_more_cpus_than_are_free_waits_then_uses_what_is_free(monkeypatch):
+    """``cpus`` beyond the free CPUs: the autoscaler is asked for them, the pool waits, then sizes
+    itself to what is free (here nothing comes: no autoscaler)."""
+    import ray
+
+    from genr8_dist.distributed import hosts
+
+    asked = []
+    monkeypatch.setattr(ray, "available_resources", lambda: {"CPU": 3.0})
+    monkeypatch.setattr(hosts.time, "sleep", lambda s: asked.append(s))
+    clock = iter(range(0, 1000, 10))
+    monkeypatch.setattr(hosts.time, "monotonic", lambda: next(clock))
+    assert hosts.HostPool._ask_for(16, timeout=30.0) == 3.0
+    assert len(asked) >= 2   # it waited (seconds of the fake clock) before giving up

@@ -11,8 +11,10 @@ from hypothesis import strategies as st
 from genr8_dist.distributed.migration import (
     destinations,
     is_migration_generation,
+    migrants_for,
     plan_migration,
     select_emigrants,
+    sources,
 )
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.individual import Individual
@@ -117,3 +119,18 @@ def test_novel_emigrants_are_fit_surfaces_the_destination_lacks():
     assert sorted(ind.phenotype_digest for ind in plan[1]) == ["c", "d"]
     with pytest.raises(ConfigError, match="emigrants"):
         plan_migration({0: source, 1: destination}, "ring", 2, seed=0, generation=5, emigrants="far")
+
+
+@pytest.mark.parametrize("topology", ["ring", "random", "full"])
+@pytest.mark.parametrize("mode", ["best", "novel"])
+def test_one_islands_migrants_from_its_sources_alone_are_the_plans(topology, mode):
+    """What an island receives, computed from its sources' populations alone (as soon as they have
+    completed the generation), is what the whole plan gives it."""
+    n = 5
+    populations = {i: _pop(i, [((i * 7 + k * 3) % 11) / 3 for k in range(6)]) for i in range(n)}
+    plan = plan_migration(populations, topology, 2, seed=3, generation=5, emigrants=mode)
+    froms = sources(topology, n, seed=3, generation=5)
+    for target in range(n):
+        needed = set(froms[target]) | ({target} if mode == "novel" else set())
+        alone = {i: populations[i] for i in needed}
+        assert migrants_for(target, alone, n, topology, 2, 3, 5, mode) == plan[target]
