@@ -284,7 +284,7 @@ class IslandHost:
                         continue
                     deal.done(zip(batch, found, strict=True))
                     idle.append(helper)
-        except BaseException as exc:   # met again by the owner's thread
+        except Exception as exc:   # met again by the owner's thread
             deal.error = exc
         finally:
             deal.close()
@@ -344,7 +344,7 @@ class _Deal:
         self.todo: deque[tuple[int, ...]] = deque(genomes)
         self.out: dict[tuple[int, ...], Any] = {}
         self.away = 0                  # genomes dealt to helpers, not back yet
-        self.error: BaseException | None = None
+        self.error: Exception | None = None
         self.open = True               # the dealing thread runs
         self._cond = threading.Condition()
 
