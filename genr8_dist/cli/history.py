@@ -389,7 +389,7 @@ def _cluster_statistics(run: str, k: int, island: int | None) -> str:
     stats = _search.cluster_ranges(_search.clusters(run, k, island=island), _search.weighted_criteria(run))
     names = list(stats[0]["ranges"]) if stats else []
     table = pa.table({"cluster": [s["cluster"] for s in stats], "members": [s["members"] for s in stats],
-                      "nearest centre": [s["id"] for s in stats],
+                      "representative": [s["id"] for s in stats],
                       **{_text.short_criterion(n) if n != "fitness" else n:
                          [_search.format_range(*s["ranges"][n]) for s in stats] for n in names}})
     return "ranges over each cluster's members:\n" + _text.format_table(table)
