@@ -25,7 +25,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from genr8_dist.errors import GenomeError, Genr8Error
 from genr8_dist.evolution.individual import Evaluation, timing_columns
@@ -375,7 +375,7 @@ class Evaluator:
             result = Evaluation(text=mapped.text or None, stage="map",
                                 error=str(mapped.reason or "mapping failed"))
         else:
-            result = self._grown(mapped.text, defer)
+            result = self._grown(cast(str, mapped.text), defer)   # valid: a text
         result = replace(result, codons_used=int(mapped.codons_used), wraps=int(mapped.wraps),
                          map_seconds=map_seconds, eval_seconds=time.perf_counter() - start)
         if isinstance(result, Preview):

@@ -95,6 +95,8 @@ from genr8_dist.evolution.variation import Variation, genome_of, map_genome, tex
 from genr8_dist.rng import stream
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from genr8_dist.config import RunConfig
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
@@ -196,7 +198,7 @@ class Island:
 
     def __init__(self, config: RunConfig, island_index: int, config_version: int = 1, *,
                  evaluator: Evaluator | None = None,
-                 config_of: Callable[[int], Any] | None = None) -> None:
+                 config_of: Callable[[int], RunConfig | None] | None = None) -> None:
         if isinstance(island_index, bool) or not isinstance(island_index, int) or island_index < 0:
             raise ConfigError(f"island index must be a non-negative integer, got {island_index!r}")
         if island_index >= config.islands.count:
@@ -218,11 +220,11 @@ class Island:
 
     # -- random streams -----------------------------------------------------------------------
 
-    def rng(self, generation: int, purpose: str, *keys: int):
+    def rng(self, generation: int, purpose: str, *keys: int) -> np.random.Generator:
         """The generator for ``purpose`` (and ``keys``) in ``generation`` of this island."""
         return stream(self.config.seed, "island", self.index, "generation", generation, purpose, *keys)
 
-    def _founders(self, rng, count: int, first: int = 0) -> list[Genome]:
+    def _founders(self, rng: np.random.Generator, count: int, first: int = 0) -> list[Genome]:
         """``count`` founder genomes drawn from ``rng`` (``ea.init``); ``first``: the position of the
         first in the ramp of depth limits."""
         g = self.config.genome
@@ -247,7 +249,7 @@ class Island:
         region is the most symmetric surface, the emptiest cell)."""
         return self.config.search.mode == "weighted"
 
-    def _founder(self, rng, index: int) -> Genome:
+    def _founder(self, rng: np.random.Generator, index: int) -> Genome:
         """One founder genome drawn from ``rng`` at position ``index`` of generation 0."""
         return self._founders(rng, 1, first=index)[0]
 
@@ -273,7 +275,7 @@ class Island:
             genome = draw()
         return genome
 
-    def _revary(self, rng, genome: Genome, codons: int) -> Genome:
+    def _revary(self, rng: np.random.Generator, genome: Genome, codons: int) -> Genome:
         """``genome`` mutated again, at least one of the ``codons`` the mapper read redrawn (a copy is
         a copy because its read codons are: flipping an unread one would change nothing); under a
         universe's variation, its mutation of the text."""
@@ -420,7 +422,7 @@ class Island:
 
         mate_scores = [scores[i] for i in mates]
 
-        def pick(rng, first: bool = True) -> int:
+        def pick(rng: np.random.Generator, first: bool = True) -> int:
             if mates:   # the archive: the first parent by tournament, its mate uniformly
                 return mates[tournament_select(rng, mate_scores, ea.tournament if first else 1)]
             return tournament_select(rng, scores, ea.tournament)

@@ -23,11 +23,15 @@ offspring is one child: recombination of two tournament winners with probability
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from genr8_dist.errors import UniverseError
+
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.grammar.universe import MapResult, Universe
 
 __all__ = ["VARIATIONS", "Variation", "genome_of", "map_genome", "text_genome", "variation_for"]
 
@@ -46,7 +50,7 @@ class Variation(Protocol):
     def recombine(self, rng: np.random.Generator, text: str, other: str) -> str: ...
 
 
-def variation_for(config: Any, universe: Any) -> Variation | None:
+def variation_for(config: RunConfig, universe: Universe) -> Variation | None:
     """The variation ``config`` evolves ``universe`` with: its hooks' ``VARIATION`` under
     ``ea.variation = "auto"``, ``None`` (GE) under ``"ge"`` or when the universe declares none."""
     if getattr(getattr(config, "ea", None), "variation", "auto") == "ge":
@@ -66,7 +70,7 @@ def text_genome(text: str) -> tuple[int, ...]:
     return tuple(ord(c) for c in text)
 
 
-def map_genome(config: Any, universe: Any, genome: Sequence[int]) -> Any:
+def map_genome(config: RunConfig, universe: Universe, genome: Sequence[int]) -> MapResult:
     """``genome`` mapped to its text as ``config`` maps it (a ``MapResult``): read back as a text
     genome under a universe's variation, else GE's ``universe.map``."""
     from genr8_dist.grammar.universe import MapResult
@@ -80,7 +84,7 @@ def map_genome(config: Any, universe: Any, genome: Sequence[int]) -> Any:
     return MapResult("".join(map(chr, genome)), True, None, len(genome), 0)
 
 
-def genome_of(config: Any, universe: Any, text: str) -> tuple[int, ...]:
+def genome_of(config: RunConfig, universe: Universe, text: str) -> tuple[int, ...]:
     """A genome that maps to ``text`` under ``config``: its text genome under a universe's
     variation, else GE's inversion (``universe.invert``)."""
     if variation_for(config, universe) is None:
