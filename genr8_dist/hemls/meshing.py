@@ -46,11 +46,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
 
 from genr8_dist.errors import ConfigError
+
+if TYPE_CHECKING:
+    import numpy.typing as npt
 
 __all__ = ["MESHING", "MESHINGS", "Mesh", "check_meshing", "mesh_surface", "region_roundness"]
 
@@ -82,7 +85,7 @@ class Mesh(NamedTuple):
     fallback: np.ndarray   # the regions cut as meshing 1 cuts them (every region under meshing 1)
 
 
-def check_meshing(value: Any, where: str = "meshing") -> int:
+def check_meshing(value: object, where: str = "meshing") -> int:
     """``value`` as a meshing version, or a ``ConfigError`` naming ``where`` and the versions."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) not in MESHINGS:
         raise ConfigError(f"{where}: unknown meshing {value!r}; use one of "
@@ -90,7 +93,7 @@ def check_meshing(value: Any, where: str = "meshing") -> int:
     return int(value)
 
 
-def _frozen(a: np.ndarray, dtype: Any) -> np.ndarray:
+def _frozen(a: np.ndarray, dtype: npt.DTypeLike) -> np.ndarray:
     out = np.ascontiguousarray(a, dtype=dtype)
     out.setflags(write=False)
     return out
@@ -187,10 +190,10 @@ def _simple(xy: np.ndarray) -> bool:
         ii, jj = np.broadcast_to(i, pair.shape)[pair], np.broadcast_to(j, pair.shape)[pair]
 
         def orient(s: np.ndarray, p: np.ndarray) -> np.ndarray:
-            return d[s, 0] * (p[:, 1] - xy[s, 1]) - d[s, 1] * (p[:, 0] - xy[s, 0])
+            return cast(np.ndarray, d[s, 0] * (p[:, 1] - xy[s, 1]) - d[s, 1] * (p[:, 0] - xy[s, 0]))
 
         def within(s: np.ndarray, p: np.ndarray) -> np.ndarray:
-            return np.all((p >= lo[s]) & (p <= hi[s]), axis=1)
+            return cast(np.ndarray, np.all((p >= lo[s]) & (p <= hi[s]), axis=1))
 
         o1, o2 = orient(ii, xy[jj]), orient(ii, q[jj])
         o3, o4 = orient(jj, xy[ii]), orient(jj, q[ii])
@@ -561,7 +564,7 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
         return None
 
     def projected() -> np.ndarray | None:
-        return (pos - centroid) @ frame.T
+        return cast(np.ndarray, (pos - centroid) @ frame.T)
 
     def unfolded() -> np.ndarray | None:
         uv = _unfold(pos, tri) if len(tri) == len(pos) - 2 and len(tri) else None

@@ -14,7 +14,7 @@ import hashlib
 import math
 from collections.abc import Callable
 from types import ModuleType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -22,12 +22,14 @@ from genr8_dist.errors import GrowthError
 from genr8_dist.hemls._kernels import KernelSwitch
 
 if TYPE_CHECKING:
+    import numpy.typing as npt
+
     from genr8_dist.hemls.meshing import Mesh
 
 __all__ = ["Surface"]
 
 
-def _frozen(a: np.ndarray, dtype) -> np.ndarray:
+def _frozen(a: np.ndarray, dtype: npt.DTypeLike) -> np.ndarray:
     out = np.ascontiguousarray(a, dtype=dtype)
     out.setflags(write=False)
     return out
@@ -149,7 +151,7 @@ class Surface:
             mirrored[:, :2] = 2.0 * (rel[:, :2] @ u)[:, None] * u - rel[:, :2]
             distance, image = tree.query(mirrored, distance_upper_bound=2.0 * tol)
             if np.all(distance <= tol) and np.array_equal(edge_keys(image), keys):
-                return u
+                return cast(np.ndarray, u)
         return None
 
     # -- adjacency ---------------------------------------------------------------------------------
@@ -451,7 +453,7 @@ def _best_triangulations(points: np.ndarray, sizes: np.ndarray) -> np.ndarray:
     d2, cr = _pairwise(points)
     kernels = _kernels()
     if kernels is not None:
-        return kernels.best_triangulations(d2, cr, np.asarray(sizes, dtype=np.int64))
+        return cast(np.ndarray, kernels.best_triangulations(d2, cr, np.asarray(sizes, dtype=np.int64)))
     ik, kj, ij, ji, spans = _triples(M)
     d2, cr = d2.reshape(R, M * M), cr.reshape(R, M * M)
     a2, b2, c2 = d2[:, ik], d2[:, kj], d2[:, ij]
@@ -601,6 +603,8 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     if kernels is not None:
         return _flipped(kernels.clip(np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])),
                         points, xy, kernels)
+    xs: list[float]
+    ys: list[float]
     xs, ys = xy[:, 0].tolist(), xy[:, 1].tolist()
     px, py = xy[:, 0], xy[:, 1]
     n = len(points)
@@ -652,7 +656,7 @@ def _clip_and_flip(points: np.ndarray) -> np.ndarray:
     return np.array(tris, dtype=np.int64).reshape(-1, 3)
 
 
-def _flipped(tris: np.ndarray, points: np.ndarray, xy: np.ndarray, kernels) -> np.ndarray:
+def _flipped(tris: np.ndarray, points: np.ndarray, xy: np.ndarray, kernels: ModuleType) -> np.ndarray:
     """``tris`` (T, 3) after the compiled flips: to the constrained Delaunay triangulation, then
     those that lower the cost, ``_FLIPS_PER_TRIANGLE`` edge tests per triangle each at most."""
     xs, ys = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
