@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from genr8_dist.history._run import (
     HistoryError,
@@ -111,7 +111,7 @@ def export_formats(phenotype: Any) -> tuple[str, ...]:
     return tuple(phenotype.export_formats)
 
 
-def check_export_path(path: str | os.PathLike, phenotype: Any) -> Path:
+def check_export_path(path: str | os.PathLike[str], phenotype: Any) -> Path:
     """``path`` when ``export`` can write it for ``phenotype``; a ``HistoryError`` naming the formats
     otherwise."""
     path = Path(path)
@@ -131,7 +131,7 @@ def _outside_runs(path: Path) -> Path:
     return path
 
 
-def export(result: Regrown, path: str | os.PathLike, *, smooth: int = 0) -> Path:
+def export(result: Regrown, path: str | os.PathLike[str], *, smooth: int = 0) -> Path:
     """Write the regrown phenotype to ``path`` through its phenotype's ``export`` (the suffix picks the
     format; a surface: .obj .ply .stl .glb through trimesh, .3dm through rhino3dm), named after the
     individual where the format keeps names; ``smooth`` subdivision steps (a surface's meshes). The
@@ -139,23 +139,25 @@ def export(result: Regrown, path: str | os.PathLike, *, smooth: int = 0) -> Path
     path = check_export_path(path, result.phenotype)
     developed = _need_developed(result, "export")
     if not smooth:
-        return result.phenotype.export(developed, path, result.config, name=result.row["id"])
+        return cast(Path, result.phenotype.export(developed, path, result.config, name=result.row["id"]))
     if not getattr(result.phenotype, "smooths", False):
         raise HistoryError(f"--smooth: phenotype {result.phenotype.name} has no smoothed export")
-    return result.phenotype.export(developed, path, result.config, name=result.row["id"], smooth=smooth)
+    return cast(Path, result.phenotype.export(developed, path, result.config, name=result.row["id"],
+                                              smooth=smooth))
 
 
-def picture(result: Regrown, path: str | os.PathLike) -> Path:
+def picture(result: Regrown, path: str | os.PathLike[str]) -> Path:
     """A PNG of the regrown phenotype (its phenotype's ``preview``: a surface in its environment),
     titled with its id and fitness."""
     developed = _need_developed(result, "draw")
     row = result.row
     title = (f"{row['id']}  fitness {row['fitness']:.4g}  (generation {row['generation']}, "
              f"island {row['island']})")
-    return result.phenotype.preview(developed, _outside_runs(Path(path)), title=title, config=result.config)
+    return cast(Path, result.phenotype.preview(developed, _outside_runs(Path(path)), title=title,
+                                               config=result.config))
 
 
-def save_text(text: str, path: str | os.PathLike, *, what: str, id: str) -> Path:
+def save_text(text: str, path: str | os.PathLike[str], *, what: str, id: str) -> Path:
     """Write ``text`` (a rewrite system or a genome) to ``path`` atomically."""
     if not text:
         raise HistoryError(f"{id} has no {what} to save")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeAlias, cast
 
 import numpy as np
 import pyarrow as pa
@@ -34,7 +34,8 @@ __all__ = [
     "write_table",
 ]
 
-RunLike = Any  # a run directory (str / PathLike / URI) or an open ``RunStore``
+#: a run directory (str / PathLike / URI) or an open ``RunStore``
+RunLike: TypeAlias = "str | os.PathLike[str] | RunStore"
 
 
 def _label(run: RunLike) -> str:
@@ -108,17 +109,17 @@ def deviation(values: np.ndarray, versions: np.ndarray, criterion: str,
     with np.errstate(invalid="ignore"):
         dev = np.abs(values - target[rows]) / unit[rows]
     dev[~np.isfinite(dev) | (versions < 0)] = np.inf
-    return dev
+    return cast(np.ndarray, dev)
 
 
 def as_numpy(column: pa.ChunkedArray | pa.Array, fill: float = math.nan) -> np.ndarray:
     """A numeric Arrow column as a numpy array, nulls replaced by ``fill``."""
     if column.null_count:
         column = pc.fill_null(column, fill)
-    return column.to_numpy()
+    return cast(np.ndarray, column.to_numpy())
 
 
-def run_directory_holding(path: str | os.PathLike) -> Path | None:
+def run_directory_holding(path: str | os.PathLike[str]) -> Path | None:
     """The run directory ``path`` lies in (itself or a folder above it holding ``_manifest/``), or None."""
     if is_stream(path):
         return None
@@ -129,7 +130,7 @@ def run_directory_holding(path: str | os.PathLike) -> Path | None:
     return None
 
 
-def atomic_write(path: str | os.PathLike, write: Any) -> None:
+def atomic_write(path: str | os.PathLike[str], write: Any) -> None:
     """Call ``write(tmp_path)`` then rename the temporary file onto ``path``: a reader never sees half
     a file, and a failure leaves ``path`` as it was. The folder must exist, and must not be inside a
     run directory: the history commands only read runs (a file written there could replace one the
@@ -146,7 +147,7 @@ def atomic_write(path: str | os.PathLike, write: Any) -> None:
         write(str(tmp))
 
 
-def write_table(table: pa.Table, path: str | os.PathLike, format: str | None = None) -> None:
+def write_table(table: pa.Table, path: str | os.PathLike[str], format: str | None = None) -> None:
     """Write ``table`` as CSV or Parquet (``format``, else from the suffix; CSV by default)."""
     fmt = format or ("parquet" if str(path).endswith((".parquet", ".pq")) else "csv")
     if fmt == "parquet":

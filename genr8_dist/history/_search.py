@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pyarrow as pa
@@ -182,7 +182,7 @@ def _criteria_features(table: pa.Table) -> np.ndarray:
     fill = np.nanmedian(np.where(np.isnan(x).all(axis=0), 0.0, x), axis=0) if len(x) else 0.0
     x = np.where(np.isnan(x), fill, x)
     spread = x.std(axis=0)
-    return (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0)
+    return cast(np.ndarray, (x - x.mean(axis=0)) / np.where(spread > 0, spread, 1.0))
 
 
 def _form_features(store: Any, table: pa.Table) -> np.ndarray:

@@ -9,7 +9,7 @@ and rewrite-system texts are read only for the rows that are shown.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pyarrow as pa
@@ -362,7 +362,7 @@ def lineage(run: RunLike, id: str, *, depth: int | None = None) -> pa.Table:
     n_isl, n_idx = int(isl.max()) + 1, int(idx.max()) + 1
 
     def key(i: np.ndarray, g: np.ndarray, k: np.ndarray) -> np.ndarray:
-        return ((g - lowest) * n_isl + i) * n_idx + k
+        return cast(np.ndarray, ((g - lowest) * n_isl + i) * n_idx + k)
 
     lookup = np.full((g0 - lowest + 1) * n_isl * n_idx, -1, dtype=np.int64)
     lookup[key(isl, gen, idx)] = np.arange(n)

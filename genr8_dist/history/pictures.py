@@ -55,12 +55,12 @@ def _pyplot() -> Any:
     return pyplot("pictures", HistoryError)
 
 
-def save_figure(fig: Any, path: str | os.PathLike) -> None:
+def save_figure(fig: Any, path: str | os.PathLike[str]) -> None:
     """Write ``fig`` to ``path`` (a PNG, atomically) and close it."""
     _save(fig, path, dpi=100)
 
 
-def _save(fig: Any, path: str | os.PathLike, dpi: int = 110) -> None:
+def _save(fig: Any, path: str | os.PathLike[str], dpi: int = 110) -> None:
     plt = _pyplot()
     suffix = os.path.splitext(os.fspath(path))[1] or ".png"
 
@@ -127,7 +127,7 @@ def _short_detail(detail: str, limit: int = 38) -> str:
     return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
-def curves_figure(store: RunStore, table: pa.Table | None = None) -> Any:
+def curves_figure(store: RunLike, table: pa.Table | None = None) -> Any:
     """The fitness-curve figure: best (solid) and median (dashed) total fitness per island over the
     generations, migrations as ticks along the bottom, interventions and resumptions as vertical lines;
     below, each criterion's value closest to its target per island, the target dashed."""
@@ -233,12 +233,12 @@ def curves_figure(store: RunStore, table: pa.Table | None = None) -> Any:
     return fig
 
 
-def curves_png(store: RunLike, path: str | os.PathLike, *, table: pa.Table | None = None) -> None:
+def curves_png(store: RunLike, path: str | os.PathLike[str], *, table: pa.Table | None = None) -> None:
     """Write the fitness curves of ``store`` (see ``curves_figure``) to the PNG ``path``."""
     _save(curves_figure(store, table), path)
 
 
-def lineage_png(table: pa.Table, id: str, path: str | os.PathLike) -> None:
+def lineage_png(table: pa.Table, id: str, path: str | os.PathLike[str]) -> None:
     """Write ``lineage_figure(table, id)`` to the PNG ``path``."""
     _save(lineage_figure(table, id), path)
 
@@ -417,7 +417,7 @@ def gallery_figure_of(run: RunLike, *, generation: int | None = -1, k: int = 12,
     return fig, f"{count} {noun}s of {where}"
 
 
-def gallery_png(run: RunLike, path: str | os.PathLike, *, generation: int | None = -1, k: int = 12,
+def gallery_png(run: RunLike, path: str | os.PathLike[str], *, generation: int | None = -1, k: int = 12,
                 island: int | None = None, per_island: bool = False, distinct: bool = True) -> str:
     """Write the contact sheet of ``gallery_figure_of`` to the PNG ``path``; returns its description."""
     fig, info = gallery_figure_of(run, generation=generation, k=k, island=island, per_island=per_island,

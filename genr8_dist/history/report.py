@@ -28,7 +28,7 @@ from genr8_dist.history._search import POOL_PER_KIND
 from genr8_dist.store.schema import criterion_column
 
 if TYPE_CHECKING:
-    from genr8_dist.store import RunStore
+    from genr8_dist.store import ConfigVersion, RunStore
 
 __all__ = ["report_html", "write_report"]
 
@@ -126,7 +126,7 @@ def _section(title: str, body: str) -> str:
     return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
 
 
-def _phenotype(store: RunStore, configs: list) -> Any:
+def _phenotype(store: RunStore, configs: list[ConfigVersion]) -> Any:
     """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
     from genr8_dist.history._run import phenotype_for
     from genr8_dist.phenotype import SURFACES
@@ -366,7 +366,7 @@ def _parallel_section(store: Any, noun: str) -> str:
     return _section(title, body)
 
 
-def write_report(run: RunLike, path: str | os.PathLike, *, k: int = 10, gallery_k: int = 12) -> Path:
+def write_report(run: RunLike, path: str | os.PathLike[str], *, k: int = 10, gallery_k: int = 12) -> Path:
     """Write ``report_html(run)`` to ``path`` atomically; returns the path."""
     text = report_html(run, k=k, gallery_k=gallery_k)
     atomic_write(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
