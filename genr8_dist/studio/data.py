@@ -19,12 +19,14 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from genr8_dist.errors import ConfigError, Genr8Error, StoreError
 from genr8_dist.store.schema import criterion_column, size_column, size_of
 
 if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.hemls.surface import Surface
     from genr8_dist.store import RunStore
 
 __all__ = ["MAX_FACES", "RunView"]
@@ -59,11 +61,11 @@ class RunView:
         self._surfaces: OrderedDict[str, bytes] = OrderedDict()
         self._generations: OrderedDict[int, list[dict[str, Any]]] = OrderedDict()
         self._kinds: OrderedDict[tuple[int, int, int | None], dict[str, Any]] = OrderedDict()
-        self._configs: dict[int, Any] = {}
+        self._configs: dict[int, RunConfig] = {}
         self._seen: tuple[float, int] | None = None   # (time, individuals) when the newest commit was seen
 
     # -- the store ----------------------------------------------------------------------------------
-    def store(self) -> Any:
+    def store(self) -> RunStore:
         """The run's store at its newest commit (``StoreError`` until the run directory is a run)."""
         from genr8_dist.store import RunStore
 
@@ -74,7 +76,7 @@ class RunView:
                 self._store.refresh()
             return self._store
 
-    def config(self, version: int | None = None) -> Any:
+    def config(self, version: int | None = None) -> RunConfig:
         """Configuration ``version`` (default: the newest) as a ``RunConfig``."""
         from genr8_dist.history._run import config_of
 
@@ -155,13 +157,13 @@ class RunView:
             "objectives": self._objectives(config),
         }
 
-    def _objectives(self, config: Any) -> list[str]:
+    def _objectives(self, config: RunConfig) -> list[str]:
         """The criteria a Pareto search would treat as objectives (``pareto_objectives``), stored ones."""
         from genr8_dist.evolution.island import pareto_objectives
 
         return [n for n in pareto_objectives(config) if n in self.store().criteria]
 
-    def _events(self, store: Any) -> list[dict[str, Any]]:
+    def _events(self, store: RunStore) -> list[dict[str, Any]]:
         table = store.events()
         out = []
         for row in table.select(["kind", "generation", "island", "detail", "time"]).to_pylist():
@@ -192,9 +194,9 @@ class RunView:
         rate = done / elapsed
         return rate, max(0, last - low) * per_generation / rate
 
-    def _criteria(self, config: Any) -> list[dict[str, Any]]:
+    def _criteria(self, config: RunConfig) -> list[dict[str, Any]]:
         spec = config.fitness
-        out = []
+        out: list[dict[str, Any]] = []
         for name in self.store().criteria:
             try:
                 term = spec[name]
@@ -206,7 +208,7 @@ class RunView:
         return out
 
     @staticmethod
-    def _environment_values(config: Any) -> dict[str, Any]:
+    def _environment_values(config: RunConfig) -> dict[str, Any]:
         env = config.environment
         return {"steps": int(env.steps), "scale": [float(v) for v in env.scale],
                 "gravity": [float(v) for v in env.gravity],
@@ -515,7 +517,7 @@ class RunView:
         }
 
     # -- surfaces -----------------------------------------------------------------------------------
-    def _grow(self, id: str) -> tuple[Any, Any]:
+    def _grow(self, id: str) -> tuple[Surface, RunConfig]:
         """The recorded rewrite system of ``id`` grown again in its configuration's environment."""
         from genr8_dist.hemls import grow, parse
         from genr8_dist.history import individual
@@ -624,7 +626,7 @@ def _add_generations(curves: dict[str, Any], store: RunStore) -> None:
     curves["last"] = done
 
 
-def _glb(surface: Any) -> bytes:
+def _glb(surface: Surface) -> bytes:
     import numpy as np
     import trimesh
 
@@ -650,7 +652,7 @@ def _glb(surface: Any) -> bytes:
             segments = segments[:: math.ceil(len(segments) / MAX_EDGES)]
         path = trimesh.load_path(segments)
         scene.add_geometry(path, geom_name="edges")
-    return scene.export(file_type="glb")
+    return cast(bytes, scene.export(file_type="glb"))
 
 
 def _decimate(mesh: Any, faces: int) -> Any:
