@@ -11,7 +11,8 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from types import FrameType
 
 from genr8_dist.distributed.coordinator import StopRequest
 
@@ -21,7 +22,8 @@ SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
 
 
 @contextlib.contextmanager
-def stop_on_signals(stop: StopRequest, announce=None) -> Iterator[StopRequest]:
+def stop_on_signals(stop: StopRequest, announce: Callable[[str], object] | None = None
+                    ) -> Iterator[StopRequest]:
     """While inside, SIGINT and SIGTERM set ``stop`` (the second one raises ``KeyboardInterrupt``).
 
     ``announce(text)`` is told when a stop is requested. Outside the main thread signals cannot be
@@ -31,7 +33,7 @@ def stop_on_signals(stop: StopRequest, announce=None) -> Iterator[StopRequest]:
         yield stop
         return
 
-    def handler(signum: int, frame) -> None:
+    def handler(signum: int, frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
         if stop:
             raise KeyboardInterrupt(f"second {name}")

@@ -20,7 +20,7 @@ import math
 import statistics
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TextIO
 
 __all__ = ["ProgressDisplay", "format_duration", "format_fitness"]
@@ -81,7 +81,7 @@ class ProgressDisplay:
     terminal: ``table``, default ``out.isatty()``), and the run's messages."""
 
     def __init__(self, *, total_generations: int, out: TextIO | None = None, quiet: bool = False,
-                 clock=time.monotonic, table: bool | None = None) -> None:
+                 clock: Callable[[], float] = time.monotonic, table: bool | None = None) -> None:
         self.total_generations = total_generations
         self.out = out if out is not None else sys.stdout
         self.quiet = quiet

@@ -88,10 +88,10 @@ def reap(driver: int, started: int) -> None:
             time.sleep(0.05)
 
 
-_STARTED: list[subprocess.Popen] = []
+_STARTED: list[subprocess.Popen[bytes]] = []
 
 
-def start_reaper() -> subprocess.Popen | None:
+def start_reaper() -> subprocess.Popen[bytes] | None:
     """Start the reaper for this process once (see the module docstring); None where /proc is missing."""
     st = _stat(os.getpid())
     if st is None:
