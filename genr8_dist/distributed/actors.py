@@ -38,6 +38,8 @@ from genr8_dist.evolution.individual import Individual
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.evaluate import Evaluator
+    from genr8_dist.evolution.island import Island
     from genr8_dist.store import RunStore
 
 __all__ = ["HELPING", "OFFERS", "Generated", "IslandHost", "remote_host_class"]
@@ -86,10 +88,10 @@ class IslandHost:
     def bind(self, run_dir: str) -> None:
         """Serve the run in ``run_dir`` from now on, forgetting everything held of another run."""
         self.run_dir = run_dir
-        self._islands: dict[tuple[int, int], Any] = {}
-        self._configs: dict[int, Any] = {}
+        self._islands: dict[tuple[int, int], Island] = {}
+        self._configs: dict[int, RunConfig] = {}
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
-        self._evaluators: dict[int, Any] = {}   # configuration version -> Evaluator, for helping
+        self._evaluators: dict[int, Evaluator] = {}   # configuration version -> Evaluator, for helping
         self._store: RunStore | None = None
         self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
         self._written: dict[int, Any] = {}                  # island -> the last part written
@@ -99,7 +101,7 @@ class IslandHost:
         """Where this host runs (answers once the actor is scheduled and started)."""
         return {"host": socket.gethostname(), "pid": os.getpid()}
 
-    def _island(self, island: int, config: RunConfig | None, config_version: int) -> Any:
+    def _island(self, island: int, config: RunConfig | None, config_version: int) -> Island:
         from genr8_dist.evolution.island import Island
 
         if config is not None:
@@ -114,7 +116,7 @@ class IslandHost:
             self._islands[key] = found
         return found
 
-    def _config_of(self, version: int) -> Any:
+    def _config_of(self, version: int) -> RunConfig | None:
         """Configuration ``version`` of the run: as sent, else read from the run store (None when the
         store cannot say): an island judges rows made under it again without regrowing them."""
         found = self._configs.get(version)
@@ -125,7 +127,7 @@ class IslandHost:
                 return None
         return found
 
-    def _store_of(self) -> Any:
+    def _store_of(self) -> RunStore:
         if self._store is None:
             from genr8_dist.store import RunStore
 

@@ -228,7 +228,7 @@ class Coordinator:
     def _events(self) -> list[StoredEvent]:
         return stored_events(self._timed_store(self.store.events))
 
-    def _load_versions(self) -> list[tuple[int, int, Any]]:
+    def _load_versions(self) -> list[tuple[int, int, RunConfig]]:
         """(version, effective generation, config), by effective generation then version."""
         out = [(int(v.version), int(v.effective_generation),
                 self.store.config(v))
@@ -237,7 +237,7 @@ class Coordinator:
             raise RunError(f"{self.store.path}: the run has no configuration")
         return sorted(out, key=lambda v: (v[1], v[0]))
 
-    def config_for(self, generation: int) -> tuple[int, Any]:
+    def config_for(self, generation: int) -> tuple[int, RunConfig]:
         """The configuration version in effect at ``generation`` and the configuration."""
         chosen = self._versions[0]
         for version in self._versions:
@@ -631,7 +631,7 @@ class Pipeline:
         """The hosts with no generation of their own under way and not lent already."""
         return [n for n in self.run_.hosts.idle(self.busy_islands()) if n not in self.lent]
 
-    def migrants(self, island: int, g: int, config: Any) -> list[Individual] | None:
+    def migrants(self, island: int, g: int, config: RunConfig) -> list[Individual] | None:
         """The migrants ``island`` receives after generation ``g`` (a migration generation), or
         ``None`` while an island they come from has not completed ``g``."""
         run = self.run_
