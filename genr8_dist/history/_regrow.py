@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 from genr8_dist.history._run import (
     HistoryError,
@@ -26,8 +26,19 @@ from genr8_dist.history._run import (
 )
 from genr8_dist.store.schema import size_column, sizes_of
 
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.phenotype import Developed, Phenotype, RunSettings
+
 __all__ = ["Regrown", "check_export_path", "config_of", "export", "export_formats",
            "phenotype_of_run", "picture", "regrow", "save_text"]
+
+
+class _Smoothing(Protocol):
+    """A phenotype whose ``smooths`` is true: its export takes ``smooth`` steps."""
+
+    def export(self, developed: Developed, path: str | Path, config: RunSettings, *, name: str = "",
+               smooth: int = 0) -> Path: ...
 
 
 @dataclass(frozen=True)
@@ -37,9 +48,9 @@ class Regrown:
     derivation ``steps`` done, the ``digest``, and whether the genome still maps to the recorded text."""
 
     row: dict[str, Any]
-    config: Any
-    phenotype: Any
-    developed: Any
+    config: RunConfig
+    phenotype: Phenotype
+    developed: Developed | None
     steps: int
     digest: str | None
     text_matches: bool | None    # None: not checked (the universe's hooks are code history never runs)
@@ -89,7 +100,7 @@ def regrow(run: RunLike, id: str) -> Regrown:
     return Regrown(row, config, phenotype, developed, developed.steps, digest, text_matches)
 
 
-def phenotype_of_run(run: RunLike, id: str) -> Any:
+def phenotype_of_run(run: RunLike, id: str) -> Phenotype:
     """The phenotype individual ``id`` of ``run`` develops into (its configuration's universe's)."""
     from genr8_dist.history._tables import individual
 
@@ -98,7 +109,7 @@ def phenotype_of_run(run: RunLike, id: str) -> Any:
     return phenotype_for(store, config_of(store, row["config_version"]))
 
 
-def _need_developed(result: Regrown, what: str) -> Any:
+def _need_developed(result: Regrown, what: str) -> Developed:
     if result.developed is None:
         row = result.row
         raise HistoryError(f"{row['id']} has no {result.phenotype.name} to {what}: it failed at "
@@ -106,7 +117,7 @@ def _need_developed(result: Regrown, what: str) -> Any:
     return result.developed
 
 
-def export_formats(phenotype: Any) -> tuple[str, ...]:
+def export_formats(phenotype: Phenotype) -> tuple[str, ...]:
     """The file suffixes ``export`` writes for ``phenotype`` (its ``export_formats``)."""
     return tuple(phenotype.export_formats)
 
@@ -139,11 +150,11 @@ def export(result: Regrown, path: str | os.PathLike[str], *, smooth: int = 0) ->
     path = check_export_path(path, result.phenotype)
     developed = _need_developed(result, "export")
     if not smooth:
-        return cast(Path, result.phenotype.export(developed, path, result.config, name=result.row["id"]))
+        return result.phenotype.export(developed, path, result.config, name=result.row["id"])
     if not getattr(result.phenotype, "smooths", False):
         raise HistoryError(f"--smooth: phenotype {result.phenotype.name} has no smoothed export")
-    return cast(Path, result.phenotype.export(developed, path, result.config, name=result.row["id"],
-                                              smooth=smooth))
+    smoothing = cast(_Smoothing, result.phenotype)
+    return smoothing.export(developed, path, result.config, name=result.row["id"], smooth=smooth)
 
 
 def picture(result: Regrown, path: str | os.PathLike[str]) -> Path:
@@ -153,8 +164,7 @@ def picture(result: Regrown, path: str | os.PathLike[str]) -> Path:
     row = result.row
     title = (f"{row['id']}  fitness {row['fitness']:.4g}  (generation {row['generation']}, "
              f"island {row['island']})")
-    return cast(Path, result.phenotype.preview(developed, _outside_runs(Path(path)), title=title,
-                                               config=result.config))
+    return result.phenotype.preview(developed, _outside_runs(Path(path)), title=title, config=result.config)
 
 
 def save_text(text: str, path: str | os.PathLike[str], *, what: str, id: str) -> Path:

@@ -19,6 +19,7 @@ from genr8_dist.store.schema import criterion_of
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
+    from genr8_dist.phenotype import Phenotype
     from genr8_dist.store import RunStore
 
 __all__ = [
@@ -178,7 +179,7 @@ def config_of(store: RunStore, version: int) -> RunConfig:
         raise HistoryError(str(exc)) from None
 
 
-def phenotype_for(store: RunStore, config: RunConfig) -> Any:
+def phenotype_for(store: RunStore, config: RunConfig) -> Phenotype:
     """The phenotype of ``config``'s universe (a configuration of ``store``).
 
     History runs no stored code (:mod:`genr8_dist.grammar.trust`) but the code of an installed plugin
