@@ -78,7 +78,7 @@ import math
 from collections.abc import Callable, Container, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, development_key, rescore
@@ -98,6 +98,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from genr8_dist.config import RunConfig
+    from genr8_dist.phenotype import Phenotype
 
 __all__ = ["Birth", "Injected", "Island", "IslandStats", "is_trivial", "pareto_objectives"]
 
@@ -156,7 +157,7 @@ def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
     return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
-def is_trivial(evaluation: Evaluation, phenotype: Any = None) -> bool:
+def is_trivial(evaluation: Evaluation, phenotype: Phenotype | None = None) -> bool:
     """Whether an evaluation is not worth a founder's place: invalid, or trivial as its universe's
     ``phenotype`` says (default the surfaces': at most one region, the axiom polygon as it was or
     grown without a subdivision)."""
@@ -668,7 +669,7 @@ class Island:
         return placed
 
     @property
-    def phenotype(self) -> Any:
+    def phenotype(self) -> Phenotype:
         """The phenotype of this island's universe (``genr8_dist.phenotype``)."""
         from genr8_dist.phenotype import phenotype_of
 
