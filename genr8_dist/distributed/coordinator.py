@@ -66,7 +66,10 @@ from genr8_dist.errors import Genr8Error, RunError
 from genr8_dist.evolution.individual import Individual
 
 if TYPE_CHECKING:
+    import pyarrow as pa
+
     from genr8_dist.config import RunConfig
+    from genr8_dist.distributed.hosts import HostPool
     from genr8_dist.store import RunStore
 
 __all__ = [
@@ -112,7 +115,7 @@ class StoredEvent:
     detail: dict[str, Any]
 
 
-def stored_events(table: Any) -> list[StoredEvent]:
+def stored_events(table: pa.Table) -> list[StoredEvent]:
     """The rows of the store's events table as ``StoredEvent`` records, in order."""
     rows = table.select(["kind", "generation", "island", "detail"]).to_pylist()
     return [StoredEvent(r["kind"], int(r["generation"]), r["island"], json.loads(r["detail"] or "{}"))
@@ -169,7 +172,7 @@ class Coordinator:
     def __init__(
         self,
         store: RunStore,
-        hosts: Any,
+        hosts: HostPool,
         *,
         progress: ProgressDisplay | None = None,
         stop: StopRequest | None = None,

@@ -27,8 +27,11 @@ from typing import TYPE_CHECKING, Any, TextIO
 from genr8_dist.errors import Genr8Error, RunError, StoreError
 
 if TYPE_CHECKING:
+    from contextlib import AbstractContextManager
+
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.coordinator import Coordinator, RunSummary, StopRequest
+    from genr8_dist.grammar.source import UniverseSource
     from genr8_dist.store import RunStore
     from genr8_dist.store.pending import RunLock
 
@@ -326,10 +329,10 @@ def _check_new_run_dir(run_dir: str) -> None:
         raise StoreError(f"{run_dir}: exists and is not empty; choose another --run-dir")
 
 
-def stored_universes(store: RunStore) -> list[Any]:
+def stored_universes(store: RunStore) -> list[UniverseSource]:
     """The universe of every configuration version of the run that can be read (a damaged version is
     left to ``repair``), without running any of their code."""
-    sources: list[Any] = []
+    sources: list[UniverseSource] = []
     try:
         versions = store.configs()
     except StoreError:  # a damaged version: the one the run was created with, until repair
@@ -489,13 +492,13 @@ def _cluster_cpus(options: RunOptions) -> int | None:
     return options.num_cpus if joined else None
 
 
-def _stop_request(given: Any) -> Any:
+def _stop_request(given: StopRequest | None) -> StopRequest:
     from genr8_dist.distributed.coordinator import StopRequest
 
     return given if given is not None else StopRequest()
 
 
-def _signals_stop(stop: Any, out: TextIO) -> Any:
+def _signals_stop(stop: StopRequest, out: TextIO) -> AbstractContextManager[StopRequest]:
     """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``)."""
     from genr8_dist.distributed.interrupts import stop_on_signals
 
