@@ -18,6 +18,7 @@ from genr8_dist.errors import Genr8Error
 from genr8_dist.history._run import HistoryError, RunLike, atomic_write, open_run, run_label
 
 if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
     from genr8_dist.store import RunStore
 
 __all__ = [
@@ -443,7 +444,7 @@ def png_bytes(fig: Any, dpi: int = 100) -> bytes:
 # The search modes' pictures: Pareto front, MAP-Elites archive, clusters.
 
 
-def _noun(store: RunStore, config: Any) -> str:
+def _noun(store: RunStore, config: RunConfig) -> str:
     """What one design of the run is called (its phenotype's ``noun``; "design" when unknown)."""
     from genr8_dist.history._run import phenotype_for
 
@@ -453,7 +454,7 @@ def _noun(store: RunStore, config: Any) -> str:
         return "design"
 
 
-def _regrown_tiles(store: RunStore, table: Any, label: Any) -> list[tuple[str, Any]]:
+def _regrown_tiles(store: RunStore, table: pa.Table, label: Any) -> list[tuple[str, Any]]:
     from genr8_dist.history._regrow import regrow
 
     tiles = []

@@ -28,6 +28,7 @@ from genr8_dist.history._search import POOL_PER_KIND
 from genr8_dist.store.schema import criterion_column
 
 if TYPE_CHECKING:
+    from genr8_dist.phenotype import Phenotype
     from genr8_dist.store import ConfigVersion, RunStore
 
 __all__ = ["report_html", "write_report"]
@@ -126,7 +127,7 @@ def _section(title: str, body: str) -> str:
     return f"<section><h2>{html.escape(title)}</h2>{body}</section>"
 
 
-def _phenotype(store: RunStore, configs: list[ConfigVersion]) -> Any:
+def _phenotype(store: RunStore, configs: list[ConfigVersion]) -> Phenotype:
     """The phenotype of the run's newest configuration (surfaces when it cannot be read)."""
     from genr8_dist.history._run import phenotype_for
     from genr8_dist.phenotype import SURFACES
@@ -303,7 +304,7 @@ def _search_sections(store: RunStore, label: str, noun: str) -> list[str]:
     return sections
 
 
-def _cluster_statistics_section(store: Any, noun: str) -> str:
+def _cluster_statistics_section(store: RunStore, noun: str) -> str:
     """Per kind of form (the 12 clusters drawn above): its size, its representative and
     the range of the fitness and of each weighted criterion over its members."""
     from genr8_dist.history._search import cluster_ranges, clusters, format_range, weighted_criteria
@@ -326,7 +327,7 @@ def _cluster_statistics_section(store: Any, noun: str) -> str:
     return _section(title, f"{note}<table><tr>{head}</tr>{rows}</table>")
 
 
-def _parallel_section(store: Any, noun: str) -> str:
+def _parallel_section(store: RunStore, noun: str) -> str:
     """The parallel coordinates of the run's best distinct designs (``PARALLEL_DESIGNS``) across the
     fitness and the weighted criteria, drawn in the page by the studio's ``parallel.js``: dragging
     along an axis brushes a range, and the designs inside every brush are listed under the plot."""
