@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.evolution.evaluate import Evaluator
     from genr8_dist.evolution.island import Island
-    from genr8_dist.store import RunStore
+    from genr8_dist.store import Part, RunStore
 
 __all__ = ["HELPING", "OFFERS", "Generated", "IslandHost", "remote_host_class"]
 
@@ -67,7 +67,7 @@ class Generated:
     island: int
     generation: int
     fitness: tuple[float, ...]
-    part: Any = None
+    part: Part | None = None
     emigrants: tuple[Individual, ...] | None = None
     emigrants_for: tuple[int, str] | None = None
 
@@ -94,7 +94,7 @@ class IslandHost:
         self._evaluators: dict[int, Evaluator] = {}   # configuration version -> Evaluator, for helping
         self._store: RunStore | None = None
         self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
-        self._written: dict[int, Any] = {}                  # island -> the last part written
+        self._written: dict[int, Part] = {}                  # island -> the last part written
         self._writing = threading.Lock()   # a stopping driver's flush runs beside advance
 
     def ready(self) -> dict[str, Any]:
@@ -190,7 +190,7 @@ class IslandHost:
         return Generated(island, generation, tuple(float(ind.fitness) for ind in population),
                          self.flush(island) if write else None, candidates, emigrants)
 
-    def flush(self, island: int) -> Any:
+    def flush(self, island: int) -> Part | None:
         """Write ``island``'s rows computed since its last part as a new part file of the run and
         return its ``Part``; with none to write, the last part written (the driver may not have
         received it: a generation that ended an epoch as the run was stopped), or ``None``."""

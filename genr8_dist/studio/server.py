@@ -28,7 +28,7 @@ from http import HTTPStatus
 from http.cookies import SimpleCookie
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 from urllib.parse import parse_qs, urlsplit
 
 from genr8_dist.errors import ConfigError, Genr8Error, StoreError
@@ -58,7 +58,7 @@ class Studio:
     """The studio over the run in ``run_dir``, served on ``host:port`` (port 0: any free port)."""
 
     def __init__(self, run_dir: str, *, host: str = "127.0.0.1", port: int = 0, token: str | None = None,
-                 log: Any = None) -> None:
+                 log: TextIO | None = None) -> None:
         self.view = RunView(run_dir)
         self.run_dir = run_dir
         self.host = host
