@@ -345,7 +345,13 @@ def test_sigkill_at_any_moment_leaves_whole_commits(tmp_path: Path) -> None:
         child.stdout.close()
         child.stderr.close()
         reopened = RunStore.open(store.path)
-        assert reopened.verify() == [], f"attempt {attempt}"
+        # a kill between a commit and its glob view leaves whole commits and a view one commit behind:
+        # verify names only that, and repair publishes it
+        problems = reopened.verify()
+        assert all("a crash between a commit and its view" in p for p in problems), f"attempt {attempt}"
+        if problems:
+            reopened.repair()
+            assert reopened.verify() == [], f"attempt {attempt}"
         done = reopened.committed_generations()
         assert set(done) == {0, 1, 2} and len(set(done.values())) == 1
         last = done[0]
