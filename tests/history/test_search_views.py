@@ -117,7 +117,7 @@ def test_gallery_clusters_prints_each_clusters_size_and_ranges(pareto_run, tmp_p
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith(f"wrote {tmp_path / 'k.png'}: 3 clusters")
     assert out[1] == "ranges over each cluster's members:"
-    assert out[2].split()[:4] == ["cluster", "members", "nearest", "centre"] and "fitness" in out[2]
+    assert out[2].split()[:4] == ["cluster", "members", "representative", "fitness"]
     for line, stats in zip(out[3:], cluster_ranges(clusters(store, 3)), strict=True):
         cells = line.split()
         assert cells[:3] == [str(stats["cluster"]), str(stats["members"]), stats["id"]]

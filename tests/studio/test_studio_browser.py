@@ -242,7 +242,7 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
 
     shots = Path(os.environ.get("GENR8_STUDIO_SHOTS") or tmp_path)
     shots.mkdir(parents=True, exist_ok=True)
-    last = 16
+    last = 80   # one epoch long enough (about 15 s on an idle 2-core machine) to look at before it commits
     config = tmp_path / "run.toml"
     config.write_text(CONFIG.format(generations=last).replace("migration_interval = 2",
                                                                f"migration_interval = {last}"))
@@ -317,7 +317,7 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
         _wait("a later generation, still before the commit", lambda: shown.append(int(data("generation")))
               or shown[-1] > shown[0] or RunStore.open(live).committed_generations(), 240)
         _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
-              300)
+              600)
         _wait("the last generation, durable", lambda: data("generation") == str(last)
               and data("durable") == "true", 60)
         _wait("the studio to stay open", lambda: any("the studio stays open" in ln for ln in lines), 60)
