@@ -75,9 +75,10 @@ evaluation may be evaluated anywhere (an island host shares them with idle hosts
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Container, Mapping, Sequence
+from collections.abc import Callable, Container, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
+from itertools import islice
 from typing import TYPE_CHECKING
 
 from genr8_dist.errors import ConfigError
@@ -85,11 +86,16 @@ from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, develo
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
+    Look,
+    crossover,
     int_flip_mutation,
-    one_point_crossover,
+    mutation,
+    parent_picker,
     random_genome,
+    recombination,
+    screened,
     select_elites,
-    tournament_select,
+    select_matings,
 )
 from genr8_dist.evolution.variation import Variation, genome_of, map_genome, text_genome, variation_for
 from genr8_dist.rng import stream
@@ -371,12 +377,14 @@ class Island:
             raise ValueError(f"step builds generation >= 1; use initial() for generation 0, got {generation}")
         return self.complete(generation, self.breed(generation, previous, migrants, injected, hand))
 
-    def _injected_genome(self, item: Injected) -> tuple[tuple[int, ...], tuple[str, ...]]:
+    def _injected(self, item: Injected) -> Birth:
+        """The birth of an injected individual: a copy of an ``Individual``, a text inverted through
+        the universe, or a genome."""
         if isinstance(item, Individual):
-            return tuple(item.genome), (item.id,)
+            return Birth(tuple(item.genome), "injected", (item.id,))
         if isinstance(item, str):
-            return genome_of(self.config, self.evaluator.universe, item), ()
-        return tuple(int(c) for c in item), ()
+            return Birth(genome_of(self.config, self.evaluator.universe, item), "injected")
+        return Birth(tuple(int(c) for c in item), "injected")
 
     def breed(self, generation: int, previous: Sequence[Individual] = (),
               migrants: Sequence[Individual] = (), injected: Sequence[Injected] = (),
@@ -388,7 +396,6 @@ class Island:
         self._bred_at = self._counters()
         self.stats = IslandStats(generation=generation)
         ea = self.config.ea
-        g = self.config.genome
         if generation == 0:
             return self._founder_births(ea.population)
         if not previous:
@@ -399,11 +406,20 @@ class Island:
                 f"population of {ea.population} (ea.population)"
             )
         births = [Birth(tuple(m.genome), "migrant", (m.id,), self._kept(m)) for m in migrants]
-        for item in injected:
-            genome, parents = self._injected_genome(item)
-            births.append(Birth(genome, "injected", parents))
+        births += [self._injected(item) for item in injected]
+        pool, parent_ids, fitnesses = self._pool(previous, hand)
+        scores, elites, mates = self._selection(pool, fitnesses, ea.population - len(births))
+        births += [Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i]))
+                   for i in elites]
+        room = self.generation_size(len(births)) - len(births)
+        return births + list(islice(self._offspring(generation, births, pool, parent_ids, scores, mates),
+                                    max(room, 0)))
 
-        # Generation g-1 as it competes now: re-evaluated where its configuration was another one.
+    def _pool(self, previous: Sequence[Individual], hand: Sequence[tuple[Individual, float]]
+              ) -> tuple[list[Individual], list[str], list[float]]:
+        """Generation g-1 as it competes now (re-evaluated where its configuration was another one),
+        its ids and fitnesses, with the ``hand``-scored individuals' fitness a designer gave them
+        (one not of ``previous`` joins the pool)."""
         pool = [self._now(p) for p in previous]
         parent_ids = [p.id for p in previous]
         fitnesses = [p.fitness for p in pool]
@@ -414,86 +430,77 @@ class Island:
             pool.append(self._now(marked))
             parent_ids.append(marked.id)
             fitnesses.append(float(fitness))
+        return pool, parent_ids, fitnesses
 
-        room = ea.population - len(births)
-        scores, elites, mates = self._selection(pool, fitnesses, room)
-        for i in elites:
-            births.append(Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i])))
-        size = self.generation_size(len(births))
+    def _offspring(self, generation: int, births: Sequence[Birth], pool: Sequence[Individual],
+                   parent_ids: Sequence[str], scores: Sequence[float], mates: Sequence[int]
+                   ) -> Iterator[Birth]:
+        """The offspring of ``generation``, without end, bred by the pipeline of
+        ``evolution.operators``: selection, variation (GE's, or the universe's own operators), the
+        screen before evaluation (copies of ``births``' and the parents' texts, and texts that show
+        their growth wasted, varied again), births. Each stage draws from its own stream."""
+        ea, variation = self.config.ea, self.variation
+        retries = max(ea.unique_retries, 0)
+        mate_retries = _MATE_RETRIES if retries else 0
+        pick = parent_picker(scores, mates, ea.tournament)
+        select_rng, revary_rng = self.rng(generation, "selection"), self.rng(generation, "revary")
+        revary = partial(self._revary, revary_rng)
+        if variation is None:   # GE: a mate's text equal to the first parent's is a copy
+            matings = select_matings(pick, select_rng, retries=mate_retries, count=self._count,
+                                     same=lambda a, b: b == a or (pool[a].text is not None
+                                                                  and pool[b].text == pool[a].text))
+            children = crossover(matings, self.rng(generation, "crossover"), ea.crossover_rate,
+                                 genome=lambda i: pool[i].genome, read=lambda i: pool[i].codons_used,
+                                 within_used=ea.within_used)
+            children = mutation(children, self.rng(generation, "mutation"), ea.mutation_rate,
+                                self.config.genome.codon_max, within_used=ea.within_used)
+            taken = {self._screen(b.evaluation.text)[1] for b in births
+                     if b.evaluation is not None and b.evaluation.text is not None}
+            children = screened(children, look=self._look, revary=revary, taken=taken, retries=retries,
+                                avoid=partial(self._avoid, pool) if retries else lambda _: set(),
+                                count=self._count)
+        else:   # the universe's own operators: a mate only for a recombination
+            vary_rng = self.rng(generation, "variation")
+            matings = select_matings(pick, select_rng, retries=mate_retries, count=self._count,
+                                     crossed=lambda: bool(vary_rng.random() < ea.crossover_rate),
+                                     same=lambda a, b: b == a or pool[b].text == pool[a].text)
+            children = recombination(matings, vary_rng, variation, lambda i: str(pool[i].text))
+            taken = {b.evaluation.text for b in births if b.evaluation is not None}
+            children = screened(children, look=self._look_text, revary=revary, taken=taken, retries=retries,
+                                avoid=lambda picked: {k for i in picked for k in _keys(pool[i])},
+                                count=self._count)
+        for child in children:
+            first = pool[child.parents[0]] if variation is None else None
+            source = (tuple(first.genome), first.codons_used) if first is not None and first.valid else None
+            yield Birth(tuple(int(c) for c in child.genome), child.origin,
+                        tuple(parent_ids[i] for i in child.parents), None, child.avoid, source)
 
-        mate_scores = [scores[i] for i in mates]
+    def _count(self, counter: str, n: int) -> None:
+        """Adds ``n`` to the ``IslandStats`` counter named ``counter`` (the pipeline's tally)."""
+        setattr(self.stats, counter, getattr(self.stats, counter) + n)
 
-        def pick(rng: np.random.Generator, first: bool = True) -> int:
-            if mates:   # the archive: the first parent by tournament, its mate uniformly
-                return mates[tournament_select(rng, mate_scores, ea.tournament if first else 1)]
-            return tournament_select(rng, scores, ea.tournament)
+    def _avoid(self, pool: Sequence[Individual], parents: tuple[int, ...]) -> set[str]:
+        """The keys a child of ``parents`` must not have: their texts, phenotype digests and screen keys."""
+        avoid: set[str] = set()
+        for i in parents:
+            avoid |= _keys(pool[i])
+            if pool[i].text is not None:
+                avoid.add(str(self._screen(pool[i].text)[1]))
+        return avoid
 
-        select_rng = self.rng(generation, "selection")
-        cross_rng = self.rng(generation, "crossover")
-        mutate_rng = self.rng(generation, "mutation")
-        revary_rng = self.rng(generation, "revary")
-        unique = ea.unique_retries > 0
-        texts = {self._screen(b.evaluation.text)[1] for b in births
-                 if b.evaluation is not None and b.evaluation.text is not None} if unique else set()
-        if self.variation is not None:
-            return self._vary(generation, births, size, pool, parent_ids, pick)
-        while len(births) < size:
-            a = pick(select_rng)
-            b = pick(select_rng, first=False)
-            tries = 0
-            while unique and tries < _MATE_RETRIES and (
-                    b == a or (pool[a].text is not None and pool[b].text == pool[a].text)):
-                b = pick(select_rng, first=False)
-                tries += 1
-            self.stats.mates_redrawn += tries
-            used_a, used_b = pool[a].codons_used, pool[b].codons_used
-            crossed = bool(cross_rng.random() < ea.crossover_rate)
-            if crossed:
-                within = min(used_a, used_b) if ea.within_used and min(used_a, used_b) > 0 else None
-                children = one_point_crossover(cross_rng, pool[a].genome, pool[b].genome, within=within)
-                lineage: tuple[tuple[int, ...], ...] = ((a, b), (b, a))
-                used = (max(used_a, used_b),) * 2
-            else:
-                children = (pool[a].genome, pool[b].genome)
-                lineage = ((a,), (b,))
-                used = (used_a, used_b)
-            for child, picked, codons in zip(children, lineage, used, strict=True):
-                if len(births) >= size:
-                    break
-                within = codons if ea.within_used and codons > 0 else None
-                genome, flipped = int_flip_mutation(mutate_rng, child, ea.mutation_rate, g.codon_max,
-                                                    at_least_one=not crossed, within=within)
-                origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
-                avoid: set[str] = set()
-                if unique:
-                    for i in picked:
-                        avoid |= _keys(pool[i])
-                        if pool[i].text is not None:
-                            avoid.add(str(self._screen(pool[i].text)[1]))
-                    text, read = self._mapped(genome)
-                    trivial, key = self._screen(text)
-                    trivial = trivial and (text is None or self._varies_trivial)
-                    for _ in range(ea.unique_retries):
-                        if not trivial and key not in avoid and key not in texts:
-                            break
-                        if text is None:
-                            self.stats.revaried_invalid += 1
-                        elif trivial:
-                            self.stats.screened += 1
-                        else:
-                            self.stats.revaried_text += 1
-                        genome = self._revary(revary_rng, genome, read)
-                        text, read = self._mapped(genome)
-                        trivial, key = self._screen(text)
-                        trivial = trivial and (text is None or self._varies_trivial)
-                        if origin == "crossover":
-                            origin = "crossover+mutation"
-                    texts.add(key)
-                first = pool[picked[0]]
-                births.append(Birth(tuple(int(c) for c in genome), origin,
-                                    tuple(parent_ids[i] for i in picked), None, frozenset(avoid),
-                                    (tuple(first.genome), first.codons_used) if first.valid else None))
-        return births
+    def _look(self, genome: Genome) -> Look:
+        """What ``genome`` shows before growth (``_screen`` of its text): wasted for sure when it maps
+        to no text or, where a trivial child is varied again, when its text shows it trivial."""
+        text, read = self._mapped(genome)
+        trivial, key = self._screen(text)
+        wasted = trivial and (text is None or self._varies_trivial)
+        reason = "revaried_invalid" if text is None else "screened" if wasted else "revaried_text"
+        return Look(wasted, key, read, reason)
+
+    @staticmethod
+    def _look_text(genome: Genome) -> Look:
+        """What a text genome (a universe's own variation) shows: its text, the key of a copy."""
+        return Look(False, "".join(map(chr, genome)), len(genome))
 
     def _founder_births(self, count: int) -> list[Birth]:
         """Generation 0's genomes: ``count`` founders (``ea.init``); with ``ea.founder_retries``,
@@ -509,53 +516,6 @@ class Island:
             genome = tuple(int(c) for c in self._screened(rest, keys))
             keys.add(self._screen(self._mapped(genome)[0])[1])
             births.append(Birth(genome, "random"))
-        return births
-
-    def _vary(self, generation: int, births: list[Birth], size: int, pool: Sequence[Individual],
-              parent_ids: Sequence[str], pick: Callable[..., int]) -> list[Birth]:
-        """The offspring of ``generation`` by the universe's own operators (``evolution.variation``):
-        each one child, the recombination of two tournament winners with probability
-        ``ea.crossover_rate`` (origin ``crossover``), else the mutation of one (``mutation``). A child
-        whose text repeats a parent's or an earlier member's is mutated again, up to
-        ``ea.unique_retries`` times (origin ``crossover+mutation`` for a recombined one); a parent
-        whose text the operators cannot read gives a newcomer (origin ``random``)."""
-        ea, variation = self.config.ea, self.variation
-        assert variation is not None
-        select_rng = self.rng(generation, "selection")
-        vary_rng = self.rng(generation, "variation")
-        revary_rng = self.rng(generation, "revary")
-        unique = ea.unique_retries > 0
-        texts = {b.evaluation.text for b in births if b.evaluation is not None}
-        while len(births) < size:
-            a = pick(select_rng)
-            picked: tuple[int, ...] = (a,)
-            crossed = bool(vary_rng.random() < ea.crossover_rate)
-            if crossed:
-                b = pick(select_rng, first=False)
-                tries = 0
-                while unique and tries < _MATE_RETRIES and (b == a or pool[b].text == pool[a].text):
-                    b = pick(select_rng, first=False)
-                    tries += 1
-                self.stats.mates_redrawn += tries
-                picked = (a, b)
-            origin = "crossover" if crossed else "mutation"
-            try:
-                text = (variation.recombine(vary_rng, str(pool[a].text), str(pool[picked[-1]].text))
-                        if crossed else variation.mutate(vary_rng, str(pool[a].text)))
-            except Exception:   # a parent the operators cannot read (hand-written, say): a newcomer
-                text, origin, picked = variation.founder(vary_rng), "random", ()
-            avoid: set[str] = set()
-            for i in picked:
-                avoid |= _keys(pool[i])
-            for _ in range(ea.unique_retries if unique else 0):
-                if text not in avoid and text not in texts:
-                    break
-                self.stats.revaried_text += 1
-                text = variation.mutate(revary_rng, text)
-                origin = "crossover+mutation" if origin == "crossover" else origin
-            texts.add(text)
-            births.append(Birth(text_genome(text), origin, tuple(parent_ids[i] for i in picked), None,
-                                frozenset(avoid)))
         return births
 
     def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int

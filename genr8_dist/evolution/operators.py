@@ -1,27 +1,62 @@
-"""The variation and selection operators of the island: small functions with checked inputs.
+"""The variation and selection operators of the island, and the pipeline its offspring are bred by.
 
-Each takes an explicit ``numpy.random.Generator`` (from ``genr8_dist.rng.stream``) and plain values, so
-each can be tested alone and a generation can be recomputed draw for draw. Genomes are tuples of
-non-negative ints (codons in ``0..codon_max``).
+Each operator takes an explicit ``numpy.random.Generator`` (from ``genr8_dist.rng.stream``) and plain
+values, so each can be tested alone and a generation can be recomputed draw for draw. Genomes are
+tuples of non-negative ints (codons in ``0..codon_max``).
+
+**The offspring pipeline.** ``Island.breed`` composes, in one place (``Island._offspring``), stages in
+the style of LEAP's pipelines: each stage takes the iterator of the stage before and yields its own
+items.
+
+    select_matings                    selection: parents by tournament (a mate drawn again while a copy)
+    -> crossover -> mutation          variation: GE's one-point crossover and int-flip mutation
+       (or recombination)                        (or a universe's own operators on texts)
+    -> screened                       the screen before evaluation: a child whose text shows it a copy,
+                                      unmappable or trivial is varied again (``Look``: what it shows)
+    -> births                         the island's ``Birth`` of each child
+
+Evaluation (``Evaluator.preview``, then re-variation of what growth shows wasted) and replacement
+(migrants, injected, elites, then these offspring, up to ``Island.generation_size``) are the island's
+``complete`` and ``breed``. The pipeline is lazy: the island takes as many offspring as it has room
+for, and no stage draws past the last child taken, so each random stream is drawn in the order one
+loop would draw it.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from genr8_dist.evolution.variation import Variation
+
 __all__ = [
+    "Child",
+    "Look",
+    "Mating",
+    "crossover",
     "int_flip_mutation",
+    "mutation",
     "one_point_crossover",
+    "parent_picker",
     "random_genome",
     "rank_key",
+    "recombination",
+    "screened",
     "select_elites",
+    "select_matings",
     "tournament_select",
 ]
 
 Genome = tuple[int, ...]
+# Counts what a stage did: the name of an ``IslandStats`` counter and how much to add to it.
+Tally = Callable[[str, int], None]
+# One tournament over the pool: ``(rng, first)``, the position of the winner (``first``: a first parent).
+Picker = Callable[[np.random.Generator, bool], int]
 
 
 def _check_rng(rng: np.random.Generator) -> None:
@@ -123,3 +158,147 @@ def int_flip_mutation(
         g = g.copy()
         g[mask] = rng.integers(0, codon_max, size=n, endpoint=True)
     return tuple(int(c) for c in g), n
+
+
+# -- the offspring pipeline --------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Mating:
+    """The parents of one variation, as positions in the pool: the first parent first; one parent
+    when the child is its mutation alone."""
+
+    parents: tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Child:
+    """An offspring on its way through the pipeline: its genome, origin and parents (positions in
+    the pool, the first parent first; none for a newcomer), the codons the mapper read of what it
+    was varied from (where a variation may fall under ``ea.within_used``) and the keys of copies it
+    must not be (``screened``)."""
+
+    genome: Genome
+    origin: str          # "crossover", "mutation", "crossover+mutation", "random"; "copy" until mutated
+    parents: tuple[int, ...]
+    codons: int = 0
+    avoid: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True, slots=True)
+class Look:
+    """What a genome shows before it is grown: whether it is wasted for sure (it maps to no text, or
+    its text is trivial), its key (equal keys, equal phenotypes), the codons the mapper read, and
+    the ``IslandStats`` counter a re-variation for it counts under."""
+
+    wasted: bool
+    key: str | None
+    read: int
+    reason: str = "revaried_text"
+
+
+def parent_picker(scores: Sequence[float], mates: Sequence[int], tournament: int) -> Picker:
+    """One tournament of ``tournament`` over ``scores`` (lower wins) per call; with ``mates`` (the
+    MAP-Elites archive's positions) the first parent by a tournament among them, its mate uniformly
+    among them."""
+    mate_scores = [scores[i] for i in mates]
+
+    def pick(rng: np.random.Generator, first: bool = True) -> int:
+        if mates:
+            return mates[tournament_select(rng, mate_scores, tournament if first else 1)]
+        return tournament_select(rng, scores, tournament)
+
+    return pick
+
+
+def select_matings(pick: Picker, rng: np.random.Generator, *, same: Callable[[int, int], bool],
+                   retries: int, count: Tally, crossed: Callable[[], bool] | None = None
+                   ) -> Iterator[Mating]:
+    """Selection, without end: a first parent, then its mate, drawn again (up to ``retries`` times)
+    while ``same`` says it is a copy of the first (counted as ``mates_redrawn``). With ``crossed``
+    (asked between the two draws), a mate only when it says the child is a recombination."""
+    while True:
+        first = pick(rng, True)
+        if crossed is not None and not crossed():
+            yield Mating((first,))
+            continue
+        mate, tries = pick(rng, False), 0
+        while tries < retries and same(first, mate):
+            mate, tries = pick(rng, False), tries + 1
+        count("mates_redrawn", tries)
+        yield Mating((first, mate))
+
+
+def crossover(matings: Iterator[Mating], rng: np.random.Generator, rate: float, *,
+              genome: Callable[[int], Genome], read: Callable[[int], int], within_used: bool
+              ) -> Iterator[Child]:
+    """GE's crossover: two children per mating, one-point crossed with probability ``rate`` (origin
+    ``crossover``; with ``within_used`` the cut within the codons both parents read), else copies of
+    the parents (``copy``: mutation makes them children)."""
+    for mating in matings:
+        a, b = mating.parents
+        used_a, used_b = read(a), read(b)
+        if rng.random() < rate:
+            within = min(used_a, used_b) if within_used and min(used_a, used_b) > 0 else None
+            one, other = one_point_crossover(rng, genome(a), genome(b), within=within)
+            yield Child(one, "crossover", (a, b), max(used_a, used_b))
+            yield Child(other, "crossover", (b, a), max(used_a, used_b))
+        else:
+            yield Child(genome(a), "copy", (a,), used_a)
+            yield Child(genome(b), "copy", (b,), used_b)
+
+
+def mutation(children: Iterator[Child], rng: np.random.Generator, rate: float, codon_max: int, *,
+             within_used: bool) -> Iterator[Child]:
+    """GE's int-flip mutation of each child (a copy at least one codon, so no child is a silent copy;
+    with ``within_used`` only the codons read): origin ``mutation``, or ``crossover+mutation`` for a
+    crossed child a codon of which was redrawn."""
+    for child in children:
+        crossed = child.origin == "crossover"
+        within = child.codons if within_used and child.codons > 0 else None
+        genome, flipped = int_flip_mutation(rng, child.genome, rate, codon_max, at_least_one=not crossed,
+                                            within=within)
+        origin = ("crossover+mutation" if flipped else "crossover") if crossed else "mutation"
+        yield replace(child, genome=genome, origin=origin)
+
+
+def recombination(matings: Iterator[Mating], rng: np.random.Generator, variation: Variation,
+                  text: Callable[[int], str]) -> Iterator[Child]:
+    """A universe's own operators (``evolution.variation``): per mating one child, the recombination
+    of the two parents' texts (origin ``crossover``) or the mutation of the one's (``mutation``); a
+    parent whose text the operators cannot read gives a newcomer (origin ``random``, no parents)."""
+    for mating in matings:
+        a = mating.parents[0]
+        try:
+            if len(mating.parents) == 2:
+                child, origin = variation.recombine(rng, text(a), text(mating.parents[1])), "crossover"
+            else:
+                child, origin = variation.mutate(rng, text(a)), "mutation"
+            parents = mating.parents
+        except Exception:   # a parent the operators cannot read (hand-written, say): a newcomer
+            child, origin, parents = variation.founder(rng), "random", ()
+        yield Child(tuple(ord(c) for c in child), origin, parents)
+
+
+def screened(children: Iterator[Child], *, look: Callable[[Genome], Look],
+             revary: Callable[[Genome, int], Genome], avoid: Callable[[tuple[int, ...]], set[str]],
+             taken: set[str | None], retries: int, count: Tally) -> Iterator[Child]:
+    """The screen before evaluation: a child whose ``look`` shows it wasted, or whose key is one of
+    its parents' (``avoid``) or of an earlier member's (``taken``, to which each child's key is
+    added), is varied again (``revary`` of its genome and the codons read) up to ``retries`` times;
+    a crossed child varied again is ``crossover+mutation``. No genome is grown here."""
+    for child in children:
+        keys = avoid(child.parents)
+        genome, origin = child.genome, child.origin
+        if retries > 0:
+            seen = look(genome)
+            for _ in range(retries):
+                if not seen.wasted and seen.key not in keys and seen.key not in taken:
+                    break
+                count(seen.reason, 1)
+                genome = revary(genome, seen.read)
+                seen = look(genome)
+                if origin == "crossover":
+                    origin = "crossover+mutation"
+            taken.add(seen.key)
+        yield replace(child, genome=genome, origin=origin, avoid=frozenset(keys))
