@@ -1,5 +1,6 @@
 """Checking committed files against their manifest entries (size, sha256, Parquet rows) before
-trusting them: once per file and store, and again when its size or time changes.
+trusting them: once per file and store, and again when its size or time changes; and rows against
+the run's schema before they are written (a commit's, or a part's by any process).
 """
 
 from __future__ import annotations
@@ -120,3 +121,36 @@ class FileChecks(Snapshot):
             if problem is not None:
                 bad.append((kind, e, problem))
         return bad
+
+    def _checked_rows(self, table: pa.Table) -> pa.Table:
+        """``table`` cast to the run's schema, or a ``StoreError`` saying how its rows do not fit (a
+        column, a null, another run's id, a negative place, an id not ``island-generation-index``)."""
+        import pyarrow as pa
+        import pyarrow.compute as pc
+
+        schema = self.schema
+        if table.column_names != schema.names:
+            missing = [n for n in schema.names if n not in table.column_names]
+            extra = [n for n in table.column_names if n not in schema.names]
+            what = f"lacks column {missing[0]!r}" if missing else (
+                f"has unknown column {extra[0]!r}" if extra else "has its columns in another order")
+            raise StoreError(f"{self._fs.show()}: the rows to commit do not fit the schema: the table {what}")
+        try:
+            table = table.cast(schema)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError) as exc:
+            raise StoreError(f"{self._fs.show()}: the rows to commit do not fit the schema: {exc}") from None
+        if table.num_rows == 0:
+            return table
+        for f in schema:
+            if not f.nullable and table.column(f.name).null_count:
+                raise StoreError(f"column {f.name!r} holds a null; it is required")
+        if not pc.all(pc.equal(table.column("run_id"), self.run_id)).as_py():
+            raise StoreError(f"the rows to commit belong to another run (run_id is not {self.run_id!r})")
+        for name in ("island", "generation", "index"):
+            if pc.min(table.column(name)).as_py() < 0:
+                raise StoreError(f"column {name!r} holds a negative value")
+        strings = [pc.cast(table.column(n), pa.string()) for n in ("island", "generation", "index")]
+        expected = pc.binary_join_element_wise(*strings, "-")
+        if not pc.all(pc.equal(expected, table.column("id"))).as_py():
+            raise StoreError("column 'id' must be \"island-generation-index\" on every row")
+        return table

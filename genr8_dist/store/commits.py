@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import StoreError
 from genr8_dist.evolution.individual import Individual
@@ -17,7 +17,6 @@ if TYPE_CHECKING:
     import pyarrow as pa
 
     from genr8_dist.store.parts import Part
-    from genr8_dist.store.runstore import RunStore
 
 __all__ = ["AddFiles", "Commits"]
 AddFiles = Callable[[Manifest, int], None]
@@ -78,10 +77,8 @@ class Commits(Transactions):
         events = _checked_events(events)
         if not parts and not events and add is None:
             return self.version
-        store = cast("RunStore", self)   # parts.py's functions take the whole store
-
-        def taken(version: int) -> list[Entry]:   # parts.py gives the entries as plain dicts
-            return cast("list[Entry]", take_parts(store, list(parts), version))
+        def taken(version: int) -> list[Entry]:
+            return take_parts(self, list(parts), version)
 
         return self._commit_entries(taken, events, add)
 
@@ -108,37 +105,6 @@ class Commits(Transactions):
     ) -> None:
         """Record one event atomically (its own commit)."""
         self.commit([], [Event(kind, generation, island, dict(detail or {}))])
-
-    def _checked_rows(self, table: pa.Table) -> pa.Table:
-        import pyarrow as pa
-        import pyarrow.compute as pc
-
-        schema = self.schema
-        if table.column_names != schema.names:
-            missing = [n for n in schema.names if n not in table.column_names]
-            extra = [n for n in table.column_names if n not in schema.names]
-            what = f"lacks column {missing[0]!r}" if missing else (
-                f"has unknown column {extra[0]!r}" if extra else "has its columns in another order")
-            raise StoreError(f"{self._fs.show()}: the rows to commit do not fit the schema: the table {what}")
-        try:
-            table = table.cast(schema)
-        except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError) as exc:
-            raise StoreError(f"{self._fs.show()}: the rows to commit do not fit the schema: {exc}") from None
-        if table.num_rows == 0:
-            return table
-        for f in schema:
-            if not f.nullable and table.column(f.name).null_count:
-                raise StoreError(f"column {f.name!r} holds a null; it is required")
-        if not pc.all(pc.equal(table.column("run_id"), self.run_id)).as_py():
-            raise StoreError(f"the rows to commit belong to another run (run_id is not {self.run_id!r})")
-        for name in ("island", "generation", "index"):
-            if pc.min(table.column(name)).as_py() < 0:
-                raise StoreError(f"column {name!r} holds a negative value")
-        strings = [pc.cast(table.column(n), pa.string()) for n in ("island", "generation", "index")]
-        expected = pc.binary_join_element_wise(*strings, "-")
-        if not pc.all(pc.equal(expected, table.column("id"))).as_py():
-            raise StoreError("column 'id' must be \"island-generation-index\" on every row")
-        return table
 
     def _island_ranges(self, table: pa.Table) -> dict[str, list[int]]:
         if table.num_rows == 0:

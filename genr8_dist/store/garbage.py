@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import re
-from typing import TYPE_CHECKING, cast
 
 from genr8_dist.store import views
 from genr8_dist.store._fs import TMP_PREFIX
@@ -21,9 +20,6 @@ from genr8_dist.store.manifest import (
     utc_now,
 )
 from genr8_dist.store.snapshot import Snapshot
-
-if TYPE_CHECKING:
-    from genr8_dist.store.runstore import RunStore
 
 __all__ = ["TMP_STALE_SECONDS", "Garbage"]
 TMP_STALE_SECONDS = 3600     # a temporary file this old is a crash's leftover, whoever wrote it
@@ -60,7 +56,7 @@ class Garbage(Snapshot):
             folders.add(e["path"].rsplit("/", 1)[0])
         if self._fs.local_root is not None:  # a view's links are not the run's files: never collected
             folders = {f for f in folders if not os.path.islink(self._fs._local(f))}
-        deleted += clear_stale_parts(cast("RunStore", self), TMP_STALE_SECONDS)
+        deleted += clear_stale_parts(self._fs, TMP_STALE_SECONDS)
         deleted += views.clear_stale_links(self._fs)
         for folder in [*sorted(folders), MANIFEST_DIR]:
             for name in self._fs.listdir(folder):

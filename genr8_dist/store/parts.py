@@ -17,7 +17,7 @@ import hashlib
 import os
 import secrets
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from genr8_dist.errors import StoreError
 from genr8_dist.store.views import FILES, LAYOUT, STAGING
@@ -25,7 +25,10 @@ from genr8_dist.store.views import FILES, LAYOUT, STAGING
 if TYPE_CHECKING:
     import pyarrow as pa
 
-    from genr8_dist.store.runstore import RunStore
+    from genr8_dist.store._fs import RunFS
+    from genr8_dist.store.checks import FileChecks
+    from genr8_dist.store.manifest import Entry
+    from genr8_dist.store.transactions import Transactions
 
 __all__ = ["Part", "write_part"]
 
@@ -46,7 +49,7 @@ class Part:
         return f"{STAGING}/{self.name}"
 
 
-def write_part(store: RunStore, table: pa.Table, *, stem: str = "part") -> Part:
+def write_part(store: FileChecks, table: pa.Table, *, stem: str = "part") -> Part:
     """Write ``table`` (rows of the run's schema: one or more islands' consecutive generations, each id
     once) as a part of the run (an open store: ``RunStore.open(path)`` in another process) and return its
     descriptor for ``RunStore.commit_parts``. Safe from any process: the name holds a random token,
@@ -86,7 +89,7 @@ def island_spans(table: pa.Table) -> dict[str, list[int]]:
     return spans
 
 
-def take_parts(store: RunStore, parts: list[Part], version: int) -> list[dict[str, Any]]:
+def take_parts(store: Transactions, parts: list[Part], version: int) -> list[Entry]:
     """Check ``parts`` (staged, whole, disjoint, each island following its last committed generation),
     move them into the run's data folder as files of commit ``version`` and return their manifest
     entries. Called inside the commit's transaction: the moved files are the commit's own, removed
@@ -124,7 +127,7 @@ def take_parts(store: RunStore, parts: list[Part], version: int) -> list[dict[st
                 )
             expect = hi + 1
     folder = f"{FILES}/individuals" if store.manifest_layout == LAYOUT else "individuals"
-    entries = []
+    entries: list[Entry] = []
     for part in parts:
         rel = f"{folder}/{part.name}"
         store._pending.append(rel)
@@ -141,11 +144,10 @@ def take_parts(store: RunStore, parts: list[Part], version: int) -> list[dict[st
     return entries
 
 
-def clear_stale_parts(store: RunStore, stale_after: float) -> int:
-    """Delete staged parts older than ``stale_after`` seconds (no commit took them); how many."""
+def clear_stale_parts(rfs: RunFS, stale_after: float) -> int:
+    """Delete the run's staged parts older than ``stale_after`` seconds (no commit took them); how many."""
     import time
 
-    rfs = store._fs
     deleted = 0
     for name in rfs.listdir(STAGING):
         mtime = rfs.mtime(f"{STAGING}/{name}")

@@ -25,12 +25,12 @@ from typing import TYPE_CHECKING
 from genr8_dist.store import views
 
 if TYPE_CHECKING:
-    from genr8_dist.store.runstore import RunStore
+    from genr8_dist.store.transactions import Transactions
 
 __all__ = ["upgrade"]
 
 
-def upgrade(store: RunStore) -> bool:
+def upgrade(store: Transactions) -> bool:
     """Convert ``store``'s run to layout 2 in one commit (a run already there: finish its glob view,
     in case a crash cut it short). Whether a conversion was committed."""
     rfs = store._fs
@@ -56,7 +56,7 @@ def upgrade(store: RunStore) -> bool:
     return True
 
 
-def _link(store: RunStore, old: str, new: str) -> None:
+def _link(store: Transactions, old: str, new: str) -> None:
     """``new`` the same file as ``old`` (a hard link; a copy where links are not possible)."""
     rfs = store._fs
     if rfs.kind(new) == "file":   # left by an upgrade a crash cut short
