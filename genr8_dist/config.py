@@ -30,6 +30,8 @@ from genr8_dist.errors import ConfigError, Genr8Error
 from genr8_dist.fields import check_settings, fail, read_float, read_int, read_rate, setting, settings_table
 from genr8_dist.fitness import SURFACE, FitnessSpec
 from genr8_dist.grammar.source import UniverseSource
+from genr8_dist.meshings import MESHING, check_meshing
+from genr8_dist.phenotype import descriptor_sizes
 from genr8_dist.run_universe import check_source, phenotype_kind, resolve_universe
 from genr8_dist.run_universe import run_phenotype as run_phenotype  # the store's import of it
 from genr8_dist.tomlfile import read_toml
@@ -383,7 +385,7 @@ class RunConfig:
 
     universe: str = "default"
     seed: int = 0
-    meshing: int = 3             # how surfaces are cut into triangles (genr8_dist.hemls.meshing.MESHINGS)
+    meshing: int = MESHING       # how surfaces are cut into triangles (genr8_dist.meshings.MESHINGS)
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
     fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
@@ -409,8 +411,6 @@ class RunConfig:
             except Genr8Error as exc:
                 raise _fail("stored_universe", str(exc)) from None
         _set(self, "seed", read_int(self.seed, "", "seed", minimum=0, maximum=2**63 - 1))
-        from genr8_dist.hemls.meshing import check_meshing
-
         _set(self, "meshing", check_meshing(self.meshing))
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
@@ -427,8 +427,6 @@ class RunConfig:
             _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
         elif not hasattr(self.environment, "to_dict"):
             raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
-        from genr8_dist.evolution.archive import descriptor_sizes
-
         criteria = tuple(self.fitness.names)
         _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
         if self.search.mode == "map-elites":

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
@@ -46,7 +46,8 @@ if TYPE_CHECKING:
     from genr8_dist.environment import Environment
     from genr8_dist.fitness import FitnessSpec
 
-__all__ = ["SURFACES", "Developed", "Phenotype", "RunSettings", "SurfacePhenotype", "phenotype_of"]
+__all__ = ["SCHEMA_2_NAMES", "SURFACES", "Developed", "Phenotype", "RunSettings", "SurfacePhenotype",
+           "descriptor_sizes", "phenotype_of"]
 
 
 class RunSettings(Protocol):
@@ -274,3 +275,22 @@ def phenotype_of(universe: object) -> Phenotype:
     hooks = getattr(universe, "hooks", None)
     found = getattr(hooks, "PHENOTYPE", None) if hooks is not None else None
     return found if found is not None else SURFACES
+
+
+# Store schemas 1 and 2 named the phenotype's digest and sizes after the built-in surface phenotype;
+# schema 3 renamed them. A run keeps the names it was created with: the store reads an older run's
+# columns under the names on the right, and writes them under the names on the left.
+SCHEMA_2_NAMES: dict[str, str] = {
+    "surface_digest": "phenotype_digest",
+    "n_vertices": "size_vertices",
+    "n_edges": "size_edges",
+    "n_regions": "size_regions",
+}
+
+
+def descriptor_sizes(sizes: Iterable[str]) -> tuple[str, ...]:
+    """The MAP-Elites descriptor names a phenotype's ``sizes`` give besides its criteria:
+    ``size_<name>`` each, and the names schemas 1 and 2 gave them (``n_regions``...), which older
+    configurations use."""
+    names = tuple(f"size_{s}" for s in sizes)
+    return names + tuple(old for old, new in SCHEMA_2_NAMES.items() if new in names)

@@ -13,14 +13,13 @@ PACKAGE = Path(__file__).resolve().parents[1] / "genr8_dist"
 #: never one above. A module's layer is that of the longest name here it is or lies under (the
 #: package's own ``__init__``, the public names, is the top).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "rng", "resources", "tomlfile", "files", "fields"),   # no genr8_dist import but these
+    ("errors", "rng", "resources", "tomlfile", "files", "fields", "meshings"),   # importing only these
     ("environment",),                   # the simulated environment: forces, boundaries, physics
     ("hemls", "scaffold", "forms"),     # the language, growth in an environment, the surface
     ("fitness", "export"),              # criteria over a surface; files and pictures of one
     ("grammar",),                       # universes: grammar, mapping, hooks, trust, discovery
     ("phenotype",),                     # what a universe's texts develop into
     ("run_universe",),                  # the universe a configuration names, and its phenotype
-    ("evolution.individual", "evolution.archive"),  # the stored row and the grid a configuration reads
     ("config",),                        # RunConfig
     ("evolution",),                     # evaluation, operators, the island
     ("store",),                         # the run store

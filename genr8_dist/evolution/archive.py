@@ -23,16 +23,9 @@ from typing import Any
 
 from genr8_dist.evolution.individual import SCHEMA_2_NAMES
 
-__all__ = ["Grid", "descriptor_sizes", "descriptor_value"]
+__all__ = ["Grid", "descriptor_value"]
 
 _SIZE = "size_"
-
-
-def descriptor_sizes(sizes: Iterable[str]) -> tuple[str, ...]:
-    """The descriptor names a phenotype's ``sizes`` give besides its criteria: ``size_<name>`` each,
-    and the names schemas 1 and 2 gave them (``n_regions``...), which older configurations use."""
-    names = tuple(f"{_SIZE}{s}" for s in sizes)
-    return names + tuple(old for old, new in SCHEMA_2_NAMES.items() if new in names)
 
 
 def descriptor_value(individual: Any, name: str) -> float:

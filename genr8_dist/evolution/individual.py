@@ -24,6 +24,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
+from genr8_dist.phenotype import SCHEMA_2_NAMES
+
 __all__ = [
     "ORIGINS",
     "SCHEMA_2_NAMES",
@@ -56,15 +58,7 @@ CRITERIA_KIND = "criteria"  # the field that stands for one ``crit_<name>`` floa
 SIZES_KIND = "sizes"        # the field that stands for one ``size_<name>`` int64 column per size
 EXTRA_KIND = "extra"        # the field that stands for the registered columns
 
-# Store schemas 1 and 2 named the phenotype's digest and sizes after the built-in surface phenotype;
-# schema 3 renamed them. A run keeps the names it was created with: the store reads an older run's
-# columns under the names on the right, and writes them under the names on the left.
-SCHEMA_2_NAMES: dict[str, str] = {
-    "surface_digest": "phenotype_digest",
-    "n_vertices": "size_vertices",
-    "n_edges": "size_edges",
-    "n_regions": "size_regions",
-}
+# SCHEMA_2_NAMES (the columns schemas 1 and 2 named after surfaces) is the phenotype's: genr8_dist.phenotype.
 
 
 @dataclass(frozen=True, slots=True)

@@ -50,15 +50,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
 
-from genr8_dist.errors import ConfigError
+from genr8_dist.meshings import MESHING, MESHINGS, check_meshing
 
 if TYPE_CHECKING:
     import numpy.typing as npt
 
 __all__ = ["MESHING", "MESHINGS", "Mesh", "check_meshing", "mesh_surface", "region_roundness"]
 
-MESHINGS = (1, 2, 3)   # every meshing version a surface can be cut with
-MESHING = 3         # what new runs (and surfaces grown outside a run) use
+# MESHINGS, MESHING and check_meshing are declared below every layer (genr8_dist.meshings).
 
 _MIN_ANGLE = 28.0   # Triangle's quality bound (degrees) inside each region
 _SPACING = 2.0      # edge pieces at most this x the thinner neighbouring region's width (2 area/perimeter)
@@ -83,14 +82,6 @@ class Mesh(NamedTuple):
     triangles: np.ndarray
     regions: np.ndarray
     fallback: np.ndarray   # the regions cut as meshing 1 cuts them (every region under meshing 1)
-
-
-def check_meshing(value: object, where: str = "meshing") -> int:
-    """``value`` as a meshing version, or a ``ConfigError`` naming ``where`` and the versions."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or int(value) not in MESHINGS:
-        raise ConfigError(f"{where}: unknown meshing {value!r}; use one of "
-                          f"{', '.join(map(str, MESHINGS))}")
-    return int(value)
 
 
 def _frozen(a: np.ndarray, dtype: npt.DTypeLike) -> np.ndarray:

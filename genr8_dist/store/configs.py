@@ -12,6 +12,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING
 
 from genr8_dist.errors import ConfigError, StoreError
+from genr8_dist.meshings import MESHING, check_meshing
 from genr8_dist.store.manifest import Entry, utc_now
 from genr8_dist.store.schema import Event
 from genr8_dist.store.transactions import Transactions
@@ -58,8 +59,6 @@ def phenotype_columns(config_toml: str) -> tuple[tuple[str, ...], tuple[str, ...
 
 def config_meshing(config_toml: str) -> int:
     """The meshing a new run of ``config_toml`` records: the one it names, else the current one."""
-    from genr8_dist.hemls.meshing import MESHING, check_meshing
-
     try:
         named = tomllib.loads(config_toml).get("meshing")
     except tomllib.TOMLDecodeError:
