@@ -8,23 +8,17 @@ temporary folder)."""
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
-import shutil
 import signal
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
 import pytest
 
 pytestmark = pytest.mark.slow
-
-CHROMIUM = shutil.which("chromium")
-DRIVER = shutil.which("chromedriver")
 
 CONFIG = """\
 universe = "default"
@@ -71,55 +65,7 @@ def _genr8(*args, timeout=300):
     return proc.stdout
 
 
-def _browser():
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    options = webdriver.ChromeOptions()
-    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1600,1000",
-                "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--disable-background-networking"):
-        options.add_argument(arg)
-    options.binary_location = CHROMIUM
-    return webdriver.Chrome(service=Service(DRIVER), options=options)
-
-
-def _wait(what, check, timeout):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = check()
-        if value:
-            return value
-        time.sleep(0.25)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-
-
-def _canvas_is_drawn(driver, shot: Path) -> int:
-    """Save a screenshot; the number of distinct colours inside the 3D canvas (a blank one has 1-2)."""
-    from PIL import Image
-    from selenium.common.exceptions import TimeoutException
-
-    for attempt in range(3):   # on a loaded machine the renderer may miss selenium's 10 s answer
-        try:
-            driver.save_screenshot(str(shot))
-            break
-        except TimeoutException:
-            if attempt == 2:
-                raise
-            time.sleep(5)
-    rect = driver.execute_script(
-        "const r = document.querySelector('#viewport canvas').getBoundingClientRect();"
-        "return [r.left, r.top, r.right, r.bottom, window.devicePixelRatio];")
-    left, top, right, bottom, ratio = rect
-    image = Image.open(shot).convert("RGB")
-    box = tuple(int(v * ratio) for v in (left, top, right, bottom))
-    return len(image.crop(box).getcolors(maxcolors=1 << 20) or [])
-
-
-@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
-                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
-def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path):
-    pytest.importorskip("selenium")
-    pytest.importorskip("PIL")
+def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path, studio):
     from selenium.webdriver.common.by import By
 
     from genr8_dist.store import RunStore
@@ -130,68 +76,48 @@ def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path)
     config = tmp_path / "run.toml"
     config.write_text(CONFIG.format(generations=last))
     live = tmp_path / "live"
-    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(config),
-                             "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
-    reader.start()
-    driver = None
-    try:
-        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
-                                                    if ln.startswith("studio: http")), None), 120)
-        driver = _browser()
-        driver.get(url)
-        body = driver.find_element(By.TAG_NAME, "body")
+    page = studio("run", str(config), "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0")
+    driver, data, _wait = page.driver, page.data, page.wait
+    _wait("curves and a surface", lambda: int(data("curve-points") or 0) >= 1
+          and int(data("surfaces") or 0) >= 1, 180)
+    time.sleep(1.5)
+    assert page.colours(shots / "studio-start.png") > 50
 
-        def data(name):
-            return body.get_attribute(f"data-{name}")
+    # pause the run between epochs, then steer it through the page
+    driver.find_element(By.ID, "pause").click()
+    _wait("the run to pause", lambda: driver.find_element(By.ID, "status").text.lower() == "paused", 120)
+    paused_at = RunStore.open(live).committed_generations()
+    assert min(paused_at.values()) < last, "the run ended before it could be paused"
+    _wait("the paused generation's surfaces", lambda: data("generation") == str(min(paused_at.values()))
+          and int(data("surfaces") or 0) >= 1, 60)
+    rows = [r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+            if "invalid" not in (r.get_attribute("class") or "")]
+    favoured, scored = rows[0].get_attribute("data-id"), rows[-1].get_attribute("data-id")
+    rows[0].click()
+    _wait("the favoured design's panel", lambda: driver.find_element(By.ID, "d-id").text == favoured, 30)
+    driver.find_element(By.ID, "favour").click()
+    _wait("the favour to be recorded",
+          lambda: "v2" in driver.find_element(By.ID, "interventions").text, 60)
+    driver.find_element(By.CSS_SELECTOR, f'#gen-list [data-id="{scored}"]').click()
+    _wait("the scored design's panel", lambda: driver.find_element(By.ID, "d-id").text == scored, 30)
+    field = driver.find_element(By.ID, "hand-value")
+    field.clear()
+    field.send_keys("0")
+    driver.find_element(By.ID, "hand-set").click()
+    _wait("the hand fitness to be recorded",
+          lambda: "hand fitness" in driver.find_element(By.ID, "interventions").text, 60)
+    time.sleep(1.0)
+    assert page.colours(shots / "studio-middle.png") > 50
 
-        _wait("curves and a surface", lambda: int(data("curve-points") or 0) >= 1
-              and int(data("surfaces") or 0) >= 1, 180)
-        time.sleep(1.5)
-        assert _canvas_is_drawn(driver, shots / "studio-start.png") > 50
-
-        # pause the run between epochs, then steer it through the page
-        driver.find_element(By.ID, "pause").click()
-        _wait("the run to pause", lambda: driver.find_element(By.ID, "status").text.lower() == "paused", 120)
-        paused_at = RunStore.open(live).committed_generations()
-        assert min(paused_at.values()) < last, "the run ended before it could be paused"
-        _wait("the paused generation's surfaces", lambda: data("generation") == str(min(paused_at.values()))
-              and int(data("surfaces") or 0) >= 1, 60)
-        rows = [r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
-                if "invalid" not in (r.get_attribute("class") or "")]
-        favoured, scored = rows[0].get_attribute("data-id"), rows[-1].get_attribute("data-id")
-        rows[0].click()
-        _wait("the favoured design's panel", lambda: driver.find_element(By.ID, "d-id").text == favoured, 30)
-        driver.find_element(By.ID, "favour").click()
-        _wait("the favour to be recorded",
-              lambda: "v2" in driver.find_element(By.ID, "interventions").text, 60)
-        driver.find_element(By.CSS_SELECTOR, f'#gen-list [data-id="{scored}"]').click()
-        _wait("the scored design's panel", lambda: driver.find_element(By.ID, "d-id").text == scored, 30)
-        field = driver.find_element(By.ID, "hand-value")
-        field.clear()
-        field.send_keys("0")
-        driver.find_element(By.ID, "hand-set").click()
-        _wait("the hand fitness to be recorded",
-              lambda: "hand fitness" in driver.find_element(By.ID, "interventions").text, 60)
-        time.sleep(1.0)
-        assert _canvas_is_drawn(driver, shots / "studio-middle.png") > 50
-
-        driver.find_element(By.ID, "pause").click()            # now "Continue"
-        _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
-              300)
-        _wait("the last generation in view", lambda: data("generation") == str(last)
-              and int(data("surfaces") or 0) >= 1, 120)
-        time.sleep(1.5)
-        assert _canvas_is_drawn(driver, shots / "studio-end.png") > 50
-    finally:
-        if driver is not None:
-            driver.quit()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGTERM)
-        rc = proc.wait(60)
-    assert rc == 0, "".join(lines[-20:])
+    driver.find_element(By.ID, "pause").click()            # now "Continue"
+    _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
+          300)
+    _wait("the last generation in view", lambda: data("generation") == str(last)
+          and int(data("surfaces") or 0) >= 1, 120)
+    time.sleep(1.5)
+    assert page.colours(shots / "studio-end.png") > 50
+    rc = page.stop(signals=1, patience=60)
+    assert rc == 0, "".join(page.lines[-20:])
 
     # both interventions are recorded, as genr8 edit records them, at the generation after the pause
     store = RunStore.open(live)
@@ -226,15 +152,11 @@ def test_a_run_watched_and_steered_from_the_studio_replays_row_for_row(tmp_path)
     assert _rows(replay) == got
 
 
-@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
-                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
-def test_the_studio_streams_generations_before_their_commit(tmp_path):
+def test_the_studio_streams_generations_before_their_commit(tmp_path, studio):
     """A run of one long epoch (nothing committed until its end): the page never says generation -1;
     within its first seconds it shows the founders and then each generation the islands complete,
     drawn in 3D and marked "not yet committed", a design of it selectable; after the commit the same
     generation is shown as durable."""
-    pytest.importorskip("selenium")
-    pytest.importorskip("PIL")
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
@@ -248,90 +170,66 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path):
                                                                f"migration_interval = {last}"))
     live = tmp_path / "live"
     started = time.monotonic()
-    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "run", str(config),
-                             "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: list[str] = []
-    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
-    reader.start()
-    driver = None
     labels: list[str] = []
-    try:
-        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
-                                                    if ln.startswith("studio: http")), None), 120)
-        driver = _browser()
-        driver.get(url)
-        body = driver.find_element(By.TAG_NAME, "body")
+    page = studio("run", str(config), "--run-dir", str(live), "--cpus", "2", "--studio", "--studio-port", "0")
+    driver, data, _wait, lines = page.driver, page.data, page.wait, page.lines
 
-        def data(name):
-            return body.get_attribute(f"data-{name}")
+    def live_generation_drawn():
+        labels.append(driver.find_element(By.ID, "gen-label").text)
+        return data("durable") == "false" and int(data("surfaces") or 0) >= 1
 
-        def live_generation_drawn():
-            labels.append(driver.find_element(By.ID, "gen-label").text)
-            return data("durable") == "false" and int(data("surfaces") or 0) >= 1
+    _wait("a generation shown before its commit", live_generation_drawn, 180)
+    assert RunStore.open(live).committed_generations() == {}, "the epoch committed before the test looked"
+    time.sleep(1.0)
+    assert page.colours(shots / "studio-first-seconds.png") > 50
+    seconds = time.monotonic() - started
+    assert "not yet committed" in driver.find_element(By.ID, "gen-view").text
+    assert not any("-1" in label for label in labels)
+    assert any("founders" in label or "committed none yet" in label for label in labels)
+    first = next(r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+                 if "invalid" not in (r.get_attribute("class") or ""))
+    ident = first.get_attribute("data-id")
+    first.click()
+    _wait("the design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
+    assert "not yet committed" in driver.find_element(By.ID, "d-origin").text
 
-        _wait("a generation shown before its commit", live_generation_drawn, 180)
-        assert RunStore.open(live).committed_generations() == {}, "the epoch committed before the test looked"
-        time.sleep(1.0)
-        assert _canvas_is_drawn(driver, shots / "studio-first-seconds.png") > 50
-        seconds = time.monotonic() - started
-        assert "not yet committed" in driver.find_element(By.ID, "gen-view").text
-        assert not any("-1" in label for label in labels)
-        assert any("founders" in label or "committed none yet" in label for label in labels)
-        first = next(r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
-                     if "invalid" not in (r.get_attribute("class") or ""))
-        ident = first.get_attribute("data-id")
-        first.click()
-        _wait("the design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
-        assert "not yet committed" in driver.find_element(By.ID, "d-origin").text
-
-        # parallel coordinates: a line per valid design; a brush along the fitness axis keeps the
-        # designs in its range, in the list and in 3D
-        driver.find_element(By.ID, "follow").click()          # hold this generation while brushing
-        _wait("every island's part of it", lambda: "2 islands" in driver.find_element(By.ID, "gen-view").text
-              or data("durable") == "true", 120)
-        time.sleep(1.5)
-        lines_drawn = driver.find_elements(By.CSS_SELECTOR, "#pc path.design")
-        valid = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
-        assert len(lines_drawn) == len(valid) >= 4
-        axis = driver.find_element(By.CSS_SELECTOR, '#pc g[data-axis="fitness"] rect.hit')
-        height = axis.size["height"]
-        ActionChains(driver).move_to_element_with_offset(axis, 0, int(height * 0.5) - 6).click_and_hold() \
-            .move_by_offset(0, -int(height * 0.35)).pause(0.2).release().perform()
-        _wait("the brush to apply", lambda: 0 < int(data("brushed") or 0) < len(valid), 20)
-        brushed = int(data("brushed"))
-        _wait("the brushed designs in 3D", lambda: 1 <= int(data("surfaces") or 0) <= brushed, 60)
-        # the list and the dimmed lines follow the brush (a list re-rendered as the generation's last
-        # island arrives catches up within a poll)
-        _wait("the list to keep only the brushed designs", lambda: len(driver.find_elements(
-            By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")) == int(data("brushed")), 20)
-        brushed = int(data("brushed"))
-        assert 0 < brushed < len(valid)
-        assert len(driver.find_elements(By.CSS_SELECTOR, "#pc path.design.out")) == len(valid) - brushed
-        time.sleep(1.0)
-        driver.save_screenshot(str(shots / "studio-parallel-coordinates.png"))
-        driver.find_element(By.ID, "pc-clear").click()
-        _wait("the brush cleared", lambda: int(data("brushed") or 0) == len(valid), 20)
-        driver.find_element(By.ID, "follow").click()
-        shown = [int(data("generation"))]
-        _wait("a later generation, still before the commit", lambda: shown.append(int(data("generation")))
-              or shown[-1] > shown[0] or RunStore.open(live).committed_generations(), 240)
-        _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
-              600)
-        _wait("the last generation, durable", lambda: data("generation") == str(last)
-              and data("durable") == "true", 60)
-        _wait("the studio to stay open", lambda: any("the studio stays open" in ln for ln in lines), 60)
-    finally:
-        if driver is not None:
-            driver.quit()
-        for _ in range(3):   # the first stops the run, the next closes the studio
-            if proc.poll() is None:
-                proc.send_signal(signal.SIGTERM)
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    proc.wait(30)
-        if proc.poll() is None:
-            proc.kill()
-        rc = proc.wait(60)
+    # parallel coordinates: a line per valid design; a brush along the fitness axis keeps the
+    # designs in its range, in the list and in 3D
+    driver.find_element(By.ID, "follow").click()          # hold this generation while brushing
+    _wait("every island's part of it", lambda: "2 islands" in driver.find_element(By.ID, "gen-view").text
+          or data("durable") == "true", 120)
+    time.sleep(1.5)
+    lines_drawn = driver.find_elements(By.CSS_SELECTOR, "#pc path.design")
+    valid = driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")
+    assert len(lines_drawn) == len(valid) >= 4
+    axis = driver.find_element(By.CSS_SELECTOR, '#pc g[data-axis="fitness"] rect.hit')
+    height = axis.size["height"]
+    ActionChains(driver).move_to_element_with_offset(axis, 0, int(height * 0.5) - 6).click_and_hold() \
+        .move_by_offset(0, -int(height * 0.35)).pause(0.2).release().perform()
+    _wait("the brush to apply", lambda: 0 < int(data("brushed") or 0) < len(valid), 20)
+    brushed = int(data("brushed"))
+    _wait("the brushed designs in 3D", lambda: 1 <= int(data("surfaces") or 0) <= brushed, 60)
+    # the list and the dimmed lines follow the brush (a list re-rendered as the generation's last
+    # island arrives catches up within a poll)
+    _wait("the list to keep only the brushed designs", lambda: len(driver.find_elements(
+        By.CSS_SELECTOR, "#gen-list [data-id]:not(.invalid)")) == int(data("brushed")), 20)
+    brushed = int(data("brushed"))
+    assert 0 < brushed < len(valid)
+    assert len(driver.find_elements(By.CSS_SELECTOR, "#pc path.design.out")) == len(valid) - brushed
+    time.sleep(1.0)
+    driver.save_screenshot(str(shots / "studio-parallel-coordinates.png"))
+    driver.find_element(By.ID, "pc-clear").click()
+    _wait("the brush cleared", lambda: int(data("brushed") or 0) == len(valid), 20)
+    driver.find_element(By.ID, "follow").click()
+    shown = [int(data("generation"))]
+    _wait("a later generation, still before the commit", lambda: shown.append(int(data("generation")))
+          or shown[-1] > shown[0] or RunStore.open(live).committed_generations(), 240)
+    _wait("the run to complete", lambda: driver.find_element(By.ID, "status").text.lower() == "complete",
+          600)
+    _wait("the last generation, durable", lambda: data("generation") == str(last)
+          and data("durable") == "true", 60)
+    _wait("the studio to stay open", lambda: any("the studio stays open" in ln for ln in lines), 60)
+    rc = page.stop()
     assert rc == 0, "".join(lines[-20:])
     assert not (live / "live").exists() and not (live / "_running.lock").exists()
     print(f"first live generation drawn {seconds:.0f} s after `genr8 run` started; generations seen "
@@ -369,17 +267,13 @@ def _front(view, names):
     return front, points
 
 
-@pytest.mark.skipif(CHROMIUM is None or DRIVER is None,
-                    reason="chromium and chromium-driver are not installed (.ci/run installs them)")
 @pytest.mark.parametrize("search", [
     {"mode": "pareto", "objectives": ["undulation", "subdivisions", "symmetry", "slivers"]}, None])
-def test_objective_space_kinds_statistics_and_a_layout_without_overlap(tmp_path, search):
+def test_objective_space_kinds_statistics_and_a_layout_without_overlap(tmp_path, studio, search):
     """A stored run (pareto, then weighted) in the studio: the parallel coordinates sit below the 3D
     view, not over it; the objective space shows every valid design of the generation with the
     non-dominated ones of the chosen objectives highlighted (3D, then 2D), and a click on a point
     selects that design and shows its surface; the kinds of form list each cluster's ranges."""
-    pytest.importorskip("selenium")
-    pytest.importorskip("PIL")
     from selenium.webdriver.common.actions.action_builder import ActionBuilder
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import Select
@@ -392,79 +286,60 @@ def test_objective_space_kinds_statistics_and_a_layout_without_overlap(tmp_path,
     run = tmp_path / name
     _stored_run(run, search)
     view = RunView(str(run))
-    proc = subprocess.Popen([sys.executable, "-m", "genr8_dist.cli", "studio", str(run), "--port", "0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    lines: list[str] = []
-    threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True).start()
-    driver = None
-    try:
-        url = _wait("the studio's URL", lambda: next((ln.split()[1] for ln in lines
-                                                    if ln.startswith("studio: http")), None), 60)
-        driver = _browser()
-        driver.get(url)
-        body = driver.find_element(By.TAG_NAME, "body")
+    page = studio("studio", str(run), "--port", "0", timeout=60)
+    driver, data, _wait = page.driver, page.data, page.wait
 
-        def data(key):
-            return body.get_attribute(f"data-{key}")
+    def rect(css):
+        return driver.execute_script(f"const r = document.querySelector('{css}').getBoundingClientRect();"
+                                     "return [r.left, r.top, r.right, r.bottom];")
 
-        def rect(css):
-            return driver.execute_script(f"const r = document.querySelector('{css}').getBoundingClientRect();"
-                                         "return [r.left, r.top, r.right, r.bottom];")
+    _wait("the surfaces", lambda: int(data("surfaces") or 0) >= 4, 120)
+    assert rect("#pc-panel")[1] >= rect("#viewport")[3] - 1      # below the 3D view, not over it
 
-        _wait("the surfaces", lambda: int(data("surfaces") or 0) >= 4, 120)
-        assert rect("#pc-panel")[1] >= rect("#viewport")[3] - 1      # below the 3D view, not over it
+    driver.find_element(By.ID, "show-objectives").click()
+    names = [Select(driver.find_element(By.ID, f"obj-{a}")).first_selected_option.get_attribute("value")
+             for a in "xyz"]
+    if search:
+        assert names == search["objectives"][:3]                  # the run's objectives first
+    front, plotted = _front(view, names)
+    _wait("the points", lambda: int(data("objective-points") or 0) == len(plotted), 30)
+    assert set(data("objective-front-ids").split()) == front and 1 <= len(front) < len(plotted)
+    assert rect("#objective")[0] >= rect("#viewport")[2] - 1      # beside the surfaces
+    time.sleep(1.5)
+    assert page.colours(shots / f"studio-objectives-3d-{name}.png") > 50
 
-        driver.find_element(By.ID, "show-objectives").click()
-        names = [Select(driver.find_element(By.ID, f"obj-{a}")).first_selected_option.get_attribute("value")
-                 for a in "xyz"]
-        if search:
-            assert names == search["objectives"][:3]                  # the run's objectives first
-        front, plotted = _front(view, names)
-        _wait("the points", lambda: int(data("objective-points") or 0) == len(plotted), 30)
-        assert set(data("objective-front-ids").split()) == front and 1 <= len(front) < len(plotted)
-        assert rect("#objective")[0] >= rect("#viewport")[2] - 1      # beside the surfaces
-        time.sleep(1.5)
-        assert _canvas_is_drawn(driver, shots / f"studio-objectives-3d-{name}.png") > 50
+    Select(driver.find_element(By.ID, "obj-z")).select_by_value("")      # 2 objectives
+    front2, _ = _front(view, names[:2])
+    _wait("the 2D front", lambda: set((data("objective-front-ids") or "").split()) == front2, 20)
+    time.sleep(1.0)
+    driver.save_screenshot(str(shots / f"studio-objectives-2d-{name}.png"))
 
-        Select(driver.find_element(By.ID, "obj-z")).select_by_value("")      # 2 objectives
-        front2, _ = _front(view, names[:2])
-        _wait("the 2D front", lambda: set((data("objective-front-ids") or "").split()) == front2, 20)
-        time.sleep(1.0)
-        driver.save_screenshot(str(shots / f"studio-objectives-2d-{name}.png"))
+    # a click on a point of its own (copies share one) not among the surfaces shown: selected, and
+    # its surface shown
+    shown = set(driver.execute_script("return window.studio.order"))
+    _, flat = _front(view, names[:2])
+    alone = [i for i, p in sorted(flat.items()) if [q for q in flat.values() if q == p] == [p]]
+    ident = next((i for i in alone if i not in shown), alone[-1])
+    x, y = driver.execute_script("return window.studio.objectiveAt(arguments[0])", ident)
+    click = ActionBuilder(driver)
+    click.pointer_action.move_to_location(int(x), int(y)).click()
+    click.perform()
+    _wait("the clicked design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
+    _wait("its surface", lambda: ident in driver.execute_script("return window.studio.order")
+          and driver.execute_script("return window.studio.designs.has(arguments[0])", ident), 60)
 
-        # a click on a point of its own (copies share one) not among the surfaces shown: selected, and
-        # its surface shown
-        shown = set(driver.execute_script("return window.studio.order"))
-        _, flat = _front(view, names[:2])
-        alone = [i for i, p in sorted(flat.items()) if [q for q in flat.values() if q == p] == [p]]
-        ident = next((i for i in alone if i not in shown), alone[-1])
-        x, y = driver.execute_script("return window.studio.objectiveAt(arguments[0])", ident)
-        click = ActionBuilder(driver)
-        click.pointer_action.move_to_location(int(x), int(y)).click()
-        click.perform()
-        _wait("the clicked design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
-        _wait("its surface", lambda: ident in driver.execute_script("return window.studio.order")
-              and driver.execute_script("return window.studio.designs.has(arguments[0])", ident), 60)
-
-        # the kinds of form, each with its size and its criteria's ranges over its members
-        Select(driver.find_element(By.ID, "count")).select_by_value("kinds")
-        _wait("the kinds", lambda: int(data("kinds") or 0) >= 2, 120)
-        kinds = view.clusters(None, 12)["representatives"]
-        texts = [e.text for e in driver.find_elements(By.CSS_SELECTOR, "#kinds-list .ranges")]
-        assert len(texts) == len(kinds)
-        weighted = {c["name"] for c in view.state()["criteria"] if c["weight"]}
-        for text, kind in zip(texts, kinds, strict=True):
-            assert set(kind["ranges"]) == {"fitness", *weighted}
-            assert text.startswith("fitness ") and "symmetry " in text
-            low, high = kind["ranges"]["symmetry"]
-            if all(v == 0 or 1e-4 <= abs(v) < 1000 for v in (low, high)):   # no exponent either side
-                shown = f"{low:.3g}" if f"{low:.3g}" == f"{high:.3g}" else f"{low:.3g}–{high:.3g}"
-                assert f"symmetry {shown}" in text, text
-    finally:
-        if driver is not None:
-            driver.quit()
-        proc.send_signal(signal.SIGINT)
-        with contextlib.suppress(subprocess.TimeoutExpired):
-            proc.wait(30)
-        if proc.poll() is None:
-            proc.kill()
+    # the kinds of form, each with its size and its criteria's ranges over its members
+    Select(driver.find_element(By.ID, "count")).select_by_value("kinds")
+    _wait("the kinds", lambda: int(data("kinds") or 0) >= 2, 120)
+    kinds = view.clusters(None, 12)["representatives"]
+    texts = [e.text for e in driver.find_elements(By.CSS_SELECTOR, "#kinds-list .ranges")]
+    assert len(texts) == len(kinds)
+    weighted = {c["name"] for c in view.state()["criteria"] if c["weight"]}
+    for text, kind in zip(texts, kinds, strict=True):
+        assert set(kind["ranges"]) == {"fitness", *weighted}
+        assert text.startswith("fitness ") and "symmetry " in text
+        low, high = kind["ranges"]["symmetry"]
+        if all(v == 0 or 1e-4 <= abs(v) < 1000 for v in (low, high)):   # no exponent either side
+            shown = f"{low:.3g}" if f"{low:.3g}" == f"{high:.3g}" else f"{low:.3g}–{high:.3g}"
+            assert f"symmetry {shown}" in text, text
+    page.stop(signal.SIGINT, signals=1)

@@ -3,7 +3,8 @@
 // its axis). Dragging along an axis brushes a range; a click on an axis clears its brush; the designs
 // inside every brush are "brushed". A click on a line selects its design. Plain SVG, no library.
 const SVGNS = "http://www.w3.org/2000/svg";
-function node(name, attrs, parent) {
+// an SVG element `name` with `attrs`, appended to `parent` when given (the studio's charts use it too)
+export function node(name, attrs, parent) {
   const e = document.createElementNS(SVGNS, name);
   for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
   if (parent) parent.appendChild(e);

@@ -4,7 +4,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 import { GLTFLoader } from "three/addons/loaders/GLTFLoader.js";
-import { drawParallel, inBrushes } from "/static/parallel.js";
+import { drawParallel, inBrushes, node as el } from "/static/parallel.js";
 
 const $ = (id) => document.getElementById(id);
 const ISLAND_COLOURS = ["#f2a541", "#59c3c3", "#e0662f", "#9b8cf2", "#7bd389", "#ef6f6c", "#f7d774",
@@ -83,13 +83,6 @@ function showState(s) {
 const escapeHTML = (t) => String(t).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c]));
 
 // ------------------------------------------------------------------------------------------- charts
-const SVGNS = "http://www.w3.org/2000/svg";
-function el(name, attrs, parent) {
-  const e = document.createElementNS(SVGNS, name);
-  for (const [k, v] of Object.entries(attrs)) e.setAttribute(k, v);
-  if (parent) parent.appendChild(e);
-  return e;
-}
 function extent(values) {
   let lo = Infinity, hi = -Infinity;
   for (const v of values) if (v !== null && isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
