@@ -23,7 +23,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from genr8_dist.environment import Environment, load_environment
 from genr8_dist.errors import ConfigError, Genr8Error
@@ -35,6 +35,9 @@ from genr8_dist.phenotype import descriptor_sizes
 from genr8_dist.run_universe import check_source, phenotype_kind, resolve_universe
 from genr8_dist.run_universe import run_phenotype as run_phenotype  # the store's import of it
 from genr8_dist.tomlfile import read_toml
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
 
 __all__ = [
     "EMIGRANTS",
@@ -64,14 +67,14 @@ def _fail(path: str, message: str) -> ConfigError:
     return fail("", path, message)
 
 
-def _number(value: Any, path: str) -> float:
+def _number(value: object, path: str) -> float:
     try:
         return read_float(value, "", path)
     except ConfigError:
         raise _fail(path, f"must be a finite number, got {value!r}") from None
 
 
-def _set(obj: Any, name: str, value: Any) -> None:
+def _set(obj: object, name: str, value: object) -> None:
     object.__setattr__(obj, name, value)
 
 
@@ -236,7 +239,7 @@ class IslandSettings:
     def __post_init__(self) -> None:
         check_settings(self, "islands")
 
-def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, high: int
+def _names(value: object, path: str, allowed: tuple[str, ...] | None, low: int, high: int
            ) -> tuple[str, ...]:
     if isinstance(value, str) or not isinstance(value, (list, tuple)):
         raise _fail(path, f"must be a list of names, got {value!r}")
@@ -251,18 +254,18 @@ def _names(value: Any, path: str, allowed: tuple[str, ...] | None, low: int, hig
 
 
 # Readers of the search settings that are more than a number or a choice (``setting(read=...)``).
-def _objectives(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
+def _objectives(value: object, path: str, search: SearchSettings) -> tuple[str, ...]:
     names = _names(value, path, None, 0, 100)
     if search.mode == "pareto" and len(names) == 1:
         raise _fail(path, "a Pareto search needs at least 2 objectives")
     return names
 
 
-def _descriptors(value: Any, path: str, search: SearchSettings) -> tuple[str, ...]:
+def _descriptors(value: object, path: str, search: SearchSettings) -> tuple[str, ...]:
     return _names(value, path, None, 1, 3)
 
 
-def _ranges(value: Any, path: str, search: SearchSettings) -> tuple[tuple[float, float], ...]:
+def _ranges(value: object, path: str, search: SearchSettings) -> tuple[tuple[float, float], ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one [low, high] per descriptor ({n}), got {value!r}")
@@ -278,14 +281,14 @@ def _ranges(value: Any, path: str, search: SearchSettings) -> tuple[tuple[float,
     return tuple(ranges)
 
 
-def _bins(value: Any, path: str, search: SearchSettings) -> tuple[int, ...]:
+def _bins(value: object, path: str, search: SearchSettings) -> tuple[int, ...]:
     n = len(search.descriptors)
     if isinstance(value, str) or not isinstance(value, (list, tuple)) or len(value) != n:
         raise _fail(path, f"must hold one count per descriptor ({n}), got {value!r}")
     return tuple(read_int(b, "", f"{path}[{i}]", minimum=1, maximum=1000) for i, b in enumerate(value))
 
 
-def _offspring(value: Any, path: str, search: SearchSettings) -> float:
+def _offspring(value: object, path: str, search: SearchSettings) -> float:
     share = read_rate(value, "", path)
     if share <= 0.0:
         raise _fail(path, "must be above 0: a generation needs new offspring")
@@ -362,11 +365,12 @@ def _sections_doc() -> str:
 if __doc__ is not None:
     __doc__ = __doc__.replace("{sections}", _sections_doc())
 
+S = TypeVar("S", bound="DataclassInstance")   # a settings section
 _TOP_KEYS = ("universe", "seed", "meshing", "genome", "ea", "fitness", "environment", "islands", "search",
              "stored_universe")
 
 
-def _section(cls: type, data: Any, name: str) -> Any:
+def _section(cls: type[S], data: object, name: str) -> S:
     """Build section ``cls`` from the table ``data``; unknown keys are errors."""
     if isinstance(data, cls):
         return data
@@ -558,14 +562,14 @@ def _deep_merge(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str
     return out
 
 
-def _lists(value: Any) -> Any:
+def _lists(value: object) -> object:
     """Tuples as lists (TOML arrays), nested too."""
     if isinstance(value, tuple):
         return [_lists(v) for v in value]
     return value
 
 
-def _drop_none(value: Any) -> Any:
+def _drop_none(value: object) -> object:
     """TOML has no null: drop keys whose value is None (readers take the default for a missing key)."""
     if isinstance(value, Mapping):
         return {k: _drop_none(v) for k, v in value.items() if v is not None}
@@ -574,7 +578,7 @@ def _drop_none(value: Any) -> Any:
     return value
 
 
-def _read_environment(value: Any, source: str, base_dir: Path | None) -> Environment:
+def _read_environment(value: object, source: str, base_dir: Path | None) -> Environment:
     if isinstance(value, str):
         path = Path(value)
         if not path.is_absolute():

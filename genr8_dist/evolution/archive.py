@@ -17,18 +17,44 @@ rows, resumes with them and is equal after a kill and a resume, with no state ou
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 from genr8_dist.evolution.individual import SCHEMA_2_NAMES
+
+if TYPE_CHECKING:
+    from genr8_dist.config import SearchSettings
 
 __all__ = ["Grid", "descriptor_value"]
 
 _SIZE = "size_"
 
 
-def descriptor_value(individual: Any, name: str) -> float:
+class Described(Protocol):
+    """What a cell is found from (an ``Individual``, or a stored row read as one)."""
+
+    @property
+    def valid(self) -> bool: ...
+    @property
+    def sizes(self) -> Mapping[str, int]: ...
+    @property
+    def criteria(self) -> Mapping[str, float]: ...
+
+
+class Ranked(Described, Protocol):
+    """What an archive's elites are chosen by, besides their cells."""
+
+    @property
+    def fitness(self) -> float: ...
+    @property
+    def index(self) -> int: ...
+
+
+D = TypeVar("D", bound=Ranked)
+
+
+def descriptor_value(individual: Described, name: str) -> float:
     """The value of descriptor ``name`` of an individual (one of its sizes, or a criterion's raw value)."""
     name = SCHEMA_2_NAMES.get(name, name)
     if name.startswith(_SIZE) and name[len(_SIZE):] in individual.sizes:
@@ -45,16 +71,16 @@ class Grid:
     bins: tuple[int, ...]
 
     @classmethod
-    def from_settings(cls, search: Any) -> Grid:
+    def from_settings(cls, search: SearchSettings) -> Grid:
         """The grid of a ``[search]`` section (``SearchSettings``)."""
-        return cls(tuple(search.descriptors), tuple(tuple(r) for r in search.ranges), tuple(search.bins))
+        return cls(tuple(search.descriptors), tuple((lo, hi) for lo, hi in search.ranges), tuple(search.bins))
 
     @property
     def size(self) -> int:
         """How many cells the grid has."""
         return math.prod(self.bins)
 
-    def cell(self, individual: Any) -> int | None:
+    def cell(self, individual: Described) -> int | None:
         """The cell index of a valid individual (row-major over the descriptors), ``None`` for an
         invalid one or one whose descriptor is not finite."""
         if not individual.valid:
@@ -68,9 +94,9 @@ class Grid:
             index = index * n + min(n - 1, max(0, k))
         return index
 
-    def archive(self, individuals: Iterable[Any]) -> dict[int, Any]:
+    def archive(self, individuals: Iterable[D]) -> dict[int, D]:
         """Cell -> its elite among ``individuals`` (lowest fitness, ties to the earlier one)."""
-        cells: dict[int, Any] = {}
+        cells: dict[int, D] = {}
         for ind in individuals:
             c = self.cell(ind)
             if c is None or not math.isfinite(ind.fitness):
@@ -88,7 +114,7 @@ class Grid:
             cell //= n
         return tuple(reversed(out))
 
-    def elites(self, individuals: Sequence[Any], room: int) -> list[Any]:
+    def elites(self, individuals: Sequence[D], room: int) -> list[D]:
         """The archive's elites, best first, at most ``room`` of them (the best cells kept)."""
         held = sorted(self.archive(individuals).values(), key=lambda ind: (ind.fitness, ind.index))
         return held[:room]

@@ -25,7 +25,7 @@ from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast
 
 from genr8_dist.errors import GenomeError, Genr8Error
 from genr8_dist.evolution.individual import Evaluation, timing_columns
@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.grammar.universe import Universe
     from genr8_dist.phenotype import Developed
+
 
 __all__ = [
     "Evaluation",
@@ -47,6 +48,17 @@ __all__ = [
     "steps_of",
     "universe_for",
 ]
+
+
+K = TypeVar("K")
+V = TypeVar("V")
+
+
+class Stepped(Protocol):
+    """A development's result with its derivation steps: a count, or per-step statistics."""
+
+    @property
+    def steps(self) -> int | Sequence[object]: ...
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -98,10 +110,10 @@ def _check_genome(genome: Sequence[int]) -> tuple[int, ...]:
     return values
 
 
-def steps_of(result: Any) -> int:
+def steps_of(result: Stepped) -> int:
     """How many derivation steps a ``GrowthResult`` ran (its ``steps`` is the per-step statistics)."""
     steps = result.steps
-    return len(steps) if isinstance(steps, (list, tuple)) else int(steps)
+    return len(steps) if isinstance(steps, Sequence) else int(steps)
 
 
 def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
@@ -303,7 +315,7 @@ class Evaluator:
         failed = grown.capped is not None and phenotype_of(self.universe).capped_is_invalid
         return Preview(**{**grown.as_fields(), "valid": not failed})
 
-    def _remember(self, cache: OrderedDict[Any, Any], key: Any, value: Any) -> None:
+    def _remember(self, cache: OrderedDict[K, V], key: K, value: V) -> None:
         cache[key] = value
         if len(cache) > self.cache_size:
             cache.popitem(last=False)

@@ -16,9 +16,12 @@ import json
 import math
 import re
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.store._fs import RunFS
+
+if TYPE_CHECKING:
+    from genr8_dist.evolution.individual import Individual
 
 __all__ = ["LIVE_DIR", "LiveView", "clear", "drop_committed", "live_row", "read", "write_generation"]
 
@@ -26,11 +29,11 @@ LIVE_DIR = "live"
 _NAME = re.compile(r"^(\d+)-(\d+)\.json$")
 
 
-def _finite(value: Any) -> float | None:
+def _finite(value: float | None) -> float | None:
     return float(value) if value is not None and math.isfinite(value) else None
 
 
-def live_row(ind: Any) -> dict[str, Any]:
+def live_row(ind: Individual) -> dict[str, Any]:
     """An individual as the studio lists it (its criteria and sizes by column name, its text)."""
     from genr8_dist.store.schema import criterion_column, size_column
 
@@ -43,7 +46,7 @@ def live_row(ind: Any) -> dict[str, Any]:
             **{size_column(k): int(v) for k, v in ind.sizes.items()}}
 
 
-def write_generation(rfs: RunFS, island: int, generation: int, population: Sequence[Any]) -> None:
+def write_generation(rfs: RunFS, island: int, generation: int, population: Sequence[Individual]) -> None:
     """Island ``island``'s completed ``generation``, for readers of the live view."""
     if rfs.local_root is None:
         return
@@ -101,7 +104,7 @@ class LiveView:
     def __init__(self, rfs: RunFS) -> None:
         self._rfs = rfs
 
-    def write(self, island: int, generation: int, population: Sequence[Any]) -> None:
+    def write(self, island: int, generation: int, population: Sequence[Individual]) -> None:
         write_generation(self._rfs, island, generation, population)
 
     def read(self) -> dict[int, dict[int, list[dict[str, Any]]]]:

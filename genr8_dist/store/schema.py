@@ -321,8 +321,8 @@ def individuals_table(individuals: Iterable[Individual], run_id: str, criteria: 
     crit_set = set(criteria)
     declared = {c.name: c for c in stored_columns()}
     stored = set(schema.names)
-    cols: dict[str, list[Any]] = {f.name: [] for f in schema}
-    def getter(name: str) -> Callable[[Individual], Any]:
+    cols: dict[str, list[object]] = {f.name: [] for f in schema}
+    def getter(name: str) -> Callable[[Individual], object]:
         name = SCHEMA_2_NAMES.get(name, name)   # a schema 1 or 2 run's columns, by their current names
         crit = criterion_of(name)
         size = size_of(name)

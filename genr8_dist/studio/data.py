@@ -25,6 +25,8 @@ from genr8_dist.errors import ConfigError, Genr8Error, StoreError
 from genr8_dist.store.schema import criterion_column, size_column, size_of
 
 if TYPE_CHECKING:
+    import pyarrow as pa
+
     from genr8_dist.config import RunConfig
     from genr8_dist.hemls.surface import Surface
     from genr8_dist.store import RunStore
@@ -40,7 +42,7 @@ MAX_KINDS = 36
 LINEAGE_DEPTH = 12          # generations of the main line shown for a design
 
 
-def _finite(value: Any) -> float | None:
+def _finite(value: float | None) -> float | None:
     if value is None:
         return None
     value = float(value)
@@ -395,7 +397,7 @@ class RunView:
                 return dict(r)
         return None
 
-    def _pareto(self, table: Any, criteria: tuple[str, ...]) -> list[bool]:
+    def _pareto(self, table: pa.Table, criteria: tuple[str, ...]) -> list[bool]:
         """Which rows are on the Pareto front of their generation (all islands together): the
         non-dominated valid ones over the weighted deviations of the Pareto objectives (the search's
         own ``pareto_objectives``, ``objectives_of`` and ``non_dominated``), under the newest

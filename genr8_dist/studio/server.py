@@ -154,7 +154,7 @@ class Studio:
                 "effective_generation": result.effective_generation, "message": message}
 
 
-def _list(value: Any, what: str) -> list[Any]:
+def _list(value: object, what: str) -> list[Any]:
     if not isinstance(value, list) or not value:
         raise ConfigError(f"{what}: expected a non-empty list")
     return value
@@ -167,7 +167,7 @@ def _number(value: Any, what: str) -> float:
         raise ConfigError(f"{what}: expected a number, got {value!r}") from None
 
 
-def _check_id(value: Any) -> str:
+def _check_id(value: object) -> str:
     text = str(value or "")
     if not _ID.match(text):
         raise ConfigError(f"{text!r}: an individual id is ISLAND-GENERATION-INDEX, e.g. 0-12-3")
