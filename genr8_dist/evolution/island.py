@@ -23,7 +23,7 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
    silent copy). Origin ``crossover``, ``mutation`` or ``crossover+mutation``; parents the ids used.
    With ``ea.within_used`` the cut and the flips fall within the codons the mapper read. A universe
    that brings its own operators (``evolution.variation``: ``hooks.VARIATION``, ``ea.variation``)
-   breeds by them instead (``_vary``): one child per recombination or mutation of texts.
+   breeds by them instead (``operators.recombination``): one child per recombination or mutation of texts.
 
 No evaluation is spent on a copy (``ea.unique_retries`` > 0): the second parent is drawn again (up to
 5 times) while it is the first one or has its text; an offspring whose rewrite system repeats a
