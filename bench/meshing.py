@@ -18,7 +18,7 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -64,34 +64,73 @@ def folded(s: Any) -> np.ndarray:
     return out
 
 
-def measure(surfaces: list[Any]) -> dict[str, float]:
-    out: dict[str, float] = {"surfaces": len(surfaces), "regions": sum(s.n_regions for s in surfaces)}
-    classes = [(corner_ok(s), corner_ok(s) & ~folded(s)) for s in surfaces]
-    out["good_regions"] = sum(int(g.sum()) for g, _ in classes)
-    out["flat_good_regions"] = sum(int(f.sum()) for _, f in classes)
+def one_surface(s: Any) -> dict[str, float]:
+    """One surface's counts under every meshing (summed by ``measure``)."""
+    ok, flat_ok = corner_ok(s), corner_ok(s) & ~folded(s)
+    out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum())}
     for meshing in MESHINGS:
-        tri = thin = good = good_thin = flat = flat_thin = fallback = 0
-        cpu = 0.0
-        for s, (ok, flat_ok) in zip(surfaces, classes, strict=True):
-            f = fresh(s, meshing)
-            t0 = time.process_time()
-            mesh = f.mesh()
-            cpu += time.process_time() - t0
-            angles = triangle_min_angles(mesh.points, mesh.triangles)
-            thin_ = angles < 15.0
-            tri += len(angles)
-            thin += int(np.sum(thin_))
-            good += int(np.sum(ok[mesh.regions]))
-            good_thin += int(np.sum(ok[mesh.regions] & thin_))
-            flat += int(np.sum(flat_ok[mesh.regions]))
-            flat_thin += int(np.sum(flat_ok[mesh.regions] & thin_))
-            fallback += len(mesh.fallback) if meshing > 1 else 0
-        out[f"tri{meshing}"] = tri
-        out[f"thin{meshing}"] = thin / max(tri, 1)
-        out[f"goodthin{meshing}"] = good_thin / max(good, 1)
-        out[f"flatthin{meshing}"] = flat_thin / max(flat, 1)
-        out[f"cpu{meshing}"] = cpu / max(len(surfaces), 1)
-        out[f"fallback{meshing}"] = fallback / max(out["regions"], 1)
+        f = fresh(s, meshing)
+        t0 = time.process_time()
+        mesh = f.mesh()
+        out[f"cpu{meshing}"] = time.process_time() - t0
+        thin_ = triangle_min_angles(mesh.points, mesh.triangles) < 15.0
+        out[f"tri{meshing}"] = len(thin_)
+        out[f"thin{meshing}"] = int(np.sum(thin_))
+        out[f"good{meshing}"] = int(np.sum(ok[mesh.regions]))
+        out[f"goodthin{meshing}"] = int(np.sum(ok[mesh.regions] & thin_))
+        out[f"flat{meshing}"] = int(np.sum(flat_ok[mesh.regions]))
+        out[f"flatthin{meshing}"] = int(np.sum(flat_ok[mesh.regions] & thin_))
+        out[f"fallback{meshing}"] = len(mesh.fallback) if meshing > 1 else 0
+    return out
+
+
+def isolated(s: Any, memory: float) -> dict[str, float] | None:
+    """``one_surface(s)`` in a forked child limited to ``memory`` GB of address space (0: no limit),
+    None if it failed there: Triangle can take all the machine's memory on one region (a random
+    ``probabilistic`` genome reached 24 GB), and does not free what it took when it fails."""
+    import os
+    import pickle
+    import resource
+
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(read)
+        try:
+            if memory > 0:
+                limit = int(memory * 2**30)
+                resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+            got: dict[str, float] | None = one_surface(s)
+        except (MemoryError, RuntimeError):
+            got = None
+        with os.fdopen(write, "wb") as pipe:
+            pickle.dump(got, pipe)
+        os._exit(0)
+    os.close(write)
+    with os.fdopen(read, "rb") as pipe:
+        data = pipe.read()
+    os.waitpid(pid, 0)
+    return cast("dict[str, float] | None", pickle.loads(data)) if data else None
+
+
+def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
+    """The figures over ``surfaces`` (each measured in a child limited to ``memory`` GB); surfaces
+    whose meshing failed there are counted in ``failed`` and left out of the rest."""
+    parts = [isolated(s, memory) for s in surfaces]
+    kept = [(s, p) for s, p in zip(surfaces, parts, strict=True) if p is not None]
+    total = {k: sum(p[k] for _, p in kept) for k in (kept[0][1] if kept else {})}
+    out: dict[str, float] = {"surfaces": len(kept), "failed": len(surfaces) - len(kept),
+                             "regions": sum(s.n_regions for s, _ in kept),
+                             "good_regions": total.get("good_regions", 0),
+                             "flat_good_regions": total.get("flat_good_regions", 0)}
+    for m in MESHINGS:
+        tri = total.get(f"tri{m}", 0)
+        out[f"tri{m}"] = tri
+        out[f"thin{m}"] = total.get(f"thin{m}", 0) / max(tri, 1)
+        out[f"goodthin{m}"] = total.get(f"goodthin{m}", 0) / max(total.get(f"good{m}", 0), 1)
+        out[f"flatthin{m}"] = total.get(f"flatthin{m}", 0) / max(total.get(f"flat{m}", 0), 1)
+        out[f"cpu{m}"] = total.get(f"cpu{m}", 0.0) / max(len(kept), 1)
+        out[f"fallback{m}"] = total.get(f"fallback{m}", 0) / max(out["regions"], 1)
     return out
 
 
@@ -100,12 +139,12 @@ def show(name: str, m: dict[str, float]) -> None:
         ratio = "" if v == 1 else f" ({m['thin1'] / max(m[f'thin{v}'], 1e-12):.1f}x)"
         print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
               f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'fallback{v}']:.1%} | "
-              f"{m[f'cpu{v}'] * 1e3:.1f} ms |")
+              f"{m[f'cpu{v}'] * 1e3:.1f} ms | {m.get('failed', 0):.0f} |")
 
 
 HEADER = ("| set | meshing | surfaces | triangles | under 15 deg | same, regions with corners >= 20 deg | "
-          "same, of those not folded | regions cut as m1 | CPU per surface |\n"
-          "|---|---|---|---|---|---|---|---|---|")
+          "same, of those not folded | regions cut as m1 | CPU per surface | failed (memory) |\n"
+          "|---|---|---|---|---|---|---|---|---|---|")
 
 
 def random_surfaces(name: str, n: int) -> list[Any]:
@@ -116,7 +155,7 @@ def random_surfaces(name: str, n: int) -> list[Any]:
     out = []
     for _ in range(n):
         result = universe.map(rng.integers(0, 2**16, size=int(rng.integers(50, 150))))
-        if not result.valid:
+        if not result.valid or result.text is None:
             continue
         g = grow(parse(result.text), Environment())
         if not g.capped and g.surface.n_regions:
@@ -124,7 +163,7 @@ def random_surfaces(name: str, n: int) -> list[Any]:
     return out
 
 
-def run_best(run: str) -> dict[str, Any]:
+def run_best(run: str, memory: float = 0.0) -> dict[str, Any]:
     from genr8_dist.history import _regrow
     from genr8_dist.store import RunStore
 
@@ -139,9 +178,10 @@ def run_best(run: str) -> dict[str, Any]:
         best.append(r["id"])
         if len(best) == 12:
             break
-    surfaces = [_regrow.regrow(run, i).developed.value for i in best]
+    regrown = [_regrow.regrow(run, i).developed for i in best]
+    surfaces = [d.value for d in regrown if d is not None]
     print(f"\nrun {run} (meshing {store.meshing}): best 12 distinct\n" + HEADER)
-    figures = measure(surfaces)
+    figures: dict[str, Any] = dict(measure(surfaces, memory))
     show("best 12", figures)
     print("\n| id | " + " | ".join(f"slivers meshing {v}" for v in MESHINGS) + " |\n|---|"
           + "---|" * len(MESHINGS))
@@ -161,17 +201,19 @@ def main() -> None:
     parser.add_argument("--universes", default=",".join(UNIVERSES))
     parser.add_argument("--run", help="a run directory: measure its best 12 distinct surfaces")
     parser.add_argument("--json", metavar="FILE", help="also write the figures to FILE as JSON")
+    parser.add_argument("--memory", type=float, default=4.0, metavar="GB",
+                        help="address space each surface's meshing may use (0: no limit)")
     args = parser.parse_args()
     figures: dict[str, Any] = {"genomes": args.genomes, "universes": {}}
     if args.genomes:
         print(f"{args.genomes} random genomes per universe, empty environment\n" + HEADER)
         for name in args.universes.split(","):
-            figures["universes"][name] = measure(random_surfaces(name, args.genomes))
+            figures["universes"][name] = measure(random_surfaces(name, args.genomes), args.memory)
             show(name, figures["universes"][name])
             if args.json:
                 Path(args.json).write_text(json.dumps(figures, indent=1))
     if args.run:
-        figures["run"] = {"path": args.run, **run_best(args.run)}
+        figures["run"] = {"path": args.run, **run_best(args.run, args.memory)}
     if args.json:
         Path(args.json).write_text(json.dumps(figures, indent=1))
 
