@@ -13,7 +13,7 @@ Generation g is filled in this order, indices 0, 1, 2, ...:
 2. injected individuals (a genome, a hand-written rewrite system inverted through the universe, or a
    copy of an existing ``Individual``): origin ``injected``, evaluated;
 3. elites: the best ``ea.elites`` of generation g-1 with finite fitness, copied (origin ``elite``)
-   (by ``search.mode``: see ``_selection``; in ``map-elites`` mode the whole archive);
+   (by ``search.mode``: see ``operators.selection``; in ``map-elites`` mode the whole archive);
 4. offspring until the population is full (``generation_size``: in ``map-elites`` mode at least
    ``search.offspring`` of ``ea.population`` after the archive, so a generation may be larger): two
    parents by tournament (by ``search.mode``), one-point
@@ -33,13 +33,7 @@ parent's or an earlier member's after it, each up to ``ea.unique_retries`` times
 generation's ``revary`` streams; each redraws at least one codon the mapper read, since a copy's read
 codons are what make it a copy); one still wasted after them is replaced by a newcomer (a founder's
 draw, origin ``random``, no parents), up to ``ea.unique_redraws`` times. Generation 0 likewise redraws a
-founder that is trivial (invalid, or trivial as its phenotype says: a surface of at most one region,
-the axiom left as it was) or repeats an earlier founder's phenotype, up to ``ea.founder_retries``
-times; founders are random genomes or, with ``ea.init = "ramped"``, ramped half-and-half derivation
-trees (``grammar.derivations``); past the first half of a founder's redraws they are bushy trees
-(every repetition at least a few rounds, no edge label born) while those have given live founders at
-least as often as plain draws in this generation 0, so a universe whose random genomes seldom
-subdivide (``gecco``) still starts alive.
+founder that is trivial or repeats an earlier founder's phenotype (``evolution.founders``).
 No growth is spent where the text already shows the waste (the phenotype's ``screen``; surfaces:
 ``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
 a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
@@ -83,6 +77,7 @@ from typing import TYPE_CHECKING
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, development_key, rescore
+from genr8_dist.evolution.founders import Founders, is_trivial, settled
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
     Genome,
@@ -91,12 +86,12 @@ from genr8_dist.evolution.operators import (
     int_flip_mutation,
     mutation,
     parent_picker,
-    random_genome,
     recombination,
     screened,
-    select_elites,
     select_matings,
+    selection,
 )
+from genr8_dist.evolution.pareto import pareto_objectives
 from genr8_dist.evolution.variation import Variation, genome_of, map_genome, text_genome, variation_for
 from genr8_dist.rng import stream
 
@@ -155,28 +150,6 @@ _TRIVIAL_RETRIES = 1
 _SCREENS = 20   # genomes drawn or varied again, from their text alone, before one is grown
 
 
-def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
-    """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
-    with a weight above 0."""
-    if config.search.objectives:
-        return tuple(config.search.objectives)
-    return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
-
-
-def is_trivial(evaluation: Evaluation, phenotype: Phenotype | None = None) -> bool:
-    """Whether an evaluation is not worth a founder's place: invalid, or trivial as its universe's
-    ``phenotype`` says (default the surfaces': at most one region, the axiom polygon as it was or
-    grown without a subdivision)."""
-    from genr8_dist.phenotype import SURFACES
-
-    return not evaluation.valid or (phenotype or SURFACES).trivial(evaluation)
-
-
-def _rate(tally: list[int]) -> float:
-    """Laplace's estimate of the share of live founders among ``[draws, live]``."""
-    return (tally[1] + 1) / (tally[0] + 2)
-
-
 def _keys(ind: Individual | Evaluation) -> set[str]:
     keys = set()
     if ind.text is not None:
@@ -184,20 +157,6 @@ def _keys(ind: Individual | Evaluation) -> set[str]:
     if ind.valid and ind.phenotype_digest is not None:
         keys.add(ind.phenotype_digest)
     return keys
-
-
-class _Draws:
-    """``first``, then what ``more`` draws: a founder as drawn, then its redraws."""
-
-    def __init__(self, first: Genome, more: Callable[[], Genome]) -> None:
-        self.first: Genome | None = first
-        self.more = more
-
-    def __call__(self) -> Genome:
-        if self.first is not None:
-            first, self.first = self.first, None
-            return first
-        return self.more()
 
 
 class Island:
@@ -219,30 +178,18 @@ class Island:
             else Evaluator(config)
         self.config_of = config_of   # configuration version -> its configuration (None: unknown)
         self.stats = IslandStats()
-        self._founder_draws: dict[str, list[int]] = {"plain": [0, 0], "bushy": [0, 0]}
         self._bred_at: tuple[int, int, int] | None = None   # the evaluator's counters when breeding began
         self.hooks: list[Callable[[list[Individual]], None]] = []
         # The universe's own operators (``evolution.variation``), or None: GE's.
         self.variation: Variation | None = variation_for(config, self.evaluator.universe)
+        self.founders = Founders(config, self.evaluator, self.variation, partial(self.rng, 0), self._screened,
+                                 self._count)
 
     # -- random streams -----------------------------------------------------------------------
 
     def rng(self, generation: int, purpose: str, *keys: int) -> np.random.Generator:
         """The generator for ``purpose`` (and ``keys``) in ``generation`` of this island."""
         return stream(self.config.seed, "island", self.index, "generation", generation, purpose, *keys)
-
-    def _founders(self, rng: np.random.Generator, count: int, first: int = 0) -> list[Genome]:
-        """``count`` founder genomes drawn from ``rng`` (``ea.init``); ``first``: the position of the
-        first in the ramp of depth limits."""
-        g = self.config.genome
-        if self.variation is not None:
-            return [text_genome(self.variation.founder(rng)) for _ in range(count)]
-        if self.config.ea.init == "ramped":
-            from genr8_dist.grammar.derivations import ramped_genomes
-
-            return ramped_genomes(self.evaluator.universe, rng, count, length=g.length,
-                                  codon_max=g.codon_max, max_depth=g.max_depth, first=first)
-        return [random_genome(rng, g.length, g.codon_max) for _ in range(count)]
 
     def _mapped(self, genome: Genome) -> tuple[str | None, int]:
         """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
@@ -255,10 +202,6 @@ class Island:
         the fitness it lacks; a Pareto front or a MAP-Elites archive may want its extremes (one
         region is the most symmetric surface, the emptiest cell)."""
         return self.config.search.mode == "weighted"
-
-    def _founder(self, rng: np.random.Generator, index: int) -> Genome:
-        """One founder genome drawn from ``rng`` at position ``index`` of generation 0."""
-        return self._founders(rng, 1, first=index)[0]
 
     def _screen(self, text: str | None) -> tuple[bool, str | None]:
         """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
@@ -397,7 +340,8 @@ class Island:
         self.stats = IslandStats(generation=generation)
         ea = self.config.ea
         if generation == 0:
-            return self._founder_births(ea.population)
+            founders = self.founders.genomes(ea.population, lambda g: self._screen(self._mapped(g)[0])[1])
+            return [Birth(genome, "random") for genome in founders]
         if not previous:
             raise ValueError(f"generation {generation} needs a non-empty previous generation")
         if len(migrants) + len(injected) > ea.population:
@@ -408,7 +352,7 @@ class Island:
         births = [Birth(tuple(m.genome), "migrant", (m.id,), self._kept(m)) for m in migrants]
         births += [self._injected(item) for item in injected]
         pool, parent_ids, fitnesses = self._pool(previous, hand)
-        scores, elites, mates = self._selection(pool, fitnesses, ea.population - len(births))
+        scores, elites, mates = selection(self.config, pool, fitnesses, ea.population - len(births))
         births += [Birth(tuple(pool[i].genome), "elite", (parent_ids[i],), self._kept(pool[i]))
                    for i in elites]
         room = self.generation_size(len(births)) - len(births)
@@ -502,58 +446,6 @@ class Island:
         """What a text genome (a universe's own variation) shows: its text, the key of a copy."""
         return Look(False, "".join(map(chr, genome)), len(genome))
 
-    def _founder_births(self, count: int) -> list[Birth]:
-        """Generation 0's genomes: ``count`` founders (``ea.init``); with ``ea.founder_retries``,
-        one whose text shows it trivial or a copy of an earlier founder (``_screen``) is drawn again
-        from its text alone (``founders``' own stream ``screen``), never grown."""
-        drawn = self._founders(self.rng(0, "genomes"), count)
-        if self.config.ea.founder_retries <= 0:
-            return [Birth(tuple(genome), "random") for genome in drawn]
-        births: list[Birth] = []
-        keys: set[str | None] = set()
-        for index, first in enumerate(drawn):
-            rest = _Draws(first, partial(self._founder, self.rng(0, "screen", index), index))
-            genome = tuple(int(c) for c in self._screened(rest, keys))
-            keys.add(self._screen(self._mapped(genome)[0])[1])
-            births.append(Birth(genome, "random"))
-        return births
-
-    def _selection(self, pool: Sequence[Individual], fitnesses: list[float], room: int
-                   ) -> tuple[list[float], list[int], list[int]]:
-        """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
-        of the elites to keep, and the positions parents are drawn from (empty: the whole pool).
-
-        ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
-        crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
-        first front: its best ``ea.elites`` by the fitness first (the weighted sum, whose minimum is on
-        the front when the objectives are the weighted criteria), then the least crowded, up to half
-        the room. ``map-elites``:
-        the whole archive of ``pool`` (every held cell's best, whatever the room: ``generation_size``
-        makes room for the offspring after it); each pair's first parent drawn from it by a
-        tournament of ``ea.tournament``, its mate uniformly (``ea.tournament = 1``: both uniformly,
-        as in the original MAP-Elites)."""
-        ea, search = self.config.ea, self.config.search
-        if search.mode == "pareto":
-            from genr8_dist.evolution.pareto import objectives_of, pareto_order
-
-            names = pareto_objectives(self.config)
-            ranks, position = pareto_order(objectives_of([p.criteria for p in pool], [p.valid for p in pool],
-                                                         self.config.fitness, names))
-            scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
-            front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
-                           key=lambda i: scores[i])
-            best = sorted(front, key=lambda i: (fitnesses[i], i))[:min(ea.elites, room)]
-            keep = min(room, max(len(best), min(len(front), room // 2)))
-            return scores, (best + [i for i in front if i not in best])[:keep], []
-        if search.mode == "map-elites":
-            from genr8_dist.evolution.archive import Grid
-
-            grid = Grid.from_settings(search)
-            where = {id(p): i for i, p in enumerate(pool)}
-            elites = [where[id(ind)] for ind in grid.elites(pool, grid.size)]
-            return list(fitnesses), elites, list(elites)
-        return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
-
     def generation_size(self, kept: int) -> int:
         """How many individuals a generation holds when ``kept`` of them (migrants, injected, elites)
         are placed before the offspring: ``ea.population``; in ``map-elites`` mode at least
@@ -582,7 +474,7 @@ class Island:
         population = []
         seen: set[str] = set()   # the phenotype digests of this generation so far
         if generation == 0:
-            self._founder_draws = {"plain": [0, 0], "bushy": [0, 0]}
+            self.founders.restart()
         for index, birth in enumerate(births):
             kept = birth.evaluation
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
@@ -595,7 +487,7 @@ class Island:
                 fresh.pop(birth.genome) if birth.genome in fresh else
                 self.evaluator.preview(birth.genome) if founder or offspring else self.evaluate(birth.genome))
             if founder:
-                genome, evaluation = self._redraw_founder(index, genome, evaluation, seen)
+                genome, evaluation = self.founders.redraw(index, genome, evaluation, seen)
             elif offspring:
                 genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
                                                                     seen)
@@ -635,63 +527,6 @@ class Island:
 
         return phenotype_of(self.evaluator.universe)
 
-    def _settled(self, genome: Genome, evaluation: Evaluation, wasted: Callable[[Evaluation], bool]
-                 ) -> Evaluation:
-        """``evaluation`` of ``genome`` measured, unless it is a preview that what its development
-        found already wastes (``wasted`` of a preview never says no where the measured evaluation
-        would say yes: a preview's ``valid`` only lacks what measuring may still fail)."""
-        if isinstance(evaluation, Preview) and not wasted(evaluation):
-            return self.evaluator.measure(genome, evaluation)
-        return evaluation
-
-    def _redraw_founder(self, index: int, genome: Genome, evaluation: Evaluation, seen: set[str]
-                        ) -> tuple[Genome, Evaluation]:
-        """A founder that is trivial or repeats an earlier founder's phenotype, drawn again: the first
-        half of ``ea.founder_retries`` (rounded up) as ``ea.init`` says; each later one as a bushy
-        derivation tree (``grammar.derivations.bushy_genome``: longer repetitions, no edge label born)
-        unless plain draws have so far given this generation 0 live founders more often (Laplace's rule
-        over the draws of the founders before, so a universe where bushy trees fail keeps its plain
-        draws). Bushy trees cost more growth, so they come only where plain draws keep failing."""
-        phenotype = self.phenotype
-
-        def wasted(ev: Evaluation) -> bool:
-            if isinstance(ev, Preview) and not phenotype.trivial_from_sizes:
-                return not ev.valid or ev.phenotype_digest in seen
-            return is_trivial(ev, phenotype) or ev.phenotype_digest in seen
-
-        rng = None
-        retries = self.config.ea.founder_retries
-        plain = (retries + 1) // 2
-        tally = self._founder_draws   # kind -> [draws, live ones] in this generation 0 so far
-        kind = "plain"                # the founder as born is a plain draw
-        for attempt in range(retries):
-            evaluation = self._settled(genome, evaluation, wasted)
-            tally[kind][0] += 1
-            if not wasted(evaluation):
-                tally[kind][1] += 1
-                return genome, evaluation
-            rng = rng or self.rng(0, "founders", index)
-            kind = "plain" if attempt < plain or _rate(tally["plain"]) > _rate(tally["bushy"]) \
-                or self.variation is not None else "bushy"
-            if kind == "plain":
-                genome = tuple(self._screened(partial(self._founder, rng, index)))
-            else:   # plain draws keep failing: bushy trees over the labels a derivation starts with
-                from genr8_dist.grammar.derivations import bushy_genome
-
-                g = self.config.genome
-                genome = tuple(self._screened(partial(
-                    bushy_genome, self.evaluator.universe, rng, length=g.length, codon_max=g.codon_max,
-                    max_depth=g.max_depth)))
-            evaluation = self.evaluator.preview(genome)
-            self.stats.founders_redrawn += 1
-        evaluation = self.evaluator.measure(genome, evaluation)
-        tally[kind][0] += 1
-        if wasted(evaluation):
-            self.stats.unresolved += 1
-        else:
-            tally[kind][1] += 1
-        return genome, evaluation
-
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
         """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
@@ -712,7 +547,7 @@ class Island:
         rng = None
         trivials = 0   # trivial growths of this offspring so far
         for _ in range(self.config.ea.unique_retries):
-            evaluation = self._settled(genome, evaluation, wasted)
+            evaluation = settled(self.evaluator, genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
             if trivial(evaluation) and evaluation.phenotype_digest not in seen \
@@ -739,12 +574,12 @@ class Island:
                 origin = "crossover+mutation"
         # Still wasted (its neighbourhood all fails or repeats, as round the bare axiom): a newcomer,
         # drawn as a founder is, with no parents.
-        evaluation = self._settled(genome, evaluation, wasted)
+        evaluation = settled(self.evaluator, genome, evaluation, wasted)
         fresh = None
         for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
             fresh = fresh or self.rng(generation, "redraw", index)
-            genome = tuple(self._screened(partial(self._founder, fresh, index)))
-            evaluation = self._settled(genome, self.evaluator.preview(genome), wasted)
+            genome = tuple(self._screened(partial(self.founders.one, fresh, index)))
+            evaluation = settled(self.evaluator, genome, self.evaluator.preview(genome), wasted)
             origin = "random"
             self.stats.redrawn += 1
             if not wasted(evaluation):

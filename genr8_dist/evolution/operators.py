@@ -32,6 +32,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.individual import Individual
     from genr8_dist.evolution.variation import Variation
 
 __all__ = [
@@ -49,6 +51,7 @@ __all__ = [
     "screened",
     "select_elites",
     "select_matings",
+    "selection",
     "tournament_select",
 ]
 
@@ -99,6 +102,43 @@ def select_elites(fitnesses: Sequence[float], count: int) -> list[int]:
     finite = [i for i, f in enumerate(fitnesses) if math.isfinite(f)]
     finite.sort(key=lambda i: rank_key(fitnesses[i], i))
     return finite[:count]
+
+
+def selection(config: RunConfig, pool: Sequence[Individual], fitnesses: list[float], room: int
+              ) -> tuple[list[float], list[int], list[int]]:
+    """By ``search.mode``: the scores tournaments compare (lower wins), the positions in ``pool``
+    of the elites to keep, and the positions parents are drawn from (empty: the whole pool).
+
+    ``weighted``: the fitness; the best ``ea.elites``. ``pareto``: NSGA-II's order (front, then
+    crowding distance) over the weighted deviations of ``search.objectives``; the elites are the
+    first front: its best ``ea.elites`` by the fitness first (the weighted sum, whose minimum is on
+    the front when the objectives are the weighted criteria), then the least crowded, up to half
+    the room. ``map-elites``:
+    the whole archive of ``pool`` (every held cell's best, whatever the room: ``generation_size``
+    makes room for the offspring after it); each pair's first parent drawn from it by a
+    tournament of ``ea.tournament``, its mate uniformly (``ea.tournament = 1``: both uniformly,
+    as in the original MAP-Elites)."""
+    ea, search = config.ea, config.search
+    if search.mode == "pareto":
+        from genr8_dist.evolution.pareto import objectives_of, pareto_objectives, pareto_order
+
+        names = pareto_objectives(config)
+        ranks, position = pareto_order(objectives_of([p.criteria for p in pool], [p.valid for p in pool],
+                                                     config.fitness, names))
+        scores = [float(position[i]) if pool[i].valid else math.inf for i in range(len(pool))]
+        front = sorted((i for i in range(len(pool)) if ranks[i] == 0 and pool[i].valid),
+                       key=lambda i: scores[i])
+        best = sorted(front, key=lambda i: (fitnesses[i], i))[:min(ea.elites, room)]
+        keep = min(room, max(len(best), min(len(front), room // 2)))
+        return scores, (best + [i for i in front if i not in best])[:keep], []
+    if search.mode == "map-elites":
+        from genr8_dist.evolution.archive import Grid
+
+        grid = Grid.from_settings(search)
+        where = {id(p): i for i, p in enumerate(pool)}
+        elites = [where[id(ind)] for ind in grid.elites(pool, grid.size)]
+        return list(fitnesses), elites, list(elites)
+    return list(fitnesses), select_elites(fitnesses, min(ea.elites, room)), []
 
 
 def one_point_crossover(

@@ -9,13 +9,25 @@ a generation are a pure function of its rows.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from genr8_dist.fitness import FitnessSpec
 
+if TYPE_CHECKING:
+    from genr8_dist.config import RunConfig
+
 __all__ = ["crowding_distance", "hypervolume", "non_dominated", "non_dominated_ranks", "objectives_of",
-           "pareto_order"]
+           "pareto_objectives", "pareto_order"]
+
+
+def pareto_objectives(config: RunConfig) -> tuple[str, ...]:
+    """The criteria a Pareto search treats as objectives: ``search.objectives``, or every criterion
+    with a weight above 0."""
+    if config.search.objectives:
+        return tuple(config.search.objectives)
+    return tuple(name for name in config.fitness.names if config.fitness[name].weight > 0)
 
 
 def objectives_of(criteria: Sequence[Mapping[str, float]], valid: Sequence[bool], spec: FitnessSpec,

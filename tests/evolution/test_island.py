@@ -260,7 +260,7 @@ def test_bushy_redraws_give_way_to_plain_ones_where_plain_draws_do_better(monkey
     island = Island(config, 0)
     island.initial()
     assert 1 <= len(calls) <= 4
-    assert island._founder_draws["bushy"][0] == len(calls) and island._founder_draws["bushy"][1] <= 1
+    assert island.founders.tally["bushy"][0] == len(calls) and island.founders.tally["bushy"][1] <= 1
 
 
 def test_ramped_founders_are_seeded_and_alive():
