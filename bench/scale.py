@@ -29,8 +29,11 @@ longest evaluation, so the wall time is at least the largest sum over an island'
 their longest waits; ``efficiency_bound`` is the efficiency a run can reach with it (ideal over the
 larger of ideal and critical). ``driver_cpu_s`` and ``driver_cpu_per_epoch_s``: the driver's CPU
 seconds (the bench's own instruments left out), which a loaded machine distorts less than wall time.
-``--trace-memory`` adds ``driver_traced_mb_by_commit``: the Python memory the driver holds after each
-commit (tracemalloc), which stays flat when the driver keeps no history of the run.
+``hosts_cpu_s`` (and per row, ``hosts_cpu_per_row_ms``): the CPU seconds of every island host, start-up
+included: on a machine with fewer cores than hosts, hosts' CPU competes with the waits (2 cores give
+at most ``2 * wall_s`` CPU seconds to everything). ``--trace-memory`` adds
+``driver_traced_mb_by_commit``: the Python memory the driver holds after each commit (tracemalloc),
+which stays flat when the driver keeps no history of the run.
 
 The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
 driver's time.
@@ -90,6 +93,48 @@ migration_interval = {args.interval}
 migrants = 2
 topology = "ring"
 """
+
+
+class HostCPU:
+    """The CPU seconds of the island hosts' processes (``ray::IslandHost``), read from ``/proc`` once a
+    second by a thread of the bench (each host's newest figure kept, so a host that ends still counts):
+    on a small machine, the simulated hosts' own CPU (breeding, Ray's traffic, part writes) competes
+    with the waits, so it is as much part of the engine's cost as the driver's."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[int, float] = {}
+        self._stop = False
+        self._tick = os.sysconf("SC_CLK_TCK")
+        import threading
+
+        self._thread = threading.Thread(target=self._watch, name="bench-host-cpu", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> float:
+        """Stop reading; the hosts' CPU seconds, all together."""
+        self._read()
+        self._stop = True
+        self._thread.join(timeout=5)
+        return sum(self.seconds.values())
+
+    def _watch(self) -> None:
+        while not self._stop:
+            self._read()
+            time.sleep(1.0)
+
+    def _read(self) -> None:
+        for entry in Path("/proc").iterdir():
+            if not entry.name.isdigit():
+                continue
+            try:
+                if not (entry / "cmdline").read_bytes().startswith(b"ray::IslandHost"):
+                    continue
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            self.seconds[int(entry.name)] = (int(fields[11]) + int(fields[12])) / self._tick
 
 
 class Instruments:
@@ -166,6 +211,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         ray.init(address=cluster.address, logging_level="ERROR", log_to_driver=False)
         if args.trace_memory:
             tracemalloc.start()
+        hosts_cpu = HostCPU()
+        hosts_cpu.start()
         cpu0 = time.process_time()
         profiler = cProfile.Profile() if args.profile else None
         if profiler is not None:
@@ -177,6 +224,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             profiler.dump_stats(args.profile)
             pstats.Stats(profiler, stream=sys.stderr).sort_stats("tottime").print_stats(25)
         driver_cpu = time.process_time() - cpu0
+        host_seconds = hosts_cpu.stop()
         total = time.perf_counter() - t0
     finally:
         ray.shutdown()
@@ -212,6 +260,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "critical_s": critical, "efficiency_bound": ideal / max(ideal, critical) if ideal > 0 else 0.0,
         "driver_cpu_s": driver_cpu - instruments.overhead,
         "driver_cpu_per_epoch_s": (driver_cpu - instruments.overhead) / len(commits) if commits else 0.0,
+        "hosts_cpu_s": host_seconds, "hosts_cpu_per_row_ms": 1e3 * host_seconds / rows if rows else 0.0,
         "coordinator_share": driver_busy / wall if wall > 0 else 0.0,
         "coordinator_cpu_share": max(0.0, driver_cpu - instruments.overhead) / wall if wall > 0 else 0.0,
         "store_s": summary.store_seconds,

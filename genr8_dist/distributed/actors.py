@@ -98,7 +98,12 @@ class IslandHost:
         self._writing = threading.Lock()   # a stopping driver's flush runs beside advance
 
     def ready(self) -> dict[str, Any]:
-        """Where this host runs (answers once the actor is scheduled and started)."""
+        """Where this host runs (answers once the actor is scheduled and started). Arrow's first
+        conversion of Python values imports pandas (seconds of CPU): done here, while the pool
+        starts, not in the first part write of the run, where it made every host a straggler."""
+        import pyarrow as pa
+
+        pa.array([0])
         return {"host": socket.gethostname(), "pid": os.getpid()}
 
     def _island(self, island: int, config: RunConfig | None, config_version: int) -> Island:

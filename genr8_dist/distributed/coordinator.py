@@ -42,8 +42,11 @@ wait for an epoch's end (a ``pause``, an edit of the epochs themselves) holds th
 a generation after the end of the epoch under way, and when everything up to it is committed the
 request is taken there; a ``pause`` holds the run, with Ray up, until a ``continue``.
 
-Hooks (``on_generation``, ``on_commit``, ``on_island``: one island's generation, before its commit) let
-a caller watch the run (tests use them to inject faults; the studio's live view, ``store/live.py``).
+A run is watched through its ``Hooks`` (EvoTorch's ``before_step``/``after_step``/``log``): ``on_island``
+(one island's generation, before its commit), ``on_generation`` (every island completed one),
+``on_commit`` (an epoch is durable) and ``on_message`` (a line for the user). The progress display
+subscribes to them (``ProgressDisplay.attach``), so do the session's live view (``store/live.py``) and
+the tests that inject faults; the coordinator calls none of them by name.
 """
 
 from __future__ import annotations
@@ -61,7 +64,6 @@ from typing import TYPE_CHECKING, Any
 
 from genr8_dist.distributed.actors import OFFERS
 from genr8_dist.distributed.migration import is_migration_generation, migrants_for, sources
-from genr8_dist.distributed.progress import ProgressDisplay
 from genr8_dist.errors import Genr8Error, RunError
 from genr8_dist.evolution.individual import Individual
 
@@ -70,10 +72,12 @@ if TYPE_CHECKING:
 
     from genr8_dist.config import RunConfig
     from genr8_dist.distributed.hosts import HostPool
+    from genr8_dist.distributed.progress import ProgressDisplay
     from genr8_dist.store import RunStore
 
 __all__ = [
     "Coordinator",
+    "Hooks",
     "Pipeline",
     "RunSummary",
     "StopRequest",
@@ -143,6 +147,52 @@ class StopRequest:
         return self.reason is not None
 
 
+IslandHook = Callable[["Coordinator", int, int, Any], None]   # (coordinator, island, generation, Generated)
+GenerationHook = Callable[["Coordinator", int], None]         # (coordinator, generation)
+CommitHook = Callable[["Coordinator", Mapping[int, int]], None]   # (coordinator, island -> committed)
+MessageHook = Callable[["Coordinator", str], None]            # (coordinator, a line for the user)
+
+
+@dataclass
+class Hooks:
+    """Who watches a run, called in the order they subscribed, in the driver's thread: ``island``
+    when one island completes a generation (not durable yet), ``generation`` when every island has
+    completed one, ``commit`` when an epoch is durable, ``message`` for a line the user should see."""
+
+    island: list[IslandHook] = field(default_factory=list)
+    generation: list[GenerationHook] = field(default_factory=list)
+    commit: list[CommitHook] = field(default_factory=list)
+    message: list[MessageHook] = field(default_factory=list)
+
+    def subscribe(self, *, on_island: IslandHook | None = None, on_generation: GenerationHook | None = None,
+                  on_commit: CommitHook | None = None, on_message: MessageHook | None = None) -> None:
+        """Add the hooks given (``None``: none of that kind)."""
+        if on_island is not None:
+            self.island.append(on_island)
+        if on_generation is not None:
+            self.generation.append(on_generation)
+        if on_commit is not None:
+            self.commit.append(on_commit)
+        if on_message is not None:
+            self.message.append(on_message)
+
+    def island_done(self, coordinator: Coordinator, island: int, generation: int, done: Any) -> None:
+        for hook in self.island:
+            hook(coordinator, island, generation, done)
+
+    def generation_done(self, coordinator: Coordinator, generation: int) -> None:
+        for hook in self.generation:
+            hook(coordinator, generation)
+
+    def committed(self, coordinator: Coordinator, after: Mapping[int, int]) -> None:
+        for hook in self.commit:
+            hook(coordinator, after)
+
+    def say(self, coordinator: Coordinator, text: str) -> None:
+        for hook in self.message:
+            hook(coordinator, text)
+
+
 @dataclass
 class RunSummary:
     """What a coordinator session did, and where its time went."""
@@ -167,7 +217,8 @@ class RunSummary:
 
 class Coordinator:
     """Runs the epochs of the run in ``store`` on ``hosts`` (a ``HostPool``) until its last generation,
-    or until ``stop`` is set."""
+    or until ``stop`` is set. ``progress`` (a display) and the ``on_*`` hooks subscribe to ``hooks``,
+    in that order; more may subscribe before ``run``."""
 
     def __init__(
         self,
@@ -185,9 +236,7 @@ class Coordinator:
         self.store = store
         self.hosts = hosts
         self.stop = stop if stop is not None else StopRequest()
-        self.on_generation = on_generation
-        self.on_commit = on_commit
-        self.on_island = on_island
+        self.hooks = Hooks()
         self.live = live   # hosts write each completed generation to the live view (store/live.py)
         self.poll_seconds = poll_seconds
         self._created = time.perf_counter()
@@ -203,7 +252,11 @@ class Coordinator:
         self.interval = int(latest.islands.migration_interval)
         self.last = last_generation(latest)
         self.summary.last_generation = self.last
-        self.progress = progress or ProgressDisplay(total_generations=self.last, quiet=True)
+        self.progress = progress
+        if progress is not None:
+            progress.total_generations = self.last
+            progress.attach(self.hooks)
+        self.hooks.subscribe(on_island=on_island, on_generation=on_generation, on_commit=on_commit)
         history = self._events()
         self._injections = self._load_injections(history)
         self.paused = False
@@ -293,23 +346,32 @@ class Coordinator:
             return
         for kind, outcome in taken:
             if kind == "edit":
-                self.progress.message(f"intervention: configuration version {outcome.version} in force from "
+                self._say(f"intervention: configuration version {outcome.version} in force from "
                                       f"generation {outcome.effective_generation}")
             elif kind == "refused":
-                self.progress.message(f"intervention refused: {outcome}")
+                self._say(f"intervention refused: {outcome}")
             else:
                 self.paused = kind == "pause"
-                self.progress.message(f"{'paused' if self.paused else 'continuing'} before generation "
+                self._say(f"{'paused' if self.paused else 'continuing'} before generation "
                                       f"{outcome}")
         if any(kind == "edit" for kind, _ in taken):
             self._versions = self._load_versions()
             latest = self._versions[-1][2]
             self.interval = int(latest.islands.migration_interval)
             self.last = self.summary.last_generation = last_generation(latest)
-            self.progress.total_generations = self.last
             history = self._events()
             self._injections = self._load_injections(history)
             self._hand = self._load_hand(history)
+
+    def _say(self, text: str) -> None:
+        """A line for the user (``on_message``: the progress display prints it)."""
+        self.hooks.say(self, text)
+
+    def populations(self, generation: int) -> dict[int, Any]:
+        """Island -> its ``Generated`` of ``generation``, for the islands whose generation is held in
+        memory (not committed yet): what ``on_generation``'s subscribers may read of it."""
+        results = self._now.results if self._now is not None else {}
+        return {i: r[generation] for i, r in results.items() if generation in r}
 
     def _population(self, island: int, generation: int) -> list[Individual]:
         return list(self._timed_store(self.store.load_generation, island, generation))
@@ -400,7 +462,7 @@ class Coordinator:
         """The ``migration`` event after ``generation`` (``moves``: every island's migrants), once."""
         islands = config.islands
         if self.n_islands > 1 and islands.migrants:
-            self.progress.message(f"migration after generation {generation}: {islands.migrants} "
+            self._say(f"migration after generation {generation}: {islands.migrants} "
                                   f"migrant(s) per island, {islands.topology} topology")
         if generation in self._migrated:
             return None
@@ -423,10 +485,8 @@ class Coordinator:
 
     def _island_done(self, island: int, generation: int, done: Any) -> None:
         """One island completed one generation (``done``: the host's ``Generated``; not committed
-        yet): the progress table's row, ``on_island``, then the edits queued meanwhile are taken."""
-        self.progress.island(island, generation, done)
-        if self.on_island is not None:
-            self.on_island(self, island, generation, done)
+        yet): ``on_island``, then the edits queued meanwhile are taken."""
+        self.hooks.island_done(self, island, generation, done)
         self._take_during()
 
     def _take_during(self) -> None:
@@ -466,12 +526,10 @@ class Coordinator:
                 ray.get(ref)
 
     def _show(self, generation: int, results: Mapping[int, Mapping[int, Any]]) -> None:
-        """Every island has completed ``generation``: the progress line, then ``on_generation``."""
-        populations = {i: r[generation] for i, r in results.items() if generation in r}
+        """Every island has completed ``generation`` (its ``Generated`` in ``results``, which
+        ``populations`` reads): ``on_generation``."""
         self.summary.generations += 1
-        self.progress.generation(generation, populations, remaining=self.last - generation)
-        if self.on_generation is not None:
-            self.on_generation(self, generation)
+        self.hooks.generation_done(self, generation)
 
     def _parts(self, committed: Mapping[int, int], results: Mapping[int, Mapping[int, Any]],
                upto: int | None = None) -> tuple[list[Any], dict[int, int]]:
@@ -771,7 +829,7 @@ class Pipeline:
                 "recovery", self.committed[isl] + 1, isl,
                 {"reason": f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}",
                  "restarted_from": self.committed[isl]}))
-            run.progress.message(
+            run._say(
                 f"island {isl}: its host was lost; rebuilt from generation {self.committed[isl]}")
 
     def receive(self, island: int, g: int, population: Any) -> None:
@@ -845,8 +903,8 @@ class Pipeline:
         for g in [g for g in self.migrants_after if g < low and len(self.migrants_after[g]) == run.n_islands]:
             del self.migrants_after[g]
         run._migrated = {g for g in run._migrated if g >= low}   # no island migrates before low again
-        if committed and run.on_commit is not None:
-            run.on_commit(run, dict(after))
+        if committed:
+            run.hooks.committed(run, dict(after))
 
     def finish(self) -> None:
         """At a stop, an error or the end: await the commit under way; at a stop, each island's host

@@ -94,6 +94,19 @@ class ProgressDisplay:
         self._drawn = 0          # lines of the table now on screen (0: none)
         self._head = "waiting for the first generation"
 
+    def attach(self, hooks: Any) -> None:
+        """Subscribe to a coordinator's ``Hooks``: a row per island's generation, a line per
+        generation every island has completed, the run's messages."""
+        hooks.subscribe(on_island=lambda run, island, generation, done: self.island(island, generation, done),
+                        on_generation=self._generation_done,
+                        on_message=lambda run, text: self.message(text))
+
+    def _generation_done(self, run: Any, generation: int) -> None:
+        """``on_generation``: the line of ``generation`` (``run``: the coordinator, whose last
+        generation an edit may have moved)."""
+        self.total_generations = run.last
+        self.generation(generation, run.populations(generation), remaining=run.last - generation)
+
     def message(self, text: str) -> None:
         """A free-form line (start, migration, recovery, interrupt), unless quiet; above the table."""
         if self.quiet:

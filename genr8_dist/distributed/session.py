@@ -446,15 +446,15 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
             on_commit(coordinator, after)
 
     try:
+        progress = ProgressDisplay(total_generations=0, out=out, quiet=options.quiet)
         coordinator = Coordinator(store, hosts, stop=stop, on_generation=on_generation, on_commit=committed,
-                                  on_island=on_island, live=True, progress=None)
-        coordinator.progress = ProgressDisplay(total_generations=coordinator.last, out=out,
-                                               quiet=options.quiet)
+                                  on_island=on_island, live=True, progress=progress)
+
         def announce(text: str) -> None:   # above the progress table; said even when quiet
             if options.quiet:
                 print(text, file=out, flush=True)
             else:
-                coordinator.progress.message(text)
+                progress.message(text)
 
         with stop_on_signals(stop, announce=announce):
             return coordinator.run()

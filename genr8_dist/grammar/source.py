@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ast
 import difflib
+import functools
 import hashlib
 import importlib.abc
 import importlib.machinery
@@ -34,7 +35,11 @@ MAX_FILE_BYTES = 1_000_000                             # one file of a universe,
 _FILE_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\.(lark|py)$")
 
 
+@functools.lru_cache(maxsize=64)
 def _digest(files: tuple[tuple[str, str], ...]) -> str:
+    """The sha256 of ``files``, once per process and files: a host asks for its universe's digest at
+    every evaluation (``build_universe`` keys its cache by it), and hashing the files each time cost
+    more than half of a simulated host's CPU (bench/scale.py)."""
     h = hashlib.sha256()
     for name, text in files:
         data = text.encode("utf-8")

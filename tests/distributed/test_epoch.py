@@ -7,7 +7,7 @@ from __future__ import annotations
 import threading
 from types import SimpleNamespace
 
-from genr8_dist.distributed.coordinator import Coordinator, Pipeline, RunSummary
+from genr8_dist.distributed.coordinator import Coordinator, Hooks, Pipeline, RunSummary
 
 
 class _Call:
@@ -61,8 +61,8 @@ def _run(n_islands: int = 2, interval: int = 10, last: int = 1000):
         _emigrant_pool=lambda s, g, spec, done=None: [f"pool-{s}-{g}"],
         migration_event=lambda g, config, moves: Coordinator._event("migration", g, None, {}),
         _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
-        _event=Coordinator._event, _candidates={}, _migrated=set(), on_commit=None, stop=None,
-        progress=SimpleNamespace(message=messages.append),
+        _event=Coordinator._event, _candidates={}, _migrated=set(), hooks=Hooks(), stop=None,
+        _say=messages.append,
         _show=lambda g, results: shown.append(g), _island_done=lambda island, g, done: None,
         last=last, emigrant_spec=lambda config: (2, "best"),
         _parts=lambda committed, results, upto=None: Coordinator._parts(None, committed, results, upto),

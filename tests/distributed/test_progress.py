@@ -111,3 +111,24 @@ def test_a_pipe_gets_lines_and_no_table():
     assert out.getvalue() == line + "\n" and "\x1b" not in out.getvalue()
     quiet = ProgressDisplay(total_generations=5, out=_Terminal(), quiet=True)
     assert not quiet.table
+
+
+def test_the_display_draws_from_the_coordinators_hooks_in_the_order_they_subscribed():
+    from types import SimpleNamespace
+
+    from genr8_dist.distributed.coordinator import Hooks
+
+    out, seen = io.StringIO(), []
+    hooks = Hooks()
+    display = ProgressDisplay(total_generations=0, out=out, table=False)
+    display.attach(hooks)
+    hooks.subscribe(on_generation=lambda run, g: seen.append(("after the display", g, out.getvalue())),
+                    on_message=lambda run, text: seen.append(("message", text)))
+    run = SimpleNamespace(last=20, populations=lambda g: {0: _pop(0, [3.0, 1.0])})
+    hooks.say(run, "migration after generation 5")
+    hooks.generation_done(run, 4)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "migration after generation 5" and lines[1].startswith("gen  4/20")
+    assert display.total_generations == 20   # read from the run: an edit may move its last generation
+    assert seen[0] == ("message", "migration after generation 5")
+    assert seen[1][:2] == ("after the display", 4) and "gen  4/20" in seen[1][2]
