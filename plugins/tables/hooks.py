@@ -93,11 +93,12 @@ class TablesPhenotype(Phenotype):
         fig = plt.figure(figsize=(8.4, 5.0))
         ax = fig.add_axes((0.0, 0.08, 0.62, 0.84), projection="3d")
         self.draw(ax, developed)
-        voxels.draw_plan(fig.add_axes((0.66, 0.3, 0.31, 0.52)), developed.value.voxels)
+        voxels.draw_plan(fig.add_axes((0.64, 0.52, 0.34, 0.36)), developed.value.voxels)
+        voxels.draw_side(fig.add_axes((0.64, 0.10, 0.34, 0.32)), developed.value.voxels)
         raw = voxels.criteria(developed.value.voxels)
         fig.suptitle(title, fontsize=10)
         fig.text(0.5, 0.03, voxels.voxel_count_text(developed.value, raw), ha="center", fontsize=7.5)
-        fig.text(0.815, 0.22, f"top layer filled: {voxels.top_filled_share(developed.value.voxels):.0%} "
+        fig.text(0.81, 0.48, f"top layer filled: {voxels.top_filled_share(developed.value.voxels):.0%} "
                  "of its hull", ha="center", fontsize=7.5)
         return save_png(fig, path)
 

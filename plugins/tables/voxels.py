@@ -697,13 +697,15 @@ BODY_COLOUR = np.asarray([0.78, 0.55, 0.32])    # legs and everything below the 
 GROUND_COLOUR = np.asarray([0.42, 0.30, 0.22])  # what touches the ground (layer 0)
 
 
-def draw(ax: Any, voxels: np.ndarray, *, elev: float = 28.0, azim: float = -55.0) -> None:
-    """Draw the structure on a matplotlib 3D axes: its outer faces, the top layer in blue, the
-    voxels touching the ground dark and the rest wood, every voxel face outlined, on a ground grid."""
+def draw(ax: Any, voxels: np.ndarray, *, elev: float = 35.264, azim: float = -45.0) -> None:
+    """Draw the structure on a matplotlib 3D axes in an isometric (orthographic) view: its outer
+    faces, the top layer in blue, the voxels touching the ground dark and the rest wood, every voxel
+    face outlined, on a ground grid."""
     from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection
 
     vertices, faces = mesh_arrays(voxels)
     ax.set_axis_off()
+    ax.set_proj_type("ortho")
     ax.view_init(elev=elev, azim=azim)
     if not len(faces):
         return
@@ -748,6 +750,24 @@ def draw_plan(ax: Any, voxels: np.ndarray) -> None:
     ax.set_title("from above: top (blue), ground contact (dark)", fontsize=7)
 
 
+def draw_side(ax: Any, voxels: np.ndarray) -> None:
+    """The table seen from the front on a 2D axes (x across, height up): each column's filled
+    cells, the top layer blue, the ground layer dark, the rest wood, so the legs' height shows."""
+    image = np.ones((GRID, GRID, 3))
+    seen = voxels.any(axis=2)                     # (x, y)
+    layers = np.flatnonzero(voxels.sum(axis=(0, 2)))
+    if len(layers):
+        image[seen] = BODY_COLOUR
+        image[:, 0][seen[:, 0]] = GROUND_COLOUR
+        top = int(layers[-1])
+        image[:, top][seen[:, top]] = TOP_COLOUR
+    ax.imshow(image.transpose(1, 0, 2), origin="lower", interpolation="nearest")
+    ax.set_xticks([0, GRID - 1])
+    ax.set_yticks([0, GRID - 1])
+    ax.tick_params(labelsize=6, length=2)
+    ax.set_title("from the front: legs and top", fontsize=7)
+
+
 def voxel_count_text(table: Table, values: dict[str, float]) -> str:
     """A one-line caption: voxels, height, surface, stability, excess and the paper's fitness."""
     return (f"{table.n_voxels} voxels, height {values['height']:g}, surface {values['surface']:g}, "
@@ -777,5 +797,5 @@ def is_connected(voxels: np.ndarray) -> bool:
 
 __all__ = ["COMMANDS", "CRITERIA", "GRID", "MAX_COMMANDS", "MAX_MODULES", "Production", "System",
            "Table", "TablesError", "build", "command_string", "criteria", "derive", "develop", "draw",
-           "draw_plan", "fitness", "hull_area", "is_connected", "mesh_arrays", "parse",
+           "draw_plan", "draw_side", "fitness", "hull_area", "is_connected", "mesh_arrays", "parse",
            "top_filled_share"]
