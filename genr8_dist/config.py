@@ -52,6 +52,7 @@ __all__ = [
     "SearchSettings",
     "load_config",
     "section_table",
+    "top_table",
 ]
 
 TOPOLOGIES: tuple[str, ...] = ("ring", "full", "random")
@@ -366,8 +367,6 @@ if __doc__ is not None:
     __doc__ = __doc__.replace("{sections}", _sections_doc())
 
 S = TypeVar("S", bound="DataclassInstance")   # a settings section
-_TOP_KEYS = ("universe", "seed", "meshing", "genome", "ea", "fitness", "environment", "islands", "search",
-             "stored_universe")
 
 
 def _section(cls: type[S], data: object, name: str) -> S:
@@ -387,13 +386,54 @@ def _section(cls: type[S], data: object, name: str) -> S:
 class RunConfig:
     """Everything a run needs: universe, genome, EA, fitness, environment, islands and seed."""
 
-    universe: str = "default"
-    seed: int = 0
-    meshing: int = MESHING       # how surfaces are cut into triangles (genr8_dist.meshings.MESHINGS)
+    universe: str = setting(
+        "default",
+        (
+            "the BNF universe genomes are mapped with: a built-in (`default`, `reversible`, `symmetric`, "
+            "`probabilistic`), a plugin's name, or a path to a `.lark` file or plugin folder, resolved "
+            "relative to this configuration file (a plugin named by path runs its code after a one-line "
+            "notice: grammars/README.md, the trust rule)"
+        ),
+        read=lambda value, path, config: value,   # resolved before the fields are read
+    )
+    seed: int = setting(
+        0,
+        (
+            "the run seed; every random draw of the run derives from it (`genr8_dist.rng.stream(seed, "
+            '"island", i, "generation", g, purpose)`), so the same file gives the same run'
+        ),
+        minimum=0, maximum=2**63 - 1,
+    )
+    meshing: int = setting(
+        MESHING,
+        (
+            "how surfaces are cut into triangles for export, pictures and the studio "
+            "(`genr8_dist.hemls.meshing`): `3` well-shaped triangles (Triangle's constrained Delaunay "
+            "refinement of each region in its best-fit plane, or, where the region crosses itself there, in "
+            "its meshing-1 triangles unrolled flat; the points on shared sides settled over passes until no "
+            "region splits a side; added points lifted onto the region); `2` the same in the best-fit plane "
+            "only, sides fixed after one pass, regions crossing themselves cut as in 1; `1` each region of "
+            "m vertices cut into m - 2 triangles on its own vertices. A new run records the meshing it uses "
+            "in its manifest and regrows with it: runs created before meshing was recorded keep 1, runs "
+            "that recorded 2 keep 2 bit for bit. Under 2 and 3 `slivers` measures thin regions, not "
+            "triangles, so its values are the same under 2 and 3; under 1 (old runs) it measures the "
+            "triangles, so their stored values stay as they were"
+        ),
+        read=lambda value, path, config: check_meshing(value, path),
+    )
     genome: GenomeSettings = field(default_factory=GenomeSettings)
     ea: EASettings = field(default_factory=EASettings)
     fitness: FitnessSpec = None  # type: ignore[assignment]  # None: the phenotype's defaults
-    environment: Environment = None  # type: ignore[assignment]  # None: the default one
+    # a declared field, read by its own reader (None: the default environment)
+    environment: Environment = setting(  # noqa: RUF009
+        None,
+        (
+            "an inline `[environment]` table, or a path to an environment TOML file, resolved relative to "
+            "this configuration file"
+        ),
+        read=lambda value, path, config: _environment(value, path),
+        shown="the default environment",
+    )
     islands: IslandSettings = field(default_factory=IslandSettings)
     search: SearchSettings = field(default_factory=SearchSettings)
     universe_source: UniverseSource = None  # type: ignore[assignment]  # its files; None: look it up
@@ -414,8 +454,7 @@ class RunConfig:
                 check_source(source)
             except Genr8Error as exc:
                 raise _fail("stored_universe", str(exc)) from None
-        _set(self, "seed", read_int(self.seed, "", "seed", minimum=0, maximum=2**63 - 1))
-        _set(self, "meshing", check_meshing(self.meshing))
+        check_settings(self, "")
         for name, cls in _SECTIONS.items():
             _set(self, name, _section(cls, getattr(self, name), name))
         if self.fitness is None:
@@ -425,12 +464,6 @@ class RunConfig:
             _set(self, "fitness", FitnessSpec.from_dict(self.fitness, phenotype=kind))
         elif not isinstance(self.fitness, FitnessSpec):
             raise _fail("fitness", f"must be a table, got {self.fitness!r}")
-        if self.environment is None:
-            _set(self, "environment", Environment())
-        elif isinstance(self.environment, Mapping):
-            _set(self, "environment", Environment.from_dict(dict(self.environment), source="[environment]"))
-        elif not hasattr(self.environment, "to_dict"):
-            raise _fail("environment", f"must be a table or a file name, got {self.environment!r}")
         criteria = tuple(self.fitness.names)
         _names(self.search.objectives, "search.objectives", criteria, 0, len(criteria))
         if self.search.mode == "map-elites":
@@ -486,7 +519,7 @@ class RunConfig:
         for key in data:
             if key not in _TOP_KEYS:
                 raise _fail(key, f"unknown key; allowed: {', '.join(_TOP_KEYS)}")
-        kwargs: dict[str, Any] = {k: data[k] for k in ("seed", "meshing") if k in data}
+        kwargs: dict[str, Any] = {k: data[k] for k in _PLAIN if k in data}
         if "stored_universe" in data:
             try:
                 stored = UniverseSource.from_dict(data["stored_universe"], f"{source} [stored_universe]")
@@ -512,7 +545,7 @@ class RunConfig:
     def to_dict(self) -> dict[str, Any]:
         """A TOML-ready table (the environment always inline), such that ``from_dict(to_dict())`` is
         equal to this configuration."""
-        out: dict[str, Any] = {"universe": self.universe, "seed": self.seed, "meshing": self.meshing}
+        out: dict[str, Any] = {"universe": self.universe} | {k: getattr(self, k) for k in _PLAIN}
         for name in _SECTIONS:
             section = getattr(self, name)
             out[name] = {f.name: _lists(getattr(section, f.name)) for f in fields(section)}
@@ -550,6 +583,32 @@ class RunConfig:
             else:
                 kwargs[key] = value
         return RunConfig(**kwargs)
+
+
+def _environment(value: object, path: str) -> Environment:
+    """The ``environment`` field's value: the default environment for ``None``, an inline table
+    read, or an environment as it is."""
+    if value is None:
+        return Environment()
+    if isinstance(value, Mapping):
+        return Environment.from_dict(dict(value), source="[environment]")
+    if not hasattr(value, "to_dict"):
+        raise _fail(path, f"must be a table or a file name, got {value!r}")
+    return value  # type: ignore[return-value]  # an Environment, or a stand-in with its interface
+
+
+#: The top-level keys of a configuration file: the fields, its universe's files as ``stored_universe``.
+_TOP_KEYS: tuple[str, ...] = (*(f.name for f in fields(RunConfig) if f.name != "universe_source"),
+                              "stored_universe")
+#: The top-level settings read as they are written (the universe and the environment are resolved
+#: against the file's folder first).
+_PLAIN: tuple[str, ...] = tuple(f.name for f in fields(RunConfig) if "setting" in f.metadata
+                                and f.name not in ("universe", "environment"))
+
+
+def top_table() -> str:
+    """The documentation table of the top-level keys (docs/run-config.md), from their declarations."""
+    return settings_table(RunConfig)
 
 
 def _deep_merge(base: Mapping[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:

@@ -164,13 +164,16 @@ class Setting:
     choices: tuple[str, ...] | None = None
     rate: bool = False
     read: Callable[[Any, str, Any], Any] | None = None
+    shown: str | None = None
 
 
 def setting(default: Any, help: str, *, minimum: Bound = None, maximum: Bound = None,
             choices: Sequence[str] | None = None, rate: bool = False,
-            read: Callable[[Any, str, Any], Any] | None = None) -> Any:
-    """A dataclass field declared once: default, bounds or choices, help (see the module docstring)."""
-    info = Setting(help, minimum, maximum, None if choices is None else tuple(choices), rate, read)
+            read: Callable[[Any, str, Any], Any] | None = None, shown: str | None = None) -> Any:
+    """A dataclass field declared once: default, bounds or choices, help (see the module docstring);
+    ``shown``: the docs' default column where the default is no TOML value (``None``: a default
+    computed when the field is read)."""
+    info = Setting(help, minimum, maximum, None if choices is None else tuple(choices), rate, read, shown)
     return dataclasses.field(default=default, metadata={"setting": info})
 
 
@@ -196,11 +199,13 @@ def _read_setting(info: Setting, default: Any, value: Any, path: str, section: A
 
 def check_settings(section: Any, name: str) -> None:
     """Validate the declared fields of the frozen dataclass ``section`` (the table ``[name]``) in
-    declaration order, storing each normalised value; errors name ``name.field``."""
+    declaration order, storing each normalised value; errors name ``name.field`` (``field`` where
+    ``name`` is empty: the configuration's top level)."""
     for f in dataclasses.fields(section):
         info = f.metadata.get("setting")
         if info is not None:
-            value = _read_setting(info, f.default, getattr(section, f.name), f"{name}.{f.name}", section)
+            path = f"{name}.{f.name}" if name else f.name
+            value = _read_setting(info, f.default, getattr(section, f.name), path, section)
             object.__setattr__(section, f.name, value)
 
 
@@ -217,5 +222,6 @@ def settings_table(cls: type) -> str:
     for f in dataclasses.fields(cls):
         info = f.metadata.get("setting")
         if info is not None:
-            rows.append(f"| `{f.name}` | `{_toml(f.default)}` | {info.help} |")
+            shown = info.shown if info.shown is not None else f"`{_toml(f.default)}`"
+            rows.append(f"| `{f.name}` | {shown} | {info.help} |")
     return "\n".join(rows)

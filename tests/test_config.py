@@ -233,6 +233,19 @@ def test_the_docs_tables_are_the_declared_settings(name):
     assert after.startswith(section_table(name) + "\n\n")
 
 
+def test_the_docs_top_level_table_is_the_declared_fields():
+    """docs/run-config.md's top-level table is ``top_table``'s: a top-level field added to ``RunConfig``
+    and not to the docs fails here, and every declared field is a key a file may name."""
+    from genr8_dist.config import _TOP_KEYS, top_table
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "run-config.md").read_text(encoding="utf-8")
+    after = doc.split("top_table()", 1)[1].split("-->\n", 1)[1]
+    assert after.startswith(top_table() + "\n\n")
+    documented = [row.split("`")[1] for row in top_table().splitlines()[2:]]
+    assert documented == ["universe", "seed", "meshing", "environment"]
+    assert set(documented) <= set(_TOP_KEYS)
+
+
 def test_a_declared_bound_may_name_an_earlier_field():
     from genr8_dist.config import EASettings
 
