@@ -20,7 +20,7 @@ call, bracket or block in a successor 1 each per symbol: 45x there) and the repe
 command string the turtle ran (its length / its zlib-compressed length); a Mann-Whitney U test on
 the final best fitness; and a plain verdict on the paper's claim. ``--json FILE`` writes it all.
 
-    python bench/tables.py                      # 10 seeds, 20 x 60 (about 5 minutes on 2 cores)
+    python bench/tables.py                      # 10 seeds, 20 x 60 (about 800 CPU-s: 6-7 minutes on 2 cores)
     python bench/tables.py --seeds 20 --population 50 --generations 100 --workers 4
     python bench/tables.py --paper --workers 64 # 100 trials of 100 x 1,000 per encoding
 """

@@ -100,12 +100,12 @@ def _describe(exc: BaseException) -> str:
 
 def _check_genome(genome: Sequence[int]) -> tuple[int, ...]:
     try:
-        values = tuple(int(c) for c in genome)
+        values = tuple(map(int, genome))
     except (TypeError, ValueError):
         raise GenomeError(f"a genome is a sequence of non-negative integers, got {genome!r}") from None
     if not values:
         raise GenomeError("a genome needs at least one codon")
-    if any(c < 0 for c in values):
+    if min(values) < 0:
         raise GenomeError(f"codons must be non-negative, got {min(values)}")
     return values
 

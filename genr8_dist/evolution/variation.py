@@ -78,10 +78,12 @@ def map_genome(config: RunConfig, universe: Universe, genome: Sequence[int]) -> 
     if variation_for(config, universe) is None:
         return universe.map(list(genome), max_depth=config.genome.max_depth,
                             max_wraps=config.genome.max_wraps)
-    if any(not 0 <= c <= _LARGEST for c in genome):
-        return MapResult(None, False, "a text genome's codons are code points (0 to 1114111)",
+    try:
+        text = "".join(map(chr, genome))   # chr refuses what is not a code point
+    except (ValueError, TypeError, OverflowError):
+        return MapResult(None, False, f"a text genome's codons are code points (0 to {_LARGEST})",
                          len(genome), 0)
-    return MapResult("".join(map(chr, genome)), True, None, len(genome), 0)
+    return MapResult(text, True, None, len(genome), 0)
 
 
 def genome_of(config: RunConfig, universe: Universe, text: str) -> tuple[int, ...]:

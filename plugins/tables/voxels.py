@@ -482,6 +482,7 @@ class _Turtle:
         self.frame = 0
         self.left = max_commands
         self.run = 0
+        self.memo: dict[tuple, tuple[tuple[int, int, int], int, int]] = {}
 
     @property
     def grid(self) -> np.ndarray:
@@ -525,13 +526,36 @@ class _Turtle:
                     self.frame = _TURNS[symbol][int(item[2]) % 4][self.frame]
             elif kind == "[":
                 pos, frame = list(self.pos), self.frame
-                self.run_items(item[1])
+                self.run_block(item[1])
                 self.pos, self.frame = pos, frame
             elif kind == "{" and _has_command(item[2]):  # repeating nothing would only cost time
+                body = item[2]
                 for _ in range(max(0, int(item[1]))):
                     if self.left <= 0:
                         return
-                    self.run_items(item[2])
+                    self.run_block(body)
+
+    def run_block(self, items: tuple) -> None:
+        """Run a bracket's or a repeated block's ``items``. The turtle's path depends only on where it
+        starts and how it faces (a move stops at the grid's edge, never at a filled cell), so a block
+        run again from a state it ran from before fills no new cell: it only moves the turtle to the
+        same end and counts the same commands, which a memo of (block, start) gives at once."""
+        key = (id(items), self.pos[0], self.pos[1], self.pos[2], self.frame)
+        seen = self.memo.get(key)
+        if seen is not None:
+            end, frame, count = seen
+            if count >= self.left:     # the cap falls inside: later commands are skipped anyway
+                self.run += self.left
+                self.left = 0
+                return
+            self.left -= count
+            self.run += count
+            self.pos, self.frame = list(end), frame
+            return
+        before = self.run
+        self.run_items(items)
+        if self.left > 0:              # run whole: remember where it ends
+            self.memo[key] = (tuple(self.pos), self.frame, self.run - before)
 
 
 _ONES = [b"\x01" * k for k in range(GRID + 1)]

@@ -167,10 +167,10 @@ def test_any_command_string_builds_one_connected_structure(commands):
     assert V.is_connected(table.voxels)
 
 
-def _reference_turtle(word) -> np.ndarray:
+def _reference_turtle(word) -> tuple[np.ndarray, int]:
     """Table 1 read plainly: a frame of three world vectors turned a quarter at a time, a move
     one cell at a time that stops at the grid's edge, push/pop of position and frame; at most
-    ``MAX_COMMANDS`` commands run."""
+    ``MAX_COMMANDS`` commands run. The filled cells and the commands run."""
     grid = np.zeros((V.GRID,) * 3, dtype=bool)
     grid[V.START] = True
     left = [V.MAX_COMMANDS]
@@ -204,7 +204,7 @@ def _reference_turtle(word) -> np.ndarray:
         return pos, frame
 
     run(word, list(V.START), [[1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    return grid
+    return grid, V.MAX_COMMANDS - left[0]
 
 
 def _hull_of_each_layer(voxels: np.ndarray) -> float:
@@ -234,8 +234,33 @@ def test_the_turtle_fills_the_cells_a_plain_reading_of_table_1_fills(commands):
     text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {' '.join(parts)}\n"
     table = V.develop(text)
     word = V.derive(V.parse(text))[0]
-    assert np.array_equal(table.voxels, _reference_turtle(word))
+    assert np.array_equal(table.voxels, _reference_turtle(word)[0])
     assert V.criteria(table.voxels)["stability"] == _hull_of_each_layer(table.voxels)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]", "{"]), st.integers(-7, 45)),
+                min_size=1, max_size=40))
+def test_repeated_blocks_fill_and_count_as_run_one_by_one(commands):
+    """The turtle runs a block again from a start it ran it from before at once (its memo); long
+    and nested repetitions, up to the command cap, still fill and count what running every
+    command one by one does."""
+    opened, parts = [], []
+    for symbol, n in commands:
+        if symbol in "[{":
+            opened.append(symbol)
+            parts.append(symbol)
+        elif symbol == "]":
+            if opened:
+                parts.append("]" if opened.pop() == "[" else f"}} ( {abs(n) + 2} )")
+        else:
+            parts.append(f"{symbol} ( {n} )")
+    parts += ["]" if symbol == "[" else "} ( 40 )" for symbol in reversed(opened)]
+    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {{ {' '.join(parts)} }} ( 30 )\n"
+    table = V.develop(text)
+    voxels, run = _reference_turtle(V.derive(V.parse(text))[0])
+    assert np.array_equal(table.voxels, voxels)
+    assert table.commands == run
 
 
 def test_the_mesh_is_watertight_with_the_voxels_volume_and_the_same_bytes_each_time(tmp_path):
