@@ -38,7 +38,10 @@ No growth is spent where the text already shows the waste (the phenotype's ``scr
 ``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
 a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
-(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
+(``IslandStats.screened``); under ``ea.screen = 2`` also one whose growth, replayed on its edges'
+labels and ends, can never join two branches (``hemls.splitting.can_join``), and an offspring
+whose text shows it trivial is varied again in every mode, not only ``weighted``.
+In ``weighted`` mode an offspring that grows trivial is varied again
 too, from its first parent (its own variation broke what made the parent split its regions, so
 its neighbourhood is mostly trivial), as is one whose growth was capped; trivial again after
 ``_TRIVIAL_RETRIES`` such re-variations, it is kept (``IslandStats.kept_trivial``): a parent whose
@@ -437,7 +440,9 @@ class Island:
         to no text or, where a trivial child is varied again, when its text shows it trivial."""
         text, read = self._mapped(genome)
         trivial, key = self._screen(text)
-        wasted = trivial and (text is None or self._varies_trivial)
+        # under ea.screen 2 a text that shows itself trivial is varied again in every mode: it costs
+        # no growth, and growth would only confirm it
+        wasted = trivial and (text is None or self._varies_trivial or self.config.ea.screen >= 2)
         reason = "revaried_invalid" if text is None else "screened" if wasted else "revaried_text"
         return Look(wasted, key, read, reason)
 
