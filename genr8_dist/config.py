@@ -168,7 +168,8 @@ class EASettings:
         10, (
             "an offspring whose rewrite system or surface repeats a parent's or an earlier "
             "member's of its generation, or that is invalid (maps to no rewrite system, or its "
-            "growth is capped) or trivial (a surface of one region; in `weighted` mode only: a "
+            "growth is capped) or trivial (a surface of one region; under `screen = 1` in "
+            "`weighted` mode only: a "
             "Pareto front or a MAP-Elites archive may want it; a child trivial again after one "
             "re-variation is kept), is mutated again (at least one "
             "codon the mapper read; a trivial or capped child's first parent is mutated anew "
@@ -193,13 +194,14 @@ class EASettings:
             "what a text must show before growth for a founder or offspring to be drawn or varied "
             "again without growing it (`hemls.splitting`; `IslandStats.screened`, no evaluation "
             "spent): `1` no rule that can fire draws a branch (no region can ever split), or its "
-            "effective text repeats another's, offspring screened as trivial in `weighted` mode "
-            "only; `2` also a rewrite system whose growth, replayed on its edges' labels and ends "
-            "without geometry, never holds two branches of one label at two vertices pointing into "
-            "the seed polygon in one step (no join can happen: one region in any environment; "
-            "`tiles` random genomes: 48 of 134 grown-trivial texts caught, none wrongly), and "
-            "offspring screened as trivial in every mode. A new run records the screen it uses; "
-            "runs created before it was recorded keep 1"
+            "effective text repeats another's; an offspring that shows or grows trivial is varied "
+            "again in `weighted` mode only, one that shows it from itself; `2` also a rewrite "
+            "system whose growth, replayed on its edges' labels and ends without geometry, never "
+            "holds two branches of one label at two vertices pointing into the seed polygon in one "
+            "step (no join can happen: one region in any environment; `tiles` random genomes: 48 "
+            "of 134 grown-trivial texts caught, none wrongly); an offspring that shows or grows "
+            "trivial is varied again from its first parent, in every mode. A new run records the "
+            "screen it uses; runs created before it was recorded keep 1"
         ),
         minimum=1, maximum=SCREEN)
     within_used: bool = setting(

@@ -585,9 +585,10 @@ def test_screen_1_breeds_as_round_7_and_screen_2_the_same_rows_twice(mode, befor
     assert new != before and new == _rows_digest(config(2))
 
 
-def test_screen_2_grows_no_text_the_replay_shows_trivial_and_spends_fewer_evaluations(monkeypatch):
-    """Under ``ea.screen = 2`` no text whose replay shows no join can happen is grown, in any mode
-    (a Pareto front included), and the evaluations per stored individual fall (tiles, seed 2)."""
+def test_screen_2_grows_no_text_the_replay_shows_trivial_and_wastes_less(monkeypatch):
+    """Under ``ea.screen = 2`` no text whose replay shows no join can happen is grown; in
+    ``weighted`` mode the evaluations per stored individual fall, in ``pareto`` mode the trivial
+    share of the evolved generations (tiles, seed 2)."""
     from genr8_dist.evolution.evaluate import Evaluator
     from genr8_dist.hemls.splitting import screen
 
@@ -599,15 +600,18 @@ def test_screen_2_grows_no_text_the_replay_shows_trivial_and_spends_fewer_evalua
         return develop(self, text, defer)
 
     monkeypatch.setattr(Evaluator, "_grown", spy)
-    spent = {}
-    for version in (1, 2):
-        config = RunConfig.from_dict({"universe": "tiles", "seed": 2, "search": {"mode": "pareto"},
+    spent, trivial = {}, {}
+    for mode, version in itertools.product(("weighted", "pareto"), (1, 2)):
+        config = RunConfig.from_dict({"universe": "tiles", "seed": 2, "search": {"mode": mode},
                                       "ea": {"population": 16, "generations": 6, "screen": version},
                                       "environment": {"steps": 3}})
         grown.clear()
         island = Island(config, 0)
         hist = island.run()
-        spent[version] = island.evaluator.evaluations / sum(len(gen) for gen in hist)
+        spent[mode, version] = island.evaluator.evaluations / sum(len(gen) for gen in hist)
+        later = [ind for gen in hist[1:] for ind in gen]
+        trivial[mode, version] = sum(not i.valid or i.sizes["regions"] <= 1 for i in later) / len(later)
         if version == 2:
             assert grown and not any(screen(text, False, 3)[0] for text in grown)
-    assert spent[2] < spent[1]
+    assert spent["weighted", 2] < spent["weighted", 1]
+    assert trivial["pareto", 2] < min(trivial["pareto", 1], 0.1)
