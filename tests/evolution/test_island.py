@@ -537,7 +537,9 @@ def test_an_offspring_trivial_again_after_its_re_variation_is_kept_and_saves_gro
     from genr8_dist.evolution import island as island_module
 
     quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
-    config = load_config(quick).replace(islands={"count": 1, "migrants": 0}, ea={"generations": 8})
+    # screen 1: under 2 the replay catches before growth the children this test needs to grow trivial
+    config = load_config(quick).replace(islands={"count": 1, "migrants": 0},
+                                        ea={"generations": 8, "screen": 1})
 
     def run() -> tuple[list[Individual], int, int]:
         island = Island(config, 0)
