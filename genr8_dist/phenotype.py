@@ -223,12 +223,15 @@ class SurfacePhenotype(Phenotype):
 
     def screen(self, text: str, config: RunSettings) -> tuple[bool, str]:
         """Trivial when no rule that can fire draws a branch (no region can ever split: one region
-        whatever the environment); the key is the text without the rules that can never fire
-        (``genr8_dist.hemls.splitting.screen``)."""
+        whatever the environment) or, under ``ea.screen = 2``, when no step of the environment's can
+        hold two branches that could join (``hemls.splitting.can_join``); the key is the text
+        without the rules that can never fire (``genr8_dist.hemls.splitting.screen``)."""
         from genr8_dist.hemls.splitting import screen
 
         env = getattr(config, "environment", None)
-        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0))
+        replay = getattr(getattr(config, "ea", None), "screen", 1) >= 2 and env is not None
+        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0),
+                      int(env.steps) if replay else None)
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):

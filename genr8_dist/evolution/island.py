@@ -38,7 +38,10 @@ No growth is spent where the text already shows the waste (the phenotype's ``scr
 ``hemls.splitting``): a founder or offspring whose rewrite system has no rule that can fire drawing
 a branch (no region can ever split: trivial), or whose *effective* text (the rules that can fire)
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
-(``IslandStats.screened``). In ``weighted`` mode an offspring that grows trivial is varied again
+(``IslandStats.screened``); under ``ea.screen = 2`` also one whose growth, replayed on its edges'
+labels and ends, can never join two branches (``hemls.splitting.can_join``), and an offspring
+whose text shows it trivial is varied again in every mode, not only ``weighted``.
+In ``weighted`` mode an offspring that grows trivial is varied again
 too, from its first parent (its own variation broke what made the parent split its regions, so
 its neighbourhood is mostly trivial), as is one whose growth was capped; trivial again after
 ``_TRIVIAL_RETRIES`` such re-variations, it is kept (``IslandStats.kept_trivial``): a parent whose
@@ -80,6 +83,7 @@ from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, develo
 from genr8_dist.evolution.founders import Founders, is_trivial, settled
 from genr8_dist.evolution.individual import Individual
 from genr8_dist.evolution.operators import (
+    Child,
     Genome,
     Look,
     crossover,
@@ -150,6 +154,12 @@ _TRIVIAL_RETRIES = 1
 _SCREENS = 20   # genomes drawn or varied again, from their text alone, before one is grown
 
 
+def _first_parent(pool: Sequence[Individual], child: Child) -> tuple[Genome, int] | None:
+    """The genome and codons read of ``child``'s first parent, where it is valid (``None``: not)."""
+    first = pool[child.parents[0]]
+    return (tuple(first.genome), first.codons_used) if first.valid else None
+
+
 def _keys(ind: Individual | Evaluation) -> set[str]:
     keys = set()
     if ind.text is not None:
@@ -199,9 +209,11 @@ class Island:
     @property
     def _varies_trivial(self) -> bool:
         """Whether a trivial offspring is varied again: in ``weighted`` mode, where it only costs
-        the fitness it lacks; a Pareto front or a MAP-Elites archive may want its extremes (one
-        region is the most symmetric surface, the emptiest cell)."""
-        return self.config.search.mode == "weighted"
+        the fitness it lacks; under ``ea.screen = 1`` not in the other modes (a Pareto front or a
+        MAP-Elites archive may want its extremes: one region is the most symmetric surface, the
+        emptiest cell), under 2 in every mode (one trivial again after its re-variation is still
+        kept, and elites keep the best of them)."""
+        return self.config.search.mode == "weighted" or self.config.ea.screen >= 2
 
     def _screen(self, text: str | None) -> tuple[bool, str | None]:
         """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
@@ -402,7 +414,8 @@ class Island:
                      if b.evaluation is not None and b.evaluation.text is not None}
             children = screened(children, look=self._look, revary=revary, taken=taken, retries=retries,
                                 avoid=partial(self._avoid, pool) if retries else lambda _: set(),
-                                count=self._count)
+                                count=self._count,
+                                restart=partial(_first_parent, pool) if self.config.ea.screen >= 2 else None)
         else:   # the universe's own operators: a mate only for a recombination
             vary_rng = self.rng(generation, "variation")
             matings = select_matings(pick, select_rng, retries=mate_retries, count=self._count,

@@ -322,11 +322,15 @@ def recombination(matings: Iterator[Mating], rng: np.random.Generator, variation
 
 def screened(children: Iterator[Child], *, look: Callable[[Genome], Look],
              revary: Callable[[Genome, int], Genome], avoid: Callable[[tuple[int, ...]], set[str]],
-             taken: set[str | None], retries: int, count: Tally) -> Iterator[Child]:
+             taken: set[str | None], retries: int, count: Tally,
+             restart: Callable[[Child], tuple[Genome, int] | None] | None = None) -> Iterator[Child]:
     """The screen before evaluation: a child whose ``look`` shows it wasted, or whose key is one of
     its parents' (``avoid``) or of an earlier member's (``taken``, to which each child's key is
     added), is varied again (``revary`` of its genome and the codons read) up to ``retries`` times;
-    a crossed child varied again is ``crossover+mutation``. No genome is grown here."""
+    a crossed child varied again is ``crossover+mutation``. ``restart``: the genome and codons read
+    that a child whose text shows it trivial (reason ``screened``) is varied from instead of its own
+    (its first parent's: its variation broke what made the parent split; ``None``: its own). No
+    genome is grown here."""
     for child in children:
         keys = avoid(child.parents)
         genome, origin = child.genome, child.origin
@@ -336,7 +340,8 @@ def screened(children: Iterator[Child], *, look: Callable[[Genome], Look],
                 if not seen.wasted and seen.key not in keys and seen.key not in taken:
                     break
                 count(seen.reason, 1)
-                genome = revary(genome, seen.read)
+                base = restart(child) if restart is not None and seen.reason == "screened" else None
+                genome = revary(*base) if base is not None else revary(genome, seen.read)
                 seen = look(genome)
                 if origin == "crossover":
                     origin = "crossover+mutation"

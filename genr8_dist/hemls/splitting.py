@@ -9,6 +9,12 @@ the surface: a label of the axiom, or one a rule that can fire draws (on its mai
 branch, which becomes an edge when it joins); with label noise every label the system uses can
 occur. Contexts, conditions, weights and timing are not read: they can only stop a rule from
 firing, so the check never calls a system that splits a region trivial.
+
+A system that draws branches may still never join two: ``can_join`` replays a growth's topology
+(labels, ages and ends of the edges, no positions) and says whether any step can hold two branches
+of one label at two vertices pointing into the seed polygon, the least a join needs. It follows
+contexts and conditions exactly as growth reads them, so it too never calls a system that splits a
+region trivial; ``screen`` uses it when given the environment's steps (``ea.screen = 2``).
 """
 
 from __future__ import annotations
@@ -19,7 +25,11 @@ from functools import lru_cache
 
 from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Symbol
 
-__all__ = ["can_split", "firing", "screen"]
+__all__ = ["can_join", "can_split", "firing", "screen"]
+
+#: The replay of a growth's topology (``can_join``) gives up past this many edges (it then says
+#: "may join"): a text that stays one region past it is grown as before.
+_REPLAY_EDGES = 2000
 
 
 def _segments(symbols: tuple[Symbol, ...], inside: bool = False) -> Iterator[tuple[Segment, bool]]:
@@ -64,13 +74,135 @@ def can_split(system: RewriteSystem, *, label_noise: bool = False) -> bool:
     return firing(system, label_noise=label_noise)[1]
 
 
+def _context_ok(ev: list[tuple[int, int]], labels: list[int], at: dict[int, dict[int, int]], e: int,
+                end: int, label: int) -> bool:
+    """``growth._context_ok`` for one edge: another edge at its start (0) or end (1) has ``label``."""
+    return at.get(ev[e][end], {}).get(label, 0) - (labels[e] == label) > 0
+
+
+def _chain_ok(ev: list[tuple[int, int]], labels: list[int], live: list[int], e: int,
+              chain: tuple[int, ...]) -> bool:
+    """``growth._chain_ok`` for one edge: a path of edges labelled ``chain`` continues from its end."""
+    rest: set[int] | None = None   # where the rest of the chain can start (None: anywhere)
+    for lab in reversed(chain[1:]):
+        mask = set()
+        for f in live:
+            if labels[f] == lab:
+                p, q = ev[f]
+                if rest is None or q in rest:
+                    mask.add(p)
+                if rest is None or p in rest:
+                    mask.add(q)
+        rest = mask
+    lab, v = chain[0], ev[e][1]
+    count = 0
+    for f in live:
+        if labels[f] == lab:
+            p, q = ev[f]
+            count += (p == v and (rest is None or q in rest)) + (q == v and (rest is None or p in rest))
+    own = labels[e] == lab and (rest is None or ev[e][0] in rest)
+    return count - own > 0
+
+
+def can_join(system: RewriteSystem, steps: int) -> bool:
+    """Whether ``steps`` derivation steps of ``system`` (no label noise) may hold two pending
+    branches of one label at two vertices, both pointing into the seed polygon: the least a join
+    needs (branches join only with a branch of their own label at another vertex, drawn in the same
+    step, pointing into the same region and never the outside: ``hemls.joining``; unjoined ones are
+    dropped when the step ends). ``False``: every growth of it stays one region, in any environment.
+
+    Until the first join the map's topology does not depend on the geometry: the seed polygon's
+    edges are rewritten group by group as growth does it (``growth._rewrite_group``: the first rule
+    whose condition on the edge's age, contexts and chain hold at the group's start, then the
+    successor's main line in place of the edge), so this replays it on the labels, ages and ends of
+    the edges alone, with no positions, and collects each step's branches that point into the
+    polygon (each edge keeps which of its halves lies in it: an axiom edge the half along it unless
+    reversed, a successor's segment its rewritten edge's, the other where the segment is reversed;
+    a branch on the left of its main line points into the region of the edge's first half, one on
+    the right into the other's, one at an end into either, one along the main line or the normal
+    never joins). It answers ``True`` (may join) where the replay cannot follow growth: a rule with
+    weighted successors (growth draws one at random), a successor with no main line, a seed of one
+    edge, or more than ``_REPLAY_EDGES`` edges. Integers only: the same answer on every machine."""
+    from genr8_dist.hemls.rules import compile_system
+    from genr8_dist.hemls.turtle import AT_END, LEFT, NO_SIDE, RIGHT
+
+    c = compile_system(system)
+    n = len(c.axiom_labels)
+    if n < 2:
+        return True
+    ev = [((k + 1) % n, k) if rev else (k, (k + 1) % n) for k, rev in enumerate(c.axiom_reversed.tolist())]
+    labels = c.axiom_labels.tolist()
+    ages = [0] * n
+    inner = [int(rev) for rev in c.axiom_reversed.tolist()]   # which half of each edge is inside
+    live = list(range(n))
+    nv = n
+    for _ in range(steps):
+        pending: dict[int, set[int]] = {}   # label -> the vertices its inward branches start at
+        for group in c.groups:
+            idx = [e for e in live if labels[e] == group.label]
+            if not idx:
+                continue
+            at: dict[int, dict[int, int]] = {}   # vertex -> label -> edge ends there (group start)
+            for f in live:
+                for v in ev[f]:
+                    here = at.setdefault(v, {})
+                    here[labels[f]] = here.get(labels[f], 0) + 1
+            chosen = []
+            for e in idx:
+                for rule in group.rules:
+                    if rule.condition is not None and not rule.condition.holds(ages[e]):  # type: ignore[attr-defined]
+                        continue
+                    if rule.left is not None and not _context_ok(ev, labels, at, e, 0, rule.left):
+                        continue
+                    if rule.right is not None and not _context_ok(ev, labels, at, e, 1, rule.right):
+                        continue
+                    if rule.chain and not _chain_ok(ev, labels, live, e, rule.chain):
+                        continue
+                    if len(rule.templates) != 1:
+                        return True   # growth draws the successor: the replay cannot follow
+                    chosen.append((e, rule.templates[0]))
+                    break
+            gone = set()
+            for e, tpl in chosen:
+                k = tpl.n_segments
+                if k == 0:
+                    return True
+                s, t = ev[e]
+                chain = [s, *range(nv, nv + k - 1), t]
+                nv += k - 1
+                for i, (label, age, timed, rev) in enumerate(zip(
+                        tpl.main_labels.tolist(), tpl.main_ages.tolist(), tpl.main_timed.tolist(),
+                        tpl.main_reversed.tolist(), strict=True)):
+                    a, b = chain[i], chain[i + 1]
+                    ev.append((b, a) if rev else (a, b))
+                    labels.append(label)
+                    ages.append(max(ages[e] + age if timed else age, 0))
+                    inner.append(inner[e] ^ int(rev))
+                    live.append(len(ev) - 1)
+                into = {AT_END, LEFT if inner[e] == 0 else RIGHT}
+                for label, vertex, side in zip(tpl.branch_labels.tolist(), tpl.branch_vertex.tolist(),
+                                               tpl.branch_side.tolist(), strict=True):
+                    if side != NO_SIDE and side in into:
+                        starts = pending.setdefault(label, set())
+                        starts.add(chain[vertex])
+                        if len(starts) > 1:
+                            return True
+                gone.add(e)
+            live = [e for e in live if e not in gone]
+            if len(live) > _REPLAY_EDGES:
+                return True
+    return False
+
+
 @lru_cache(maxsize=8192)
-def screen(text: str, label_noise: bool = False) -> tuple[bool, str]:
+def screen(text: str, label_noise: bool = False, steps: int | None = None) -> tuple[bool, str]:
     """What the text of a rewrite system shows before growth: (whether it is trivial: no region can
     split, so it grows one region; its *effective* text: the system without the rules that can
     never fire). Two texts with one effective text grow the same surface (growth reads only the
     rules that fire, and its random draws are made by them), so one is a copy of the other. A text
-    that does not parse is neither (growth fails it, as data): ``(False, text)``."""
+    that does not parse is neither (growth fails it, as data): ``(False, text)``. ``steps``: the
+    environment's derivation steps; given (screen version 2, ``ea.screen``), a text is also trivial
+    when no step can hold two branches of one label at two vertices (``can_join``)."""
     from genr8_dist.hemls.language import parse
 
     try:
@@ -80,6 +212,8 @@ def screen(text: str, label_noise: bool = False) -> tuple[bool, str]:
     fires, branches = firing(system, label_noise=label_noise)
     if label_noise:   # the noise draws from every label the system uses: all of it matters
         return not branches, text
+    if branches and steps is not None:
+        branches = can_join(system, steps)
     rules = tuple(rule for rule, f in zip(system.rules, fires, strict=True) if f)
     effective = dataclasses.replace(system, rules=rules).to_text()
     names = system.label_ids()

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
     from genr8_dist.fitness import FitnessSpec
 
-__all__ = ["ConfigVersion", "Configs", "check_toml", "config_meshing", "phenotype_columns"]
+__all__ = ["ConfigVersion", "Configs", "check_toml", "config_meshing", "config_screen", "phenotype_columns"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,6 +66,19 @@ def config_meshing(config_toml: str) -> int:
     return MESHING if named is None else check_meshing(named, "configuration version 1: meshing")
 
 
+def config_screen(config_toml: str) -> int:
+    """The screen before growth (``ea.screen``) a new run of ``config_toml`` records: the one it
+    names, else the current one (checked when the configuration is read)."""
+    from genr8_dist.config import SCREEN
+
+    try:
+        ea = tomllib.loads(config_toml).get("ea")
+    except tomllib.TOMLDecodeError:
+        return SCREEN
+    named = ea.get("screen") if isinstance(ea, dict) else None
+    return named if isinstance(named, int) and not isinstance(named, bool) else SCREEN
+
+
 class Configs(Transactions):
     """A store's configuration versions."""
 
@@ -85,7 +98,7 @@ class Configs(Transactions):
 
             source = f"{self.path} configuration v{cv.version}"
             parsed = RunConfig.from_toml(cv.toml, source=source, criteria=self.criteria,
-                                         meshing=self.meshing)
+                                         meshing=self.meshing, screen=self.screen)
             self._parsed[key] = parsed
         return parsed
 

@@ -85,6 +85,7 @@ class Manifest(TypedDict):
     sizes: NotRequired[list[str]]               # absent: a run of schema 1 or 2
     columns: NotRequired[list[list[str | bool]]]  # [name, type, nullable]; absent: schema 1
     meshing: NotRequired[int]                   # absent: meshing 1
+    screen: NotRequired[int]                    # the ea.screen its configurations default to; absent: 1
     created: NotRequired[str]
     version: int                                # the commit number
     written: NotRequired[str]                   # when this commit was published

@@ -43,7 +43,14 @@ from genr8_dist.store import views
 from genr8_dist.store._fs import TMP_PREFIX, RunFS, resolve
 from genr8_dist.store.commits import Commits
 from genr8_dist.store.compaction import COMPACT_EVERY, COMPACT_TARGET_ROWS, Compaction
-from genr8_dist.store.configs import Configs, ConfigVersion, check_toml, config_meshing, phenotype_columns
+from genr8_dist.store.configs import (
+    Configs,
+    ConfigVersion,
+    check_toml,
+    config_meshing,
+    config_screen,
+    phenotype_columns,
+)
 from genr8_dist.store.garbage import TMP_STALE_SECONDS as TMP_STALE_SECONDS
 from genr8_dist.store.garbage import Garbage
 from genr8_dist.store.live import LIVE_DIR
@@ -152,6 +159,7 @@ class RunStore(Reads, Configs, Commits, Repair, Compaction, Garbage, LockAndQueu
                 "starting with a letter or digit"
             )
         meshing = config_meshing(config_toml)
+        screen = config_screen(config_toml)
         if criteria is None or sizes is None:
             own_criteria, own_sizes = phenotype_columns(config_toml)
             criteria = own_criteria if criteria is None else criteria
@@ -171,6 +179,7 @@ class RunStore(Reads, Configs, Commits, Repair, Compaction, Garbage, LockAndQueu
             "sizes": sized,
             "columns": columns,
             "meshing": meshing,
+            "screen": screen,
             "created": created,
             "version": 0,
             "configs": [],

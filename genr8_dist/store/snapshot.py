@@ -87,6 +87,13 @@ class Snapshot:
         return int(self._m.get("meshing", 1))
 
     @property
+    def screen(self) -> int:
+        """The screen before growth (``ea.screen``) this run was created with: what its
+        configurations use unless they name one. 1 for a run created before it was recorded (its
+        islands breed, and a resumed run goes on, as they did)."""
+        return int(self._m.get("screen", 1))
+
+    @property
     def schema_version(self) -> int:
         """The store schema version this run was created with (it keeps it for good)."""
         return int(self._m["schema_version"])

@@ -537,7 +537,9 @@ def test_an_offspring_trivial_again_after_its_re_variation_is_kept_and_saves_gro
     from genr8_dist.evolution import island as island_module
 
     quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
-    config = load_config(quick).replace(islands={"count": 1, "migrants": 0}, ea={"generations": 8})
+    # screen 1: under 2 the replay catches before growth the children this test needs to grow trivial
+    config = load_config(quick).replace(islands={"count": 1, "migrants": 0},
+                                        ea={"generations": 8, "screen": 1})
 
     def run() -> tuple[list[Individual], int, int]:
         island = Island(config, 0)
@@ -557,3 +559,61 @@ def test_an_offspring_trivial_again_after_its_re_variation_is_kept_and_saves_gro
 
 
 _OFFSPRING_ORIGINS = ("crossover", "mutation", "crossover+mutation")
+
+
+def _rows_digest(config: RunConfig) -> str:
+    import hashlib
+
+    hist = Island(config, 0).run()
+    rows = [(i.genome, i.text, repr(i.fitness), i.origin, i.parents) for gen in hist for i in gen]
+    return hashlib.sha256(repr(rows).encode()).hexdigest()
+
+
+@pytest.mark.parametrize("mode, before", [
+    ("weighted", "87da54dbc284f87e4607072ad4aac0ce790d2122022443fb9d88862801103018"),
+    ("pareto", "5d018a831bbd7638136350bc2eea3a64645170f0240eb9513b3ea9a77869414c"),
+])
+def test_screen_1_breeds_as_round_7_and_screen_2_the_same_rows_twice(mode, before):
+    """``ea.screen = 1`` (what a run created before the screen was recorded reads) breeds the rows
+    it bred before the replay existed, bit for bit (these digests are round 7's); ``ea.screen = 2``
+    breeds other rows, the same ones on every run of the configuration."""
+    def config(screen: int) -> RunConfig:
+        return RunConfig.from_dict({"universe": "tiles", "seed": 3, "search": {"mode": mode},
+                                    "ea": {"population": 10, "generations": 4, "screen": screen},
+                                    "environment": {"steps": 3}})
+
+    assert _rows_digest(config(1)) == before
+    new = _rows_digest(config(2))
+    assert new != before and new == _rows_digest(config(2))
+
+
+def test_screen_2_grows_no_text_the_replay_shows_trivial_and_wastes_less(monkeypatch):
+    """Under ``ea.screen = 2`` no text whose replay shows no join can happen is grown; in
+    ``weighted`` mode the evaluations per stored individual fall, in ``pareto`` mode the trivial
+    share of the evolved generations (tiles, seed 2)."""
+    from genr8_dist.evolution.evaluate import Evaluator
+    from genr8_dist.hemls.splitting import screen
+
+    grown: list[str] = []
+    develop = Evaluator._grown
+
+    def spy(self, text, defer=False):
+        grown.append(text)
+        return develop(self, text, defer)
+
+    monkeypatch.setattr(Evaluator, "_grown", spy)
+    spent, trivial = {}, {}
+    for mode, version in itertools.product(("weighted", "pareto"), (1, 2)):
+        config = RunConfig.from_dict({"universe": "tiles", "seed": 2, "search": {"mode": mode},
+                                      "ea": {"population": 16, "generations": 6, "screen": version},
+                                      "environment": {"steps": 3}})
+        grown.clear()
+        island = Island(config, 0)
+        hist = island.run()
+        spent[mode, version] = island.evaluator.evaluations / sum(len(gen) for gen in hist)
+        later = [ind for gen in hist[1:] for ind in gen]
+        trivial[mode, version] = sum(not i.valid or i.sizes["regions"] <= 1 for i in later) / len(later)
+        if version == 2:
+            assert grown and not any(screen(text, False, 3)[0] for text in grown)
+    assert spent["weighted", 2] < spent["weighted", 1]
+    assert trivial["pareto", 2] < min(trivial["pareto", 1], 0.1)

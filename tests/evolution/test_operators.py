@@ -109,3 +109,26 @@ def test_mutation_within_used_never_flips_outside_the_used_codons(genome, used, 
     span = max(1, min(len(genome), used))
     assert child[span:] == tuple(genome)[span:]
     assert n >= 1
+
+
+def test_a_child_its_text_shows_trivial_is_varied_again_from_its_first_parent():
+    """``screened`` with ``restart``: a child whose look says ``screened`` (its text shows it
+    trivial) is varied from what ``restart`` gives (its first parent), a copy from itself."""
+    from genr8_dist.evolution.operators import Child, Look, screened
+
+    parent = (7, 7, 7)
+    looks = {(1, 1, 1): Look(True, "a", 3, "screened"), (2, 2, 2): Look(False, "p", 3),
+             (3, 3, 3): Look(False, "b", 3), (4, 4, 4): Look(False, "c", 3)}
+    varied: list[tuple[int, ...]] = []
+
+    def revary(genome, codons):
+        varied.append(genome)
+        return {parent: (3, 3, 3), (2, 2, 2): (4, 4, 4)}[genome]
+
+    children = [Child((1, 1, 1), "crossover", (0, 1)), Child((2, 2, 2), "mutation", (0,))]
+    out = list(screened(iter(children), look=looks.__getitem__, revary=revary,
+                        avoid=lambda parents: {"p"}, taken=set(), retries=3,
+                        count=lambda name, n: None, restart=lambda child: (parent, 3)))
+    assert [c.genome for c in out] == [(3, 3, 3), (4, 4, 4)]
+    assert varied == [parent, (2, 2, 2)]   # the trivial one from its parent, the copy from itself
+    assert out[0].origin == "crossover+mutation"

@@ -1,5 +1,7 @@
 """The static check on a rewrite system's text: a system it calls trivial grows one region, and two
-texts with one effective text grow the same surface (a property over random genomes)."""
+texts with one effective text grow the same surface; the replay of a growth's topology
+(``can_join``): a system it says can never join two branches grows one region (properties over
+random genomes)."""
 
 from __future__ import annotations
 
@@ -9,7 +11,7 @@ from genr8_dist.config import RunConfig
 from genr8_dist.evolution.evaluate import Evaluator
 from genr8_dist.evolution.operators import random_genome
 from genr8_dist.hemls import load_system, parse
-from genr8_dist.hemls.splitting import can_split, screen
+from genr8_dist.hemls.splitting import can_join, can_split, screen
 from genr8_dist.rng import stream
 
 
@@ -58,3 +60,62 @@ def test_screened_texts_grow_as_the_check_says(universe):
             again = evaluator.evaluate_text(effective)
             assert (again.valid, again.phenotype_digest) == (evaluation.valid, evaluation.phenotype_digest)
     assert called_trivial > 0 and reduced > 0
+
+
+def test_branches_drawn_from_one_vertex_a_step_never_join():
+    """A rule that fires once draws its branches from one vertex: nothing to join (the first check
+    lets it through: it draws a branch), and its growth stays one region, in any environment."""
+    text = "Edge0 + Edge1 + Edge1 + Edge1\nEdge0 -> Edge1 [ [ + Edge2 ] - Edge2 ] Edge1\n"
+    assert can_split(parse(text)) and not can_join(parse(text), 5)
+    assert screen(text, False, 5)[0] and not screen(text)[0]
+    config = RunConfig.from_dict({"universe": "default", "environment": {"steps": 5}})
+    assert Evaluator(config).evaluate_text(text).sizes["regions"] == 1
+    two = text.replace("Edge0 + Edge1", "Edge0 + Edge0")   # two edges draw: two vertices
+    assert can_join(parse(two), 5) and not screen(two, False, 5)[0]
+
+
+def test_branches_into_the_outside_or_along_the_line_never_join():
+    """Branches that only point out of the seed polygon never join: the replay follows which side
+    of each edge the polygon lies on (a reversed segment turns it over)."""
+    inward = "Edge0 + Edge0 + Edge0 + Edge0\nEdge0 -> Edge1 [ + Edge2 ] Edge1\n"
+    outward = inward.replace("[ + Edge2 ]", "[ - Edge2 ]")
+    assert can_join(parse(inward), 3) and not can_join(parse(outward), 3)
+    flipped = outward.replace("-> Edge1 [", "-> ~ Edge1 [")   # the first segment reversed
+    config = RunConfig.from_dict({"universe": "default", "environment": {"steps": 3}})
+    evaluator = Evaluator(config)
+    assert evaluator.evaluate_text(outward).sizes["regions"] == 1
+    # whatever the replay says of the reversed one, a system it calls trivial grows one region
+    if not can_join(parse(flipped), 3):
+        assert evaluator.evaluate_text(flipped).sizes["regions"] <= 1
+
+
+def test_a_context_that_holds_at_one_edge_keeps_one_branch_vertex_a_step():
+    """Contexts are replayed as growth reads them: a rule whose left context holds at one edge of
+    the seed fires there alone."""
+    text = "Edge1 + Edge0 + Edge0 + Edge0\nEdge1 < Edge0 -> Edge0 [ [ + Edge2 ] - Edge2 ] Edge3\n"
+    free = text.replace("Edge1 < Edge0", "Edge0")
+    assert not can_join(parse(text), 1) and can_join(parse(free), 1)
+
+
+@pytest.mark.parametrize("universe", ["default", "tiles", "gecco", "symmetric", "reversible"])
+def test_texts_the_replay_calls_trivial_grow_one_region(universe):
+    """Over random genomes: every text ``can_join`` calls unable to join grows at most one region
+    (or fails), in an environment that bends and stretches the surface; and it catches texts the
+    first check lets through."""
+    config = RunConfig.from_dict({"universe": universe, "genome": {"length": 60},
+                                  "environment": {"steps": 3, "gravity": [0.0, 0.0, -0.5],
+                                                  "scale": [1.3, 1.2, 1.0]}})
+    evaluator = Evaluator(config)
+    rng = stream(5, "test", "replay", universe)
+    caught = 0
+    for _ in range(150):
+        genome = random_genome(rng, 60, 255)
+        evaluation = evaluator.preview(genome)
+        text = evaluation.text
+        if text is None or screen(text)[0] or (not evaluation.valid and evaluation.stage == "parse"):
+            continue
+        if not can_join(parse(text), 3):
+            caught += 1
+            assert not evaluation.valid or evaluation.sizes["regions"] <= 1, text
+    if universe in ("default", "tiles"):   # their rules seldom fire at more than one edge a step
+        assert caught > 0

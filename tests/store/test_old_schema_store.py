@@ -40,6 +40,7 @@ def test_an_old_run_is_read_with_the_schema_it_was_written_with():
     table = store.individuals()
     assert table.num_rows == 6 * (2 + 3)
     assert store.config(1).ea.generations == 4
+    assert store.screen == 1 and store.config(1).ea.screen == 1   # bred as it was: no screen recorded
 
 
 def test_an_old_run_answers_history_queries(capsys):

@@ -732,3 +732,15 @@ def test_verify_reports_a_truncated_head_even_when_it_still_reads_as_a_number(st
                for p in problems), problems
     reopened.repair()
     assert reopened.verify() == []
+
+
+def test_a_new_run_records_its_screen_and_a_configuration_naming_one_keeps_it(tmp_path: Path) -> None:
+    """A new run records the screen before growth it uses (``ea.screen``); its configurations use it
+    unless they name one (a run created before it was recorded reads 1: tests/store/test_old_schema_store)."""
+    from genr8_dist.config import SCREEN
+
+    text = "seed = 3\n[ea]\npopulation = 4\n"
+    store = RunStore.create(tmp_path / "new", text)
+    assert store.screen == SCREEN == 2 and store.config(1).ea.screen == SCREEN
+    named = RunStore.create(tmp_path / "named", text + "screen = 1\n")
+    assert named.screen == 1 and named.config(1).ea.screen == 1
