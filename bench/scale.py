@@ -217,7 +217,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         profiler = cProfile.Profile() if args.profile else None
         if profiler is not None:
             profiler.enable()
-        summary = start_run(config_path, str(run_dir), RunOptions(quiet=True, schedule_timeout=600.0),
+        summary = start_run(config_path, str(run_dir),
+                            RunOptions(quiet=True, schedule_timeout=600.0, host_cpus=args.host_cpus),
                             out=io.StringIO())
         if profiler is not None:
             profiler.disable()
@@ -253,6 +254,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     return {
         "islands": args.islands, "population": args.population, "cpus": args.cpus, "nodes": args.nodes,
         "generations": args.generations, "interval": args.interval, "scale": args.scale,
+        "host_cpus": args.host_cpus,
         "hosts": summary.hosts, "rows": rows, "epochs": len(commits),
         "rows_per_epoch": rows / len(commits) if commits else 0.0,
         "wall_s": wall, "startup_s": total - wall, "ideal_s": ideal,
@@ -288,6 +290,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--interval", type=int, default=5, help="islands.migration_interval")
     parser.add_argument("--scale", type=float, default=1.0,
                         help="multiplies every wait (1: the measured distribution)")
+    parser.add_argument("--host-cpus", type=int, default=1,
+                        help="CPUs of one simulated host: it evaluates that many waits at once (threads of "
+                             "one process, so Ray's per-process cost is paid once per N CPUs)")
     parser.add_argument("--genome-length", type=int, default=20)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")

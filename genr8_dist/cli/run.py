@@ -27,6 +27,10 @@ def _ray_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cpus", type=int, default=None, metavar="N",
                         help="CPUs of the local Ray (default: all of this machine's); with --address or "
                              "in a Ray job, the CPUs the run asks the cluster for (an autoscaler adds nodes)")
+    parser.add_argument("--host-cpus", type=int, default=1, metavar="N",
+                        help="CPUs of one island host, which evaluates N genomes at once in threads of one "
+                             "process (for a phenotype that waits on something outside Python or releases "
+                             "the GIL; default 1)")
     parser.add_argument("--quiet", action="store_true", help="print no progress lines, only the outcome")
     parser.add_argument("--dashboard", action=argparse.BooleanOptionalAction, default=None,
                         help="Ray's dashboard: a local Ray starts it (needs ray[default]) and its URL is "
@@ -48,7 +52,10 @@ def _options(args: argparse.Namespace) -> RunOptions:
 
     if args.cpus is not None and args.cpus < 1:
         raise ConfigError(f"--cpus {args.cpus}: must be >= 1")
-    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet,
+    host_cpus = int(getattr(args, "host_cpus", 1))
+    if host_cpus < 1:
+        raise ConfigError(f"--host-cpus {host_cpus}: must be >= 1")
+    return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet, host_cpus=host_cpus,
                       trust_hooks=bool(getattr(args, "trust_hooks", False)),
                       dashboard=getattr(args, "dashboard", None))
 

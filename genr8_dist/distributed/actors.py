@@ -17,10 +17,17 @@ generation under way (the offer is served by a thread of its own while ``advance
 the generation deals its genomes out as they are needed (work stealing at the genome level): a thread
 of the owner keeps each helper busy with a small batch of the genomes not yet taken (``evaluate``,
 served beside ``advance``), smaller as fewer are left, while the owner evaluates the others one by one,
-so a slow evaluation holds only the host evaluating it. A host evaluates one genome at a time, whoever
-it is for. Evaluation is a pure function of (genome, configuration), so the generation is the one the
-owner would have built alone; a helper that dies meanwhile only means its batch is evaluated by the
-owner.
+so a slow evaluation holds only the host evaluating it. Evaluation is a pure function of (genome,
+configuration), so the generation is the one the owner would have built alone; a helper that dies
+meanwhile only means its batch is evaluated by the owner.
+
+A host has ``slots`` CPUs (1 by default; ``RunOptions.host_cpus``): it evaluates up to ``slots`` genomes
+at once, whoever they are for (threads of one process: a phenotype whose development waits for
+something outside Python, or releases the GIL, keeps them all busy; one process then carries Ray's
+per-process costs for ``slots`` CPUs). It advances up to ``slots`` of its islands at once, and a
+generation's genomes are spread over its free slots (*lanes*, each with an ``Evaluator`` of its own,
+whose evaluations the island adopts as it adopts a helper's), so that a host's CPUs are not idle
+while one of its islands waits for its slowest genome.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ import socket
 import threading
 from collections import deque
 from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -78,11 +86,20 @@ class Generated:
 class IslandHost:
     """Hosts islands of one run; ``run_dir`` is where it reads a generation it does not hold."""
 
-    def __init__(self, run_dir: str) -> None:
+    def __init__(self, run_dir: str, slots: int = 1) -> None:
+        """``slots``: the genomes this host evaluates at once (its CPUs)."""
+        if slots < 1:
+            raise ValueError(f"an island host needs at least one slot, got {slots}")
+        self.slots = int(slots)
         self._offers: deque[Any] = deque()   # helpers offered while a generation is under way
         self._offered = threading.Event()     # set by ``offer``: the dealing thread looks at once
         self._helped = 0                      # genomes evaluated for other hosts' islands
-        self._cpu = threading.Lock()          # one evaluation at a time, whoever it is for
+        self._cpu = threading.BoundedSemaphore(self.slots)   # ``slots`` evaluations at once, whoever for
+        self._running: set[int] = set()       # tickets of the generations under way here
+        self._lanes = (ThreadPoolExecutor(self.slots - 1, thread_name_prefix="genr8-lane")
+                       if self.slots > 1 else None)
+        self._lane = threading.local()        # each lane's evaluators
+        self._opening = threading.Lock()      # the store, opened once
         self.bind(run_dir)
 
     def bind(self, run_dir: str) -> None:
@@ -93,6 +110,7 @@ class IslandHost:
         self._latest: dict[int, tuple[int, list[Individual]]] = {}
         self._evaluators: dict[int, Evaluator] = {}   # configuration version -> Evaluator, for helping
         self._store: RunStore | None = None
+        self._bound = object()   # the lanes' evaluators are this binding's
         self._unwritten: dict[int, list[Individual]] = {}   # island -> rows computed, no part yet
         self._written: dict[int, Part] = {}                  # island -> the last part written
         self._writing = threading.Lock()   # a stopping driver's flush runs beside advance
@@ -133,11 +151,12 @@ class IslandHost:
         return found
 
     def _store_of(self) -> RunStore:
-        if self._store is None:
-            from genr8_dist.store import RunStore
+        with self._opening:
+            if self._store is None:
+                from genr8_dist.store import RunStore
 
-            self._store = RunStore.open(self.run_dir)
-        return self._store
+                self._store = RunStore.open(self.run_dir)
+            return self._store
 
     def _previous(self, island: int, generation: int) -> list[Individual]:
         held = self._latest.get(island)
@@ -179,7 +198,12 @@ class IslandHost:
             previous = self._previous(island, generation - 1)
             births = model.breed(generation, previous, migrants=tuple(migrants), injected=tuple(injected),
                                  hand=tuple(hand))
-        evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
+        if ticket is not None:
+            self._running.add(ticket)
+        try:
+            evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
+        finally:
+            self._running.discard(ticket)   # type: ignore[arg-type]
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
         with self._writing:
@@ -220,23 +244,67 @@ class IslandHost:
 
     def offer(self, ticket: int, helper: Any) -> bool:
         """Offer ``helper`` (an idle host) to the generation submitted with ``ticket``. Tickets grow
-        in the order the coordinator submits, which is the order a host runs its generations in, so
-        an offer for a generation already done is dropped (its helper may be busy again by then)."""
+        in the order the coordinator submits, which is the order a host starts its generations in,
+        so an offer for a generation already done is dropped (its helper may be busy again by then)."""
         self._offers.append((ticket, _helping(helper)))
         self._offered.set()
         return True
 
     def _taken_offers(self, ticket: int | None) -> list[Any]:
-        """The helpers offered to the generation of ``ticket``; offers for later ones are kept."""
+        """The helpers offered to the generation of ``ticket``; offers for later ones, and for the
+        other generations under way here, are kept."""
         mine, later = [], []
+        running = set(self._running)
         while self._offers:
             offered_for, helper = self._offers.popleft()
             if ticket is not None and offered_for == ticket:
                 mine.append(helper)
-            elif ticket is None or offered_for > ticket:   # for a generation queued behind this one
+            elif ticket is None or offered_for > ticket or offered_for in running:
                 later.append((offered_for, helper))
         self._offers.extend(later)
         return mine
+
+    def _lane_evaluator(self, config_version: int, config: RunConfig) -> Evaluator:
+        """The calling lane's evaluator of configuration ``config_version`` (each lane has its own:
+        an ``Evaluator`` serves one thread at a time)."""
+        from genr8_dist.evolution.evaluate import Evaluator
+
+        held = getattr(self._lane, "evaluators", None)
+        if held is None or held[0] is not self._bound:
+            held = self._lane.evaluators = (self._bound, {})
+        found = held[1].get(config_version)
+        if found is None:
+            found = held[1][config_version] = Evaluator(config)
+        return found
+
+    def _work(self, deal: _Deal, evaluate: Any, wait: Any) -> None:
+        """Evaluate genomes of ``deal`` one at a time (a slot each) until none is left to take."""
+        while True:
+            genome = deal.take_one(wait=wait)
+            if genome is None:
+                return
+            with self._cpu:
+                evaluation = evaluate(genome)
+            deal.put(genome, evaluation)
+
+    def _spread(self, deal: _Deal, config_version: int, config: RunConfig) -> list[Future[None]]:
+        """Lanes of this host that take genomes of ``deal`` beside the calling thread (none for one
+        slot); each ends when none is left to take."""
+        if self._lanes is None or len(deal.todo) < 2:
+            return []
+
+        def lane() -> None:
+            self._work(deal, lambda g: self._lane_evaluator(config_version, config).evaluate(g),
+                       wait=_never)
+
+        return [self._lanes.submit(lane) for _ in range(min(self.slots - 1, len(deal.todo) - 1))]
+
+    @staticmethod
+    def _join(lanes: list[Future[None]]) -> None:
+        """Wait for the lanes that started; those still queued (the lanes were busy) are cancelled."""
+        for lane in lanes:
+            if not lane.cancel():
+                lane.result()
 
     def _evaluate(self, model: Any, genomes: list[tuple[int, ...]], helpers: Sequence[Any],
                   ticket: int | None) -> dict[tuple[int, ...], Any]:
@@ -247,12 +315,11 @@ class IslandHost:
         dealer = threading.Thread(target=self._deal, name="genr8-deal", daemon=True,
                                   args=(model, deal, [_helping(h) for h in helpers], ticket))
         dealer.start()
-        while True:
-            genome = deal.take_one(wait=dealer.is_alive)
-            if genome is None:
-                break
-            with self._cpu:
-                deal.out[genome] = model.evaluate(genome)
+        lanes = self._spread(deal, model.config_version, model.config)
+        try:
+            self._work(deal, model.evaluate, wait=dealer.is_alive)
+        finally:
+            self._join(lanes)
         dealer.join()
         if deal.error is not None:
             raise deal.error
@@ -299,19 +366,22 @@ class IslandHost:
     def evaluate(self, config_version: int, config: RunConfig,
                  genomes: Sequence[Sequence[int]]) -> list[Any]:
         """The evaluations of ``genomes`` under configuration version ``config_version`` (``config``),
-        for the host of another island (served beside this host's own ``advance``, one evaluation at
-        a time with it)."""
+        for the host of another island (served beside this host's own ``advance``, within its slots),
+        in their order."""
         from genr8_dist.evolution.evaluate import Evaluator
 
         evaluator = self._evaluators.get(config_version)
         if evaluator is None:
             evaluator = self._evaluators[config_version] = Evaluator(config)
         self._helped += len(genomes)
-        out = []
-        for genome in genomes:
-            with self._cpu:
-                out.append(evaluator.evaluate(genome))
-        return out
+        keys = [tuple(int(c) for c in genome) for genome in genomes]
+        deal = _Deal(list(dict.fromkeys(keys)))
+        lanes = self._spread(deal, config_version, config)
+        try:
+            self._work(deal, evaluator.evaluate, wait=_never)
+        finally:
+            self._join(lanes)
+        return [deal.out[key] for key in keys]
 
     def helped(self) -> int:
         """How many genomes this host has evaluated for other hosts' islands."""
@@ -327,15 +397,22 @@ class IslandHost:
 
 
 @functools.lru_cache(maxsize=8)
-def remote_host_class(num_cpus: float) -> Any:
+def remote_host_class(num_cpus: float, slots: int = 1) -> Any:
     """``IslandHost`` as a Ray actor class reserving ``num_cpus`` (fractions allowed), spread over the
     cluster's nodes (a lost node takes few islands with it), never restarted by Ray itself: the
-    coordinator replaces a dead host and reloads its islands from the store. One class per CPU
+    coordinator replaces a dead host and reloads its islands from the store. ``slots``: the
+    generations it advances at once (start it with the same ``slots``). One class per CPU
     reservation: Ray exports a class once (pickling its code), not once per host."""
     import ray
 
     actor = ray.remote(concurrency_groups={OFFERS: 1, HELPING: 1})(IslandHost)
-    return actor.options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0, scheduling_strategy="SPREAD")
+    return actor.options(num_cpus=num_cpus, max_restarts=0, max_task_retries=0, scheduling_strategy="SPREAD",
+                         max_concurrency=slots)
+
+
+def _never() -> bool:
+    """A lane's ``wait``: it never waits for genomes to come back (the owner does)."""
+    return False
 
 
 def _helping(helper: Any) -> Any:
@@ -374,6 +451,11 @@ class _Deal:
                     return None
                 self._cond.wait(DEAL_POLL)
             return self.todo.popleft()
+
+    def put(self, genome: tuple[int, ...], evaluation: Any) -> None:
+        """A genome taken here (``take_one``) evaluated."""
+        with self._cond:
+            self.out[genome] = evaluation
 
     def done(self, pairs: Any) -> None:
         with self._cond:

@@ -2,10 +2,11 @@
 
 A run uses the CPUs it is given, whatever its island count: the pool starts one host per free CPU
 (``max_hosts`` at most), each reserving one CPU (a fraction when the cluster offers less than one), and
-deals the islands out round-robin. When islands outnumber CPUs a host holds several; when CPUs outnumber
-islands the hosts holding none evaluate genomes of the others' generations (``actors``), so a 4-island
-run on 16 CPUs evaluates on 16. Every host reserves its CPU from Ray; a run that asks a cluster for more
-CPUs than are free (``cpus``) asks the cluster's autoscaler for them first, so it adds nodes
+deals the islands out round-robin; with ``host_cpus`` N, one host per N free CPUs, each reserving N and
+evaluating N genomes at once (``actors``). When islands outnumber CPUs a host holds several; when CPUs
+outnumber islands the hosts holding none evaluate genomes of the others' generations (``actors``), so a
+4-island run on 16 CPUs evaluates on 16. Every host reserves its CPUs from Ray; a run that asks a cluster
+for more CPUs than are free (``cpus``) asks the cluster's autoscaler for them first, so it adds nodes
 (cluster/README.md). A run that cannot be scheduled
 (no free CPU, or hosts not started within ``timeout`` seconds) is refused with a ``RunError``.
 
@@ -34,14 +35,19 @@ REPLACE_TIMEOUT = 20.0
 
 @dataclass(frozen=True, slots=True)
 class HostPlan:
-    """How many hosts to start and the CPUs each reserves."""
+    """How many hosts to start, the CPUs each reserves and the genomes each evaluates at once."""
 
     hosts: int
     num_cpus: float
+    slots: int = 1
 
 
-def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -> HostPlan:
-    """``min(free CPUs, max_hosts)`` hosts of one CPU each (a fraction below one free CPU)."""
+def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None,
+               host_cpus: int = 1) -> HostPlan:
+    """``min(free CPUs // host_cpus, max_hosts)`` hosts of ``host_cpus`` CPUs (and slots) each; with
+    fewer free CPUs than ``host_cpus``, one host of the free CPUs (a fraction below one free CPU)."""
+    if host_cpus < 1:
+        raise RunError(f"a host needs at least one CPU, got host_cpus={host_cpus}")
     if n_islands < 1:
         raise RunError(f"a run needs at least one island, got {n_islands}")
     if not free_cpus > 0:
@@ -49,20 +55,25 @@ def plan_hosts(n_islands: int, free_cpus: float, max_hosts: int | None = None) -
             f"the Ray cluster has no free CPU for {n_islands} island(s); "
             "free some, add a node, or give the local Ray more CPUs"
         )
-    hosts = max(1, math.floor(free_cpus))
+    if free_cpus < host_cpus:   # one host of what is free
+        slots = max(1, math.floor(free_cpus))
+        return HostPlan(hosts=1, num_cpus=float(slots) if free_cpus >= 1 else float(free_cpus), slots=slots)
+    hosts = max(1, math.floor(free_cpus / host_cpus))
     if max_hosts is not None:
         hosts = max(1, min(hosts, max_hosts))
-    return HostPlan(hosts=hosts, num_cpus=1.0 if free_cpus >= 1 else float(free_cpus))
+    return HostPlan(hosts=hosts, num_cpus=float(host_cpus), slots=host_cpus)
 
 
 class HostPool:
     """The live island hosts of one run and which island each holds."""
 
     def __init__(self, run_dir: str, n_islands: int, *, max_hosts: int | None = None,
-                 timeout: float = 60.0, settle: float = 5.0, cpus: int | None = None) -> None:
+                 timeout: float = 60.0, settle: float = 5.0, cpus: int | None = None,
+                 host_cpus: int = 1) -> None:
         """``cpus``: the CPUs the run asks a cluster for (``genr8 run --cpus`` with ``--address``):
         when fewer are free, the cluster's autoscaler is asked for them and the pool waits up to
-        ``timeout`` seconds for them, then uses what is free (at most ``cpus``)."""
+        ``timeout`` seconds for them, then uses what is free (at most ``cpus``). ``host_cpus``: the
+        CPUs of one host, which evaluates that many genomes at once (``plan_hosts``)."""
         self.run_dir = run_dir
         self.n_islands = n_islands
         self.timeout = timeout
@@ -70,12 +81,12 @@ class HostPool:
         if cpus is not None:
             if free < cpus:
                 free = self._ask_for(cpus, timeout)
-            max_hosts = min(cpus, max_hosts) if max_hosts is not None else cpus
-        self.plan = plan_hosts(n_islands, free, max_hosts)
+            free = min(free, float(cpus))
+        self.plan = plan_hosts(n_islands, free, max_hosts, host_cpus)
         self._hosts: list[Any] = []
         self._alive: list[bool] = []
         self.placement: dict[int, int] = {}
-        handles = [self._new_host(self.plan.num_cpus) for _ in range(self.plan.hosts)]
+        handles = [self._new_host() for _ in range(self.plan.hosts)]
         self._await_ready(handles, what=f"{self.plan.hosts} island host(s)")
         for handle in handles:
             self._hosts.append(handle)
@@ -115,10 +126,10 @@ class HostPool:
                 return free
             time.sleep(1.0)
 
-    def _new_host(self, num_cpus: float) -> Any:
+    def _new_host(self) -> Any:
         from genr8_dist.distributed.actors import remote_host_class
 
-        return remote_host_class(num_cpus).remote(self.run_dir)
+        return remote_host_class(self.plan.num_cpus, self.plan.slots).remote(self.run_dir, self.plan.slots)
 
     def _await_ready(self, handles: Sequence[Any], *, what: str) -> None:
         import ray
@@ -196,7 +207,7 @@ class HostPool:
             ray.kill(self._hosts[dead], no_restart=True)
         target: int | None = None
         if ray.available_resources().get("CPU", 0.0) >= self.plan.num_cpus:
-            handle = self._new_host(self.plan.num_cpus)
+            handle = self._new_host()
             try:
                 ray.get(handle.ready.remote(), timeout=min(self.timeout, REPLACE_TIMEOUT))
             except (ray.exceptions.GetTimeoutError, ray.exceptions.RayActorError):

@@ -51,6 +51,8 @@ class RunOptions:
     quiet: bool = False
     schedule_timeout: float = 60.0        # seconds to wait for the island hosts to start
     max_hosts: int | None = None          # at most this many island hosts (default: one per free CPU)
+    host_cpus: int = 1                    # the CPUs of one island host: it evaluates that many genomes at
+                                          # once (threads: for a phenotype that waits or releases the GIL)
     trust_hooks: bool = False             # run the Python code a run directory carries (resume)
     dashboard: bool | None = None         # Ray's dashboard: on (a local Ray starts it), off, or None:
                                           # a cluster's URL printed when its head runs one
@@ -429,7 +431,8 @@ def drive(store: RunStore, options: RunOptions, *, out: TextIO | None = None,
     if hosts is None:
         latest = latest_config(store)
         hosts = HostPool(str(store.path), int(latest.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
+                         host_cpus=options.host_cpus, timeout=options.schedule_timeout,
+                         cpus=_cluster_cpus(options))
     stop = stop if stop is not None else StopRequest()
     live = store.live()   # the hosts write each island's completed generation there (advance's live)
 
@@ -561,7 +564,8 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
                         **_dashboard_options(options, out)), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
                          int(config.islands.count), max_hosts=options.max_hosts,
-                         timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
+                         host_cpus=options.host_cpus, timeout=options.schedule_timeout,
+                         cpus=_cluster_cpus(options))
         try:
             lock = _lock_new_run(run_dir)
             stack.callback(lock.release)
@@ -617,7 +621,8 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         own = hosts is None
         if own:
             hosts = HostPool(str(store.path), n, max_hosts=options.max_hosts,
-                             timeout=options.schedule_timeout, cpus=_cluster_cpus(options))
+                             host_cpus=options.host_cpus, timeout=options.schedule_timeout,
+                             cpus=_cluster_cpus(options))
         else:
             hosts.rebind(str(store.path), n)
         try:

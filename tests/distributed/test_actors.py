@@ -84,3 +84,42 @@ def test_an_offer_helps_its_own_generation_only(two_hosts, ray_local):
     owner.advance(1, 1, None, 1, ticket=9)
     assert ray_local.get(stale.helped.remote()) == 0
     assert ray_local.get(later.helped.remote()) > 0
+
+
+def test_a_host_of_several_slots_evaluates_genomes_at_once_and_builds_the_same_rows(tmp_path, monkeypatch):
+    from genr8_dist.evolution import evaluate as evaluate_module
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml(islands=2))
+    config = parse_config(tiny_toml(islands=2), "tiny")
+    alone = IslandHost(str(run_dir))
+    for g in range(3):
+        alone.advance(0, g, config if g == 0 else None, 1)
+    expected = _untimed(alone.latest(0))
+
+    import threading
+    import time
+
+    real = evaluate_module.Evaluator.evaluate
+    lock, now, most = threading.Lock(), [0], [0]
+
+    def slow(self, genome):   # every evaluation lasts a while, as a waiting phenotype's does
+        with lock:
+            now[0] += 1
+            most[0] = max(most[0], now[0])
+        try:
+            time.sleep(0.01)
+            return real(self, genome)
+        finally:
+            with lock:
+                now[0] -= 1
+
+    monkeypatch.setattr(evaluate_module.Evaluator, "evaluate", slow)
+    wide = IslandHost(str(run_dir), slots=3)
+    for g in range(3):
+        wide.advance(0, g, config if g == 0 else None, 1)
+    assert _untimed(wide.latest(0)) == expected
+    assert most[0] == 3                                   # three at once, never more
+    genomes = [ind.genome for ind in expected][::-1]   # a helper's batch, answered in its order
+    assert ([h.fitness for h in wide.evaluate(1, config, genomes)]
+            == [h.fitness for h in IslandHost(str(run_dir)).evaluate(1, config, genomes)])

@@ -47,3 +47,11 @@ def test_a_run_asking_a_cluster_for_more_cpus_than_are_free_waits_then_uses_what
     monkeypatch.setattr(hosts.time, "monotonic", lambda: next(clock))
     assert hosts.HostPool._ask_for(16, timeout=30.0) == 3.0
     assert len(asked) >= 2   # it waited (seconds of the fake clock) before giving up
+
+
+def test_hosts_of_several_cpus_each_evaluate_that_many_at_once():
+    plan = plan_hosts(256, free_cpus=64, host_cpus=8)
+    assert (plan.hosts, plan.num_cpus, plan.slots) == (8, 8.0, 8)
+    assert plan_hosts(4, free_cpus=3, host_cpus=4) == plan_hosts(4, free_cpus=3, host_cpus=3)
+    with pytest.raises(RunError, match="host_cpus=0"):
+        plan_hosts(4, free_cpus=8, host_cpus=0)
