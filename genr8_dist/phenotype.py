@@ -229,9 +229,10 @@ class SurfacePhenotype(Phenotype):
         from genr8_dist.hemls.splitting import screen
 
         env = getattr(config, "environment", None)
-        replay = getattr(getattr(config, "ea", None), "screen", 1) >= 2 and env is not None
-        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0),
-                      int(env.steps) if replay else None)
+        steps = None
+        if env is not None and getattr(getattr(config, "ea", None), "screen", 1) >= 2:
+            steps = int(env.steps)
+        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0), steps)
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):

@@ -203,7 +203,7 @@ class IslandHost:
         try:
             evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
         finally:
-            self._running.discard(ticket)   # type: ignore[arg-type]
+            self._running.discard(ticket)
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
         with self._writing:
@@ -269,9 +269,10 @@ class IslandHost:
         an ``Evaluator`` serves one thread at a time)."""
         from genr8_dist.evolution.evaluate import Evaluator
 
-        held = getattr(self._lane, "evaluators", None)
+        held: tuple[Any, dict[int, Evaluator]] | None = getattr(self._lane, "evaluators", None)
         if held is None or held[0] is not self._bound:
-            held = self._lane.evaluators = (self._bound, {})
+            held = (self._bound, {})
+            self._lane.evaluators = held
         found = held[1].get(config_version)
         if found is None:
             found = held[1][config_version] = Evaluator(config)
