@@ -500,18 +500,10 @@ def test_only_the_individuals_kept_are_measured_and_the_rows_are_those_measuring
     assert eager.stats == lazy.stats
     assert lazy.evaluator.growths == eager.evaluator.growths > len(kept)
 
-
-def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_never_grown(monkeypatch):
-    """No evolved generation keeps a trivial surface (one region) while the evaluations per stored
-    individual stay near one: a text that shows it is trivial is set aside before growth, and a
-    child that grows trivial is varied again from its parent (quick.toml's settings, one island)."""
-    from genr8_dist.config import load_config
+def _texts_grown(monkeypatch) -> list[str]:
+    """The texts every Evaluator grows from now on, in order (a spy on ``Evaluator._grown``)."""
     from genr8_dist.evolution.evaluate import Evaluator
-    from genr8_dist.hemls.splitting import screen
 
-    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
-    config = load_config(quick).replace(
-        islands={"count": 1, "migrants": 0}, ea={"generations": 6})
     grown: list[str] = []
     develop = Evaluator._grown
 
@@ -520,6 +512,20 @@ def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_ne
         return develop(self, text, defer)
 
     monkeypatch.setattr(Evaluator, "_grown", spy)
+    return grown
+
+
+def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_never_grown(monkeypatch):
+    """No evolved generation keeps a trivial surface (one region) while the evaluations per stored
+    individual stay near one: a text that shows it is trivial is set aside before growth, and a
+    child that grows trivial is varied again from its parent (quick.toml's settings, one island)."""
+    from genr8_dist.config import load_config
+    from genr8_dist.hemls.splitting import screen
+
+    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
+    config = load_config(quick).replace(
+        islands={"count": 1, "migrants": 0}, ea={"generations": 6})
+    grown = _texts_grown(monkeypatch)
     island = Island(config, 0)
     hist = island.run()
     stored = sum(len(gen) for gen in hist)
@@ -591,17 +597,9 @@ def test_screen_2_grows_no_text_the_replay_shows_trivial_and_wastes_less(monkeyp
     """Under ``ea.screen = 2`` no text whose replay shows no join can happen is grown; in
     ``weighted`` mode the evaluations per stored individual fall, in ``pareto`` mode the trivial
     share of the evolved generations (tiles, seed 2)."""
-    from genr8_dist.evolution.evaluate import Evaluator
     from genr8_dist.hemls.splitting import screen
 
-    grown: list[str] = []
-    develop = Evaluator._grown
-
-    def spy(self, text, defer=False):
-        grown.append(text)
-        return develop(self, text, defer)
-
-    monkeypatch.setattr(Evaluator, "_grown", spy)
+    grown = _texts_grown(monkeypatch)
     spent, trivial = {}, {}
     for mode, version in itertools.product(("weighted", "pareto"), (1, 2)):
         config = RunConfig.from_dict({"universe": "tiles", "seed": 2, "search": {"mode": mode},

@@ -216,22 +216,30 @@ def _hull_of_each_layer(voxels: np.ndarray) -> float:
     return total
 
 
-@settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]", "{"]), st.integers(-7, 45)),
-                min_size=1, max_size=50))
-def test_the_turtle_fills_the_cells_a_plain_reading_of_table_1_fills(commands):
+def _nested(commands, repeats, last: int) -> str:
+    """A successor of ``commands``: ``[`` and ``{`` open, ``]`` closes what is open (a bracket with
+    ``]``, a block with ``} ( repeats(n) )``), what is left open closed at the end (blocks repeated
+    ``last`` times)."""
     opened, parts = [], []
     for symbol, n in commands:
         if symbol in "[{":
             opened.append(symbol)
             parts.append(symbol)
-        elif symbol == "]":   # closes what is open, a bracket with ']', a block with '} ( n )'
+        elif symbol == "]":
             if opened:
-                parts.append("]" if opened.pop() == "[" else f"}} ( {n % 4} )")
+                parts.append("]" if opened.pop() == "[" else f"}} ( {repeats(n)} )")
         else:
             parts.append(f"{symbol} ( {n} )")
-    parts += ["]" if symbol == "[" else "} ( 3 )" for symbol in reversed(opened)]
-    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {' '.join(parts)}\n"
+    parts += ["]" if symbol == "[" else f"}} ( {last} )" for symbol in reversed(opened)]
+    return " ".join(parts)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]", "{"]), st.integers(-7, 45)),
+                min_size=1, max_size=50))
+def test_the_turtle_fills_the_cells_a_plain_reading_of_table_1_fills(commands):
+    body = _nested(commands, lambda n: n % 4, 3)
+    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {body}\n"
     table = V.develop(text)
     word = V.derive(V.parse(text))[0]
     assert np.array_equal(table.voxels, _reference_turtle(word)[0])
@@ -245,18 +253,8 @@ def test_repeated_blocks_fill_and_count_as_run_one_by_one(commands):
     """The turtle runs a block again from a start it ran it from before at once (its memo); long
     and nested repetitions, up to the command cap, still fill and count what running every
     command one by one does."""
-    opened, parts = [], []
-    for symbol, n in commands:
-        if symbol in "[{":
-            opened.append(symbol)
-            parts.append(symbol)
-        elif symbol == "]":
-            if opened:
-                parts.append("]" if opened.pop() == "[" else f"}} ( {abs(n) + 2} )")
-        else:
-            parts.append(f"{symbol} ( {n} )")
-    parts += ["]" if symbol == "[" else "} ( 40 )" for symbol in reversed(opened)]
-    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {{ {' '.join(parts)} }} ( 30 )\n"
+    body = _nested(commands, lambda n: abs(n) + 2, 40)
+    text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {{ {body} }} ( 30 )\n"
     table = V.develop(text)
     voxels, run = _reference_turtle(V.derive(V.parse(text))[0])
     assert np.array_equal(table.voxels, voxels)
