@@ -9,6 +9,7 @@ temporary folder)."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -319,8 +320,13 @@ def test_objective_space_kinds_statistics_and_a_layout_without_overlap(tmp_path,
     shown = set(driver.execute_script("return window.studio.order"))
     _, flat = _front(view, names[:2])
     alone = [i for i, p in sorted(flat.items()) if [q for q in flat.values() if q == p] == [p]]
-    ident = next((i for i in alone if i not in shown), alone[-1])
-    x, y = driver.execute_script("return window.studio.objectiveAt(arguments[0])", ident)
+    at = {i: driver.execute_script("return window.studio.objectiveAt(arguments[0])", i) for i in flat}
+
+    def room(i: str) -> float:   # pixels to the nearest other point: a click there is unambiguous
+        return min((math.dist(at[i], at[j]) for j in flat if j != i and flat[j] != flat[i]), default=1e9)
+
+    ident = max(alone, key=lambda i: (i not in shown, room(i), i))
+    x, y = at[ident]
     click = ActionBuilder(driver)
     click.pointer_action.move_to_location(int(x), int(y)).click()
     click.perform()

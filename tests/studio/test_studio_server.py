@@ -7,6 +7,7 @@ import json
 import urllib.error
 import urllib.request
 
+import pyarrow.compute as pc
 import pytest
 
 from genr8_dist.distributed.coordinator import parse_config
@@ -103,9 +104,13 @@ def test_state_curves_generation_and_a_design(studio):
 
 
 def test_the_kinds_of_form_are_one_existing_design_per_cluster(studio, run_dir, monkeypatch):
+    from genr8_dist.history._tables import form_ids
+
     store = RunStore.open(str(run_dir))
-    rows = store.dataset().to_table(columns=["id", "generation", "valid", "phenotype_digest"]).to_pylist()
-    valid = {r["id"]: r["phenotype_digest"] for r in rows if r["generation"] == 1 and r["valid"]}
+    table = store.dataset().to_table()
+    table = table.filter(pc.and_(pc.equal(table["generation"], 1), pc.equal(table["valid"], True)))
+    forms = form_ids(table)   # mirror images and copies are one form, as the kinds count them
+    valid = {i: int(f) for i, f in zip(table["id"].to_pylist(), forms, strict=True)}
     distinct = len(set(valid.values()))
     assert distinct >= 4
     for k, expected in ((4, 4), (12, min(12, distinct))):
