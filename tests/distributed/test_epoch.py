@@ -97,6 +97,23 @@ def test_submit_sends_a_configuration_once_per_host_and_lends_a_free_host():
     assert _advances(run)[-1][1][:3] == (0, 2, None)
 
 
+def test_every_call_to_a_host_carries_the_configuration_until_it_answered_one():
+    # One host with several slots holds both islands: it may start island 1's call before island 0's,
+    # so island 1's call must carry the configuration too (the headline scale bench, 8 slots a host,
+    # failed with "island host was not sent configuration version 1").
+    run, _, _, _ = _run(last=3)
+    shared = run.hosts._hosts[0]
+    run.hosts._hosts[1] = shared
+    pipeline = Pipeline(run, {0: 0, 1: 0})
+    assert pipeline.submit(0) and pipeline.submit(1)
+    assert [args[2] for _, args in _advances(run)] == ["config@1", "config@1"]
+    ref = next(r for r, (island, _) in pipeline.pending.items() if island == 0)
+    pipeline.release(ref)
+    pipeline.receive(0, 1, _done(0, 1))
+    assert pipeline.submit(0)
+    assert _advances(run)[-1][1][:3] == (0, 2, None)
+
+
 def test_release_frees_the_hosts_lent_to_a_generation():
     run, _, _, _ = _run(last=3)
     pipeline = Pipeline(run, {0: 0, 1: 3})
