@@ -1,12 +1,13 @@
 """The live view of a running run: each island's generation as it completes, before its commit.
 
 The coordinator commits an epoch at once (``distributed/coordinator.py``); the studio would otherwise
-see nothing until the first epoch's commit, minutes into a run. So the driver writes every island's
-completed generation here (``live/<generation>-<island>.json``, written atomically: plain JSON rows
-as the studio's generation view lists them, with each design's rewrite system), and deletes them once
-they are committed or the run ends. Nothing here is durable or part of the run: a reader marks what it
-shows from here as not yet committed, and the run store never reads it (``verify`` and garbage
-collection leave the folder to its writer). Local run directories only; elsewhere nothing is written.
+see nothing until the first epoch's commit, minutes into a run. So each island's host writes every
+completed generation here (``live/<generation>-<island>.json``, written atomically but not fsynced:
+plain JSON rows as the studio's generation view lists them, with each design's rewrite system), and
+the driver deletes them once they are committed or the run ends. Nothing here is durable or part of
+the run: a reader marks what it shows from here as not yet committed, and the run store never reads
+it (``verify`` and garbage collection leave the folder to its writer). Local run directories only;
+elsewhere nothing is written.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ def write_generation(rfs: RunFS, island: int, generation: int, population: Seque
         return
     rfs.makedirs(LIVE_DIR)
     data = json.dumps([live_row(ind) for ind in population]).encode()
-    rfs.write_atomic(f"{LIVE_DIR}/{generation}-{island}.json", data)
+    rfs.write_atomic(f"{LIVE_DIR}/{generation}-{island}.json", data, durable=False)
 
 
 def read(rfs: RunFS) -> dict[int, dict[int, list[dict[str, Any]]]]:
