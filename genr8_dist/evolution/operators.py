@@ -74,7 +74,7 @@ def random_genome(rng: np.random.Generator, length: int, codon_max: int) -> Geno
         raise ValueError(f"genome length must be >= 1, got {length}")
     if codon_max < 1:
         raise ValueError(f"codon_max must be >= 1, got {codon_max}")
-    return tuple(int(c) for c in rng.integers(0, codon_max, size=length, endpoint=True))
+    return tuple(rng.integers(0, codon_max, size=length, endpoint=True).tolist())
 
 
 def rank_key(fitness: float, index: int) -> tuple[float, int]:
@@ -191,13 +191,14 @@ def int_flip_mutation(
     span = g.size if within is None else max(1, min(g.size, int(within)))
     mask = np.zeros(g.size, dtype=bool)
     mask[:span] = rng.random(span) < rate
-    if at_least_one and not mask.any():
+    n = int(np.count_nonzero(mask))
+    if at_least_one and not n:
         mask[int(rng.integers(0, span))] = True
-    n = int(mask.sum())
+        n = 1
     if n:
         g = g.copy()
         g[mask] = rng.integers(0, codon_max, size=n, endpoint=True)
-    return tuple(int(c) for c in g), n
+    return tuple(g.tolist()), n
 
 
 # -- the offspring pipeline --------------------------------------------------------------------------
