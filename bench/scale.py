@@ -31,7 +31,9 @@ larger of ideal and critical). ``driver_cpu_s`` and ``driver_cpu_per_epoch_s``: 
 seconds (the bench's own instruments left out), which a loaded machine distorts less than wall time.
 ``hosts_cpu_s`` (and per row, ``hosts_cpu_per_row_ms``): the CPU seconds of every island host, start-up
 included: on a machine with fewer cores than hosts, hosts' CPU competes with the waits (2 cores give
-at most ``2 * wall_s`` CPU seconds to everything). ``--trace-memory`` adds
+at most ``2 * wall_s`` CPU seconds to everything). ``efficiency_machine_bound`` says what that allows:
+ideal over the larger of ideal and the engine's CPU seconds (hosts' and driver's) divided by the
+machine's ``machine_cores``; hosts' start-up is in it, so it is a little low. ``--trace-memory`` adds
 ``driver_traced_mb_by_commit``: the Python memory the driver holds after each commit (tracemalloc),
 which stays flat when the driver keeps no history of the run.
 
@@ -251,6 +253,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     ideal = waited / args.cpus
     driver_busy = max(0.0, wall - summary.wait_seconds - instruments.overhead)
     commits = instruments.commits
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    engine_cpu = host_seconds + max(0.0, driver_cpu - instruments.overhead)
     return {
         "islands": args.islands, "population": args.population, "cpus": args.cpus, "nodes": args.nodes,
         "generations": args.generations, "interval": args.interval, "scale": args.scale,
@@ -263,6 +267,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "driver_cpu_s": driver_cpu - instruments.overhead,
         "driver_cpu_per_epoch_s": (driver_cpu - instruments.overhead) / len(commits) if commits else 0.0,
         "hosts_cpu_s": host_seconds, "hosts_cpu_per_row_ms": 1e3 * host_seconds / rows if rows else 0.0,
+        "machine_cores": cores,
+        "efficiency_machine_bound": ideal / max(ideal, engine_cpu / cores) if ideal > 0 else 0.0,
         "coordinator_share": driver_busy / wall if wall > 0 else 0.0,
         "coordinator_cpu_share": max(0.0, driver_cpu - instruments.overhead) / wall if wall > 0 else 0.0,
         "store_s": summary.store_seconds,

@@ -181,10 +181,12 @@ class IslandHost:
     ) -> Generated:
         """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
 
-        ``config`` is the configuration version ``config_version``; the coordinator sends it once per
-        host and version, and ``None`` afterwards (the host keeps it). ``helpers`` (Ray handles of idle
-        hosts) evaluate a share of the new genomes, and so do helpers offered with this ``ticket``. ``hand``:
-        individuals with the fitness a designer gave them, parents of this generation (``Island.breed``).
+        ``config`` is the configuration version ``config_version``; the coordinator sends it with every
+        call to a host until that host has answered a generation of that version, and ``None``
+        afterwards (the host keeps it; a host with several slots may start a later call first).
+        ``helpers`` (Ray handles of idle hosts) evaluate a share of the new genomes, and so do helpers
+        offered with this ``ticket``. ``hand``: individuals with the fitness a designer gave them,
+        parents of this generation (``Island.breed``).
         ``write``: write the island's rows not yet in a part (this generation's included) as a part
         file; ``emigrants``: ``(k, mode)``, return the generation's emigrant candidates; ``live``: write the
         generation to the run's live view for the studio (``store/live.py``; local runs only)."""
