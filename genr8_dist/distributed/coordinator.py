@@ -266,10 +266,10 @@ class Coordinator:
         # next migration needs, from the hosts' answers; only the newest committed generation is kept
         self._candidates: dict[int, dict[int, tuple[Any, tuple[Individual, ...]]]] = {}
         self._pending_events: list[Any] = []
-        # (host, configuration version) a host has answered a generation of: it holds that
-        # configuration. Until then every call to it carries the configuration, because a host with
-        # several slots may start a later call before the one that carried it.
-        self._sent: set[tuple[int, int]] = set()
+        # (host, configuration version) pairs where the host has answered a generation of that version,
+        # so it holds the configuration. Until then every call to it carries the configuration, because
+        # a host with several slots may start a later call before the one that carried it.
+        self._configured: set[tuple[int, int]] = set()
         self._hand = self._load_hand(history)
         self._now: Pipeline | None = None   # the generations under way
 
@@ -745,7 +745,7 @@ class Pipeline:
         if is_migration_generation(g, run.interval) and g < run.last:
             emigrants = run.emigrant_spec(run.config_for(g + 1)[1])
         host = run.hosts.host_of(island)
-        send = (id(host), version) not in run._sent
+        send = (id(host), version) not in run._configured
         # The first generation under way gets one helper at once; ``lend`` spreads the free hosts
         # over the generations under way right after.
         own = run.hosts.placement_of(island)
@@ -839,7 +839,7 @@ class Pipeline:
         and show every generation all islands have now reached."""
         self.results[island][g] = population
         self.cursor[island] = g
-        self.run_._sent.add((id(self.run_.hosts.host_of(island)), self.run_.config_for(g)[0]))
+        self.run_._configured.add((id(self.run_.hosts.host_of(island)), self.run_.config_for(g)[0]))
         self.run_._island_done(island, g, population)
         low = min(self.cursor.values())
         while self.shown < low:

@@ -60,7 +60,7 @@ def _run(n_islands: int = 2, interval: int = 10, last: int = 1000):
         migrants_for=lambda i, g, pools, config: [f"migrant-{g}-{i}-from-{sorted(pools)}"],
         _emigrant_pool=lambda s, g, spec, done=None: [f"pool-{s}-{g}"],
         migration_event=lambda g, config, moves: Coordinator._event("migration", g, None, {}),
-        _injections={}, _hand={}, _sent=set(), summary=RunSummary(hosts=n_islands),
+        _injections={}, _hand={}, _configured=set(), summary=RunSummary(hosts=n_islands),
         _event=Coordinator._event, _candidates={}, _migrated=set(), hooks=Hooks(), stop=None,
         _say=messages.append,
         _show=lambda g, results: shown.append(g), _island_done=lambda island, g, done: None,
