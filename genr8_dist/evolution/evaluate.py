@@ -28,13 +28,13 @@ from functools import lru_cache
 from typing import TYPE_CHECKING, Any, Protocol, TypeVar, cast
 
 from genr8_dist.errors import GenomeError, Genr8Error
-from genr8_dist.evolution.individual import Evaluation, timing_columns
+from genr8_dist.evolution.individual import Evaluation
 from genr8_dist.evolution.variation import map_genome
 
 if TYPE_CHECKING:
     from genr8_dist.config import RunConfig
-    from genr8_dist.grammar.universe import Universe
-    from genr8_dist.phenotype import Developed
+    from genr8_dist.grammar.universe import MapResult, Universe
+    from genr8_dist.phenotype import Developed, Phenotype
 
 
 __all__ = [
@@ -69,9 +69,7 @@ class Preview(Evaluation):
     still). Never stored: ``Evaluator.measure`` turns it into the evaluation."""
 
     def untimed(self) -> Preview:
-        values = self.as_fields()
-        values.update(dict.fromkeys(timing_columns(), 0.0))
-        return Preview(**values)
+        return Preview(**self.untimed_fields())
 
 
 def universe_for(config: RunConfig | str) -> Universe:
@@ -127,13 +125,13 @@ def _grow_and_score(text: str, config: RunConfig) -> Evaluation:
     return grown if developed is None else _measure(grown, developed, config)
 
 
-def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Developed | None]:
+def _develop(text: str, config: RunConfig,
+             phenotype: Phenotype | None = None) -> tuple[Evaluation, Developed | None]:
     """``text`` developed, not yet measured: the evaluation so far (its text, sizes, steps, capped,
     digest and ``grow_seconds``; criteria empty, not judged) and the ``Developed`` phenotype; or the
-    finished evaluation of a failed development and ``None``."""
-    from genr8_dist.phenotype import phenotype_of
-
-    phenotype = phenotype_of(universe_for(config))
+    finished evaluation of a failed development and ``None``. ``phenotype``: ``config``'s (an
+    ``Evaluator`` holds it; else looked up)."""
+    phenotype = phenotype if phenotype is not None else _phenotype(config)
     t0 = time.perf_counter()  # grow_seconds counts parsing the text too
     try:
         developed = phenotype.develop(text, config)
@@ -146,46 +144,56 @@ def _develop(text: str, config: RunConfig) -> tuple[Evaluation, Developed | None
     return grown, developed
 
 
-def _measure(grown: Evaluation, developed: Developed, config: RunConfig) -> Evaluation:
+def _measure(grown: Evaluation, developed: Developed, config: RunConfig,
+             phenotype: Phenotype | None = None) -> Evaluation:
     """``grown`` (what ``_develop`` found) measured and judged: its criteria, ``score_seconds``, the
     verdict and the fitness."""
-    from genr8_dist.phenotype import phenotype_of
-
-    phenotype = phenotype_of(universe_for(config))
+    phenotype = phenotype if phenotype is not None else _phenotype(config)
     if grown.capped and phenotype.capped_is_invalid:
-        return _judge(grown, config)   # invalid whatever it measures: the largest surfaces, unmeasured
+        return _judge(grown, config, phenotype)   # invalid whatever it measures: the largest surfaces
     t1 = time.perf_counter()
     try:
         criteria = phenotype.measure(developed, config)
     except Exception as exc:  # failure is data
         return replace(grown, stage="score", error=_describe(exc), score_seconds=time.perf_counter() - t1)
-    return _judge(replace(grown, criteria=criteria, score_seconds=time.perf_counter() - t1), config)
+    return _judge(grown, config, phenotype, criteria=criteria, score_seconds=time.perf_counter() - t1)
 
 
-def _judge(grown: Evaluation, config: RunConfig) -> Evaluation:
+def _phenotype(config: RunConfig) -> Phenotype:
+    return _phenotype_of(universe_for(config))
+
+
+def _phenotype_of(universe: Universe) -> Phenotype:
+    """The phenotype of ``universe`` (imported here: it imports the surfaces)."""
+    from genr8_dist.phenotype import phenotype_of
+
+    return phenotype_of(universe)
+
+
+def _judge(grown: Evaluation, config: RunConfig, phenotype: Phenotype | None = None,
+           **measured: Any) -> Evaluation:
     """The verdict on a developed and measured text (``grown``: what ``_grow_and_score`` found, its
     ``criteria`` the raw values ``config`` asks for) under ``config``: valid or why not, and the
     fitness, as the universe's phenotype decides; the rules that make an individual valid, in one
     place (``genr8 score`` reports them too). A pure function of those stored fields: ``rescore``
-    calls it again after an edit."""
-    from genr8_dist.phenotype import phenotype_of
-
-    phenotype = phenotype_of(universe_for(config))
-    criteria = grown.criteria
+    calls it again after an edit. ``measured``: fields ``grown`` takes first (``criteria`` and
+    ``score_seconds`` as ``_measure`` found them), set with the verdict in one copy."""
+    phenotype = phenotype if phenotype is not None else _phenotype(config)
+    criteria = measured.get("criteria", grown.criteria)
     if grown.capped and phenotype.capped_is_invalid:
         error = f"growth capped ({grown.capped}) in derivation step {grown.steps_done}"
-        return replace(grown, stage=phenotype.stage, error=error)
+        return replace(grown, **measured, stage=phenotype.stage, error=error)
     counts = {**grown.sizes, "steps_done": grown.steps_done}
     problem = phenotype.problem(counts, criteria)
     if problem:
-        return replace(grown, stage="score", error=problem)
+        return replace(grown, **measured, stage="score", error=problem)
     try:
         fitness = phenotype.fitness(criteria, config)
     except Exception as exc:  # failure is data
-        return replace(grown, stage="score", error=_describe(exc))
+        return replace(grown, **measured, stage="score", error=_describe(exc))
     if not math.isfinite(fitness):
-        return replace(grown, stage="score", error="fitness is not finite")
-    return replace(grown, valid=True, fitness=fitness)
+        return replace(grown, **measured, stage="score", error="fitness is not finite")
+    return replace(grown, **measured, valid=True, fitness=fitness)
 
 
 # The grown and measured texts of this process, shared by its Evaluators: (development_key, text) ->
@@ -240,12 +248,15 @@ class Evaluator:
     def __init__(self, config: RunConfig, *, cache_size: int = 4096) -> None:
         self.config = config
         self.universe = universe_for(config)
+        self.phenotype = _phenotype_of(self.universe)
         self.cache_size = cache_size
         self._genomes: OrderedDict[tuple[int, ...], Evaluation] = OrderedDict()
         self._texts: OrderedDict[str, Evaluation] = OrderedDict()
         self._previews: OrderedDict[tuple[int, ...], Preview] = OrderedDict()   # genome -> not measured
         self._unmeasured: OrderedDict[str, Evaluation] = OrderedDict()   # text -> developed, not measured
         self._developed: OrderedDict[str, Developed] = OrderedDict()   # text -> its Developed (the last few)
+        self._mappings: OrderedDict[tuple[int, ...], tuple[MapResult, float]] = OrderedDict()
+        self._screens: OrderedDict[str, tuple[bool, str | None]] = OrderedDict()
         self.evaluations = 0     # genomes actually mapped
         self.growths = 0         # texts actually grown
         self.cache_hits = 0
@@ -289,14 +300,14 @@ class Evaluator:
                     return self._defer(grown, developed)
                 if developed is None:   # no longer held: develop it again
                     self.growths += 1
-                    grown, developed = _develop(text, self.config)
+                    grown, developed = _develop(text, self.config, self.phenotype)
             else:
                 self.growths += 1
-                grown, developed = _develop(text, self.config)
+                grown, developed = _develop(text, self.config, self.phenotype)
                 if developed is not None and defer:
                     return self._defer(grown, developed)
             self._unmeasured.pop(text, None)
-            judged = grown if developed is None else _measure(grown, developed, self.config)
+            judged = grown if developed is None else _measure(grown, developed, self.config, self.phenotype)
             self._share(text, judged)
         self._remember(self._texts, text, judged)
         return judged
@@ -304,15 +315,13 @@ class Evaluator:
     def _defer(self, grown: Evaluation, developed: Developed | None) -> Preview:
         """``grown`` (not measured) as a preview, its ``developed`` phenotype (``None``: not held)
         held for ``measure``."""
-        from genr8_dist.phenotype import phenotype_of
-
         text = str(grown.text)
         self._remember(self._unmeasured, text, grown.untimed())
         if developed is not None:
             self._developed[text] = developed
             if len(self._developed) > self.DEVELOPED_KEPT:
                 self._developed.popitem(last=False)
-        failed = grown.capped is not None and phenotype_of(self.universe).capped_is_invalid
+        failed = grown.capped is not None and self.phenotype.capped_is_invalid
         return Preview(**{**grown.as_fields(), "valid": not failed})
 
     def _remember(self, cache: OrderedDict[K, V], key: K, value: V) -> None:
@@ -376,13 +385,12 @@ class Evaluator:
         self.evaluations += 1
         start = time.perf_counter()
         try:
-            mapped = map_genome(self.config, self.universe, key)
+            mapped, map_seconds = self._mapping(key)
         except Exception as exc:  # the mapper should not raise for int genomes; if it does, it is data
             result = Evaluation(stage="map", error=_describe(exc), map_seconds=time.perf_counter() - start)
             result = replace(result, eval_seconds=result.map_seconds)
             self._remember(self._genomes, key, result)
             return result
-        map_seconds = time.perf_counter() - start
         if not mapped.valid:
             result = Evaluation(text=mapped.text or None, stage="map",
                                 error=str(mapped.reason or "mapping failed"))
@@ -395,6 +403,34 @@ class Evaluator:
         else:
             self._remember(self._genomes, key, result)
         return result
+
+    def mapped(self, genome: Sequence[int]) -> MapResult:
+        """``genome`` mapped as this configuration maps it (``map_genome``), each distinct genome once:
+        an island's screen maps a child before growth, and its evaluation reuses that mapping."""
+        return self._mapping(_check_genome(genome))[0]
+
+    def screen(self, text: str) -> tuple[bool, str | None]:
+        """What the phenotype's ``screen`` reads in ``text`` before growth (whether it is trivial for
+        sure, and its key: equal keys, equal phenotypes), each distinct text once; without a
+        ``screen``, ``(False, text)``."""
+        found = self._screens.get(text)
+        if found is None:
+            screen = getattr(self.phenotype, "screen", None)
+            found = screen(text, self.config) if screen is not None else (False, text)
+            self._remember(self._screens, text, found)
+        return found
+
+    def _mapping(self, key: tuple[int, ...]) -> tuple[MapResult, float]:
+        """``key``'s mapping and the seconds it took (when it was made)."""
+        found = self._mappings.get(key)
+        if found is not None:
+            self._mappings.move_to_end(key)
+            return found
+        start = time.perf_counter()
+        made = map_genome(self.config, self.universe, key)
+        found = (made, time.perf_counter() - start)
+        self._remember(self._mappings, key, found)
+        return found
 
     def evaluate_text(self, text: str) -> Evaluation:
         """Grow and score a rewrite system written by hand (no mapping: codons_used and wraps are 0)."""

@@ -134,9 +134,7 @@ class Founders:
         unless plain draws have so far given this generation 0 live founders more often (Laplace's rule
         over the draws of the founders before, so a universe where bushy trees fail keeps its plain
         draws). Bushy trees cost more growth, so they come only where plain draws keep failing."""
-        from genr8_dist.phenotype import phenotype_of
-
-        phenotype = phenotype_of(self.evaluator.universe)
+        phenotype = self.evaluator.phenotype
 
         def wasted(ev: Evaluation) -> bool:
             if isinstance(ev, Preview) and not phenotype.trivial_from_sizes:

@@ -144,7 +144,7 @@ class Evaluation:
 
     def as_fields(self) -> dict[str, Any]:
         """The evaluated fields (those of ``Evaluation``) as keyword arguments for ``Individual``."""
-        return {f.name: getattr(self, f.name) for f in fields(Evaluation)}
+        return {name: getattr(self, name) for name in _EVALUATED}
 
     def evaluation(self) -> Evaluation:
         """The evaluated part alone (of an ``Individual``, its evaluation)."""
@@ -152,9 +152,19 @@ class Evaluation:
 
     def untimed(self) -> Evaluation:
         """The evaluation with every timing set to 0 (a cache hit costs nothing)."""
+        return Evaluation(**self.untimed_fields())
+
+    def untimed_fields(self) -> dict[str, Any]:
+        """``as_fields`` with every timing 0 (what ``untimed`` builds, for a subclass's own)."""
         values = self.as_fields()
-        values.update(dict.fromkeys(timing_columns(), 0.0))
-        return Evaluation(**values)
+        values.update(_UNTIMED)
+        return values
+
+
+# The names of the evaluated fields, and the timings zeroed (one evaluation built per cache hit:
+# ``fields()`` walked each time cost ~5% of a host's CPU).
+_EVALUATED: tuple[str, ...] = tuple(f.name for f in fields(Evaluation))
+_UNTIMED: dict[str, float] = {f.name: 0.0 for f in fields(Evaluation) if f.metadata["column"].get("timing")}
 
 
 @dataclass(frozen=True, slots=True)

@@ -73,10 +73,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Container, Iterator, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import partial
 from itertools import islice
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.evolution.evaluate import Evaluation, Evaluator, Preview, development_key, rescore
@@ -96,7 +96,7 @@ from genr8_dist.evolution.operators import (
     selection,
 )
 from genr8_dist.evolution.pareto import pareto_objectives
-from genr8_dist.evolution.variation import Variation, genome_of, map_genome, text_genome, variation_for
+from genr8_dist.evolution.variation import Variation, genome_of, text_genome, variation_for
 from genr8_dist.rng import stream
 
 if TYPE_CHECKING:
@@ -203,7 +203,7 @@ class Island:
 
     def _mapped(self, genome: Genome) -> tuple[str | None, int]:
         """The rewrite system ``genome`` maps to (``None`` when invalid) and the codons read."""
-        result = map_genome(self.config, self.evaluator.universe, genome)
+        result = self.evaluator.mapped(genome)
         return result.text, result.codons_used
 
     @property
@@ -219,10 +219,7 @@ class Island:
         """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
         wasted for sure (no text, or trivial as the phenotype's ``screen`` says) and its key (equal
         keys, equal phenotypes: a copy known without growing it)."""
-        if text is None:
-            return True, None
-        screen = getattr(self.phenotype, "screen", None)
-        return screen(text, self.config) if screen is not None else (False, text)
+        return (True, None) if text is None else self.evaluator.screen(text)
 
     def _screened(self, draw: Callable[[], Genome], avoid: Container[str | None] = ()) -> Genome:
         """A genome from ``draw`` (called again while the last one's text is wasted for sure or its
@@ -253,10 +250,12 @@ class Island:
         return self.evaluator.evaluate(genome)
 
     def _make(self, generation: int, index: int, genome: Sequence[int], origin: str,
-              parents: tuple[str, ...], evaluation: Evaluation) -> Individual:
+              parents: tuple[str, ...], evaluation: Evaluation,
+              extra: dict[str, Any] | None = None) -> Individual:
         return Individual(island=self.index, generation=generation, index=index,
                           genome=tuple(int(c) for c in genome), origin=origin, parents=parents,
-                          config_version=self.config_version, **evaluation.as_fields())
+                          config_version=self.config_version, extra=extra if extra is not None else {},
+                          **evaluation.as_fields())
 
     def _kept(self, individual: Individual) -> Evaluation:
         """The evaluation of an individual carried over: kept when made under this configuration,
@@ -484,7 +483,7 @@ class Island:
         for genome, made in fresh.items():
             if not self.evaluator.holds(genome):   # evaluated by another host, not here
                 self.evaluator.adopt(genome, made)
-        population = []
+        members: list[tuple[Genome, str, tuple[str, ...], Evaluation]] = []
         seen: set[str] = set()   # the phenotype digests of this generation so far
         if generation == 0:
             self.founders.restart()
@@ -507,38 +506,41 @@ class Island:
             if evaluation.valid and evaluation.phenotype_digest is not None:
                 seen.add(evaluation.phenotype_digest)
             parents = () if origin == "random" else birth.parents
-            population.append(self._make(generation, index, genome, origin, parents, evaluation))
-        return self._finish(generation, self._placed(population), before)
+            members.append((genome, origin, parents, evaluation))
+        places = self._placed([evaluation for *_, evaluation in members])
+        population = [self._make(generation, index, genome, origin, parents, evaluation, extra)
+                      for index, ((genome, origin, parents, evaluation), extra)
+                      in enumerate(zip(members, places, strict=True))]
+        return self._finish(generation, population, before)
 
-    def _placed(self, population: list[Individual]) -> list[Individual]:
-        """``population`` with each individual's Pareto front among it (over ``pareto_objectives``)
-        and, in ``map-elites`` mode, its archive cell."""
+    def _placed(self, evaluations: Sequence[Evaluation]) -> list[dict[str, Any]]:
+        """Each member's place in the generation (``evaluations``, index by index), its individual's
+        ``extra``: its Pareto front among them (over ``pareto_objectives``) and, in ``map-elites``
+        mode, its archive cell."""
         from genr8_dist.evolution.pareto import non_dominated_ranks, objectives_of
 
         names = pareto_objectives(self.config)
-        ranks = non_dominated_ranks(objectives_of([p.criteria for p in population],
-                                                  [p.valid for p in population], self.config.fitness,
-                                                  names)) if names else [0] * len(population)
+        ranks = non_dominated_ranks(objectives_of([e.criteria for e in evaluations],
+                                                  [e.valid for e in evaluations], self.config.fitness,
+                                                  names)) if names else [0] * len(evaluations)
         grid = None
         if self.config.search.mode == "map-elites":
             from genr8_dist.evolution.archive import Grid
 
             grid = Grid.from_settings(self.config.search)
-        placed = []
-        for p, r in zip(population, ranks, strict=True):
-            extra = {**p.extra, "pareto_rank": int(r)}
-            cell = grid.cell(p) if grid is not None else None
+        places = []
+        for e, r in zip(evaluations, ranks, strict=True):
+            extra: dict[str, Any] = {"pareto_rank": int(r)}
+            cell = grid.cell(e) if grid is not None else None
             if cell is not None:
                 extra["cell"] = cell
-            placed.append(replace(p, extra=extra))
-        return placed
+            places.append(extra)
+        return places
 
     @property
     def phenotype(self) -> Phenotype:
         """The phenotype of this island's universe (``genr8_dist.phenotype``)."""
-        from genr8_dist.phenotype import phenotype_of
-
-        return phenotype_of(self.evaluator.universe)
+        return self.evaluator.phenotype
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
                           seen: set[str]) -> tuple[Genome, Evaluation, str]:
