@@ -5,7 +5,9 @@ or hits a cap, the phenotype is degenerate) comes back as an ``Evaluation`` with
 ``stage`` that failed, the ``error`` and the worst fitness (``inf``); nothing raises for an int genome.
 
 An ``Evaluator`` keeps two caches for one configuration: genome -> evaluation, and rewrite-system text
--> developed and scored phenotype (many genomes map to the same text, since GE genomes carry unread codons).
+-> developed and scored phenotype (many genomes map to the same text, since GE genomes carry unread codons);
+and, for an island's screen before growth, genome -> mapping and text -> what the phenotype's
+``screen`` reads in it, so that screening a child and then evaluating it maps it once.
 Every Evaluator of a process (an island host) also shares a bounded cache keyed by (text,
 ``development_key``): growing and measuring a text depends on the universe and the environment only,
 so a text grown for one configuration is not grown again for another that differs in its fitness

@@ -52,6 +52,25 @@ def test_evaluation_is_deterministic_and_caching_changes_nothing(config):
     assert evaluator.evaluations == len(set(batch)) and evaluator.cache_hits == len(batch)
 
 
+def test_a_screened_genome_is_mapped_once_and_evaluates_as_a_fresh_one(config, monkeypatch):
+    """An island maps a child to screen it, then evaluates it: one mapping, the same evaluation and
+    screen as an Evaluator that never screened it."""
+    from genr8_dist.grammar.universe import Universe
+
+    batch = genomes(12, seed=2)
+    fresh = [evaluate_genome(g, config).untimed() for g in batch]
+    evaluator = Evaluator(config)
+    calls = []
+    mapping = Universe.map
+    monkeypatch.setattr(Universe, "map", lambda self, *a, **k: calls.append(1) or mapping(self, *a, **k))
+    texts = [evaluator.mapped(g).text for g in batch]
+    screens = [evaluator.screen(t) for t in texts if t is not None]
+    assert [evaluator.evaluate(g).untimed() for g in batch] == fresh
+    assert all(t is None or t == e.text for t, e in zip(texts, fresh, strict=True))
+    assert len(calls) == len(set(batch))
+    assert screens == [Evaluator(config).screen(t) for t in texts if t is not None]
+
+
 def test_hand_written_square_matches_closed_form(config):
     r = evaluate_text(SQUARE, config)
     assert r.valid, r.error
