@@ -3,13 +3,18 @@
 Work is counted in edge-steps, a count that is the same on every machine: every edge alive when a
 derivation step starts and every edge rewriting makes counts one; each successor placed on a batch
 of edges counts ``WORK_BATCH`` more; ``WORK_PAIRS`` branch pairs tested for joining count one.
+``least_work`` reads from a rewrite system's text the least work any growth of it spends, so that a
+system sure to pass ``max_work`` is known before it is grown (``hemls.splitting.screen``).
 """
 
 from __future__ import annotations
 
 import time
+from functools import cache
 
-__all__ = ["WORK_BATCH", "WORK_PAIRS", "Budget", "Capped"]
+from genr8_dist.hemls.language import RewriteSystem
+
+__all__ = ["WORK_BATCH", "WORK_PAIRS", "Budget", "Capped", "least_work"]
 
 #: Branch pairs tested for joining that count as one edge-step of work (the ``max_work`` cap):
 #: testing a pair costs about a fortieth of carrying an edge through a derivation step.
@@ -57,3 +62,59 @@ class Budget:
     def room(self, alive: int) -> int:
         """Edges that may still be added to a map of ``alive`` edges."""
         return self.max_edges - alive
+
+
+def least_work(system: RewriteSystem, steps: int) -> int:
+    """The least work (edge-steps, as ``Budget`` counts it) that ``steps`` derivation steps of
+    ``system`` spend in any environment without label noise: a growth of it spends at least this
+    much, or is cut short by a cap first.
+
+    Rewriting depends on the geometry only through joins, and joins only add edges, so a lower bound
+    follows each edge of the seed through the steps on its label and age alone. Each step an edge is
+    alive at the start of counts one; the rule groups rewrite in turn, an edge made by a group also
+    taken by a later group of the same step (``growth._rewrite_group``). An edge's age (set when it
+    is made, never counted up) decides each rule's condition exactly; a context or a chain may hold
+    or not, so a rule with one may take the edge (a main line of ``k`` segments in its place,
+    costing ``k - 1``, its edges then followed on) or leave it to the next rule, and past the last
+    rule the edge may stay as it is; a rule of several successors may place any of them. The least
+    over those choices, summed over the seed's edges, is the bound; joined edges, batches and join
+    tests only add to it. Integers only: the same answer on every machine."""
+    from genr8_dist.hemls.rules import compile_system
+
+    c = compile_system(system)
+    groups = c.groups
+    position = {g.label: i for i, g in enumerate(groups)}
+
+    @cache
+    def choices(group: int, age: int) -> tuple[tuple[int, tuple[tuple[int, int], ...]] | None, ...]:
+        """What group ``group`` may do with an edge of ``age``: (cost, the edges made: label and age)
+        for each successor a rule may place, ``None`` where the edge may be left as it is."""
+        out: list[tuple[int, tuple[tuple[int, int], ...]] | None] = []
+        for rule in groups[group].rules:
+            if rule.condition is not None and not rule.condition.holds(age):  # type: ignore[attr-defined]
+                continue
+            for tpl in rule.templates:
+                segments = zip(tpl.main_labels.tolist(), tpl.main_ages.tolist(), tpl.main_timed.tolist(),
+                               strict=True)
+                made = tuple((label, max(age + a if timed else a, 0)) for label, a, timed in segments)
+                out.append((tpl.n_segments - 1, made))
+            if rule.left is None and rule.right is None and not rule.chain:
+                return tuple(out)   # this rule takes every edge the earlier ones leave
+        out.append(None)
+        return tuple(out)
+
+    @cache
+    def least(step: int, group: int, label: int, age: int) -> int:
+        """The least work an edge of ``label`` and ``age`` adds from group ``group`` of ``step`` on."""
+        if step >= steps:
+            return 0
+        alive = 1 if group == 0 else 0   # counted when its step starts
+        at = position.get(label)
+        if at is None or at < group:   # no group of its label left in this step
+            return alive + least(step + 1, 0, label, age)
+        return alive + min(
+            least(step + 1, 0, label, age) if choice is None else
+            choice[0] + sum(least(step, at + 1, lab, a) for lab, a in choice[1])
+            for choice in choices(at, age))
+
+    return sum(least(0, 0, int(label), 0) for label in c.axiom_labels.tolist())
