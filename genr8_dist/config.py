@@ -110,7 +110,7 @@ class GenomeSettings:
         check_settings(self, "genome")
 
 #: The screen before growth new runs use (``ea.screen``); a run created before it was recorded keeps 1.
-SCREEN = 2
+SCREEN = 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -200,8 +200,10 @@ class EASettings:
             "holds two branches of one label at two vertices pointing into the seed polygon in one "
             "step (no join can happen: one region in any environment; `tiles` random genomes: 48 "
             "of 134 grown-trivial texts caught, none wrongly); an offspring that shows or grows "
-            "trivial is varied again from its first parent, in every mode. A new run records the "
-            "screen it uses; runs created before it was recorded keep 1"
+            "trivial is varied again from its first parent, in every mode; `3` also a rewrite "
+            "system whose edges multiply so fast that every growth of it spends more than the "
+            "environment's `max_work` (`hemls.budget.least_work`: it would be capped). A new run "
+            "records the screen it uses; runs created before it was recorded keep 1"
         ),
         minimum=1, maximum=SCREEN)
     within_used: bool = setting(

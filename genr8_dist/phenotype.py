@@ -13,8 +13,9 @@ the report only ever talk to a phenotype through this interface:
 ``measure(developed, config) -> {name: raw value}``   one value per name in ``criteria``
 ``trivial(evaluation) -> bool``            not worth a founder's place (sensible initialisation)
 ``screen(text, config) -> (bool, str)``    (optional) what the text shows before development:
-                                           trivial for sure, and a key equal for texts that
-                                           develop alike (default: never trivial, the text)
+                                           wasted for sure (trivial, or failed), and a key equal
+                                           for texts that develop alike (default: never wasted,
+                                           the text)
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
@@ -133,9 +134,9 @@ class Phenotype(ABC):
 
     def screen(self, text: str, config: RunSettings) -> tuple[bool, str]:
         """What ``text`` shows before it is developed: whether its development is sure to be
-        ``trivial`` (an island then draws or varies it again without developing it), and a key
-        equal for two texts only when they develop into one phenotype (a copy, known without
-        developing it); by default never trivial, and the text itself."""
+        wasted, ``trivial`` or failed (an island then draws or varies it again without developing
+        it), and a key equal for two texts only when they develop into one phenotype (a copy, known
+        without developing it); by default never wasted, and the text itself."""
         return False, text
 
     def looks(self, developed: Developed) -> list[Any] | None:
@@ -222,17 +223,19 @@ class SurfacePhenotype(Phenotype):
         return bool(evaluation.sizes.get("regions", 0) <= 1)
 
     def screen(self, text: str, config: RunSettings) -> tuple[bool, str]:
-        """Trivial when no rule that can fire draws a branch (no region can ever split: one region
-        whatever the environment) or, under ``ea.screen = 2``, when no step of the environment's can
-        hold two branches that could join (``hemls.splitting.can_join``); the key is the text
+        """Wasted when no rule that can fire draws a branch (no region can ever split: one region
+        whatever the environment); under ``ea.screen = 2`` also when no step of the environment's
+        can hold two branches that could join (``hemls.splitting.can_join``); under
+        ``ea.screen = 3`` also when every growth of it spends more than the environment's
+        ``max_work`` (``hemls.budget.least_work``: it is capped, invalid). The key is the text
         without the rules that can never fire (``genr8_dist.hemls.splitting.screen``)."""
         from genr8_dist.hemls.splitting import screen
 
         env = getattr(config, "environment", None)
-        steps = None
-        if env is not None and getattr(getattr(config, "ea", None), "screen", 1) >= 2:
-            steps = int(env.steps)
-        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0), steps)
+        version = getattr(getattr(config, "ea", None), "screen", 1)
+        steps = int(env.steps) if env is not None and version >= 2 else None
+        max_work = int(getattr(env, "max_work", 0) or 0) if version >= 3 else 0
+        return screen(text, bool(getattr(env, "label_noise", 0.0) > 0), steps, max_work)
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):

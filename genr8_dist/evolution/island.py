@@ -40,7 +40,9 @@ a branch (no region can ever split: trivial), or whose *effective* text (the rul
 repeats a parent's or an earlier member's, is drawn or varied again from its text alone
 (``IslandStats.screened``); under ``ea.screen = 2`` also one whose growth, replayed on its edges'
 labels and ends, can never join two branches (``hemls.splitting.can_join``), and an offspring
-whose text shows it trivial is varied again in every mode, not only ``weighted``.
+whose text shows it trivial is varied again in every mode, not only ``weighted``; under
+``ea.screen = 3`` also one whose edges multiply so fast that every growth of it would be capped
+(``hemls.budget.least_work`` past the environment's ``max_work``).
 In ``weighted`` mode an offspring that grows trivial is varied again
 too, from its first parent (its own variation broke what made the parent split its regions, so
 its neighbourhood is mostly trivial), as is one whose growth was capped; trivial again after
@@ -217,7 +219,7 @@ class Island:
 
     def _screen(self, text: str | None) -> tuple[bool, str | None]:
         """What ``text`` (``None``: the genome maps to none) shows before growth: whether it is
-        wasted for sure (no text, or trivial as the phenotype's ``screen`` says) and its key (equal
+        wasted for sure (no text, or trivial or capped as the phenotype's ``screen`` says) and its key (equal
         keys, equal phenotypes: a copy known without growing it)."""
         return (True, None) if text is None else self.evaluator.screen(text)
 

@@ -15,6 +15,10 @@ A system that draws branches may still never join two: ``can_join`` replays a gr
 of one label at two vertices pointing into the seed polygon, the least a join needs. It follows
 contexts and conditions exactly as growth reads them, so it too never calls a system that splits a
 region trivial; ``screen`` uses it when given the environment's steps (``ea.screen = 2``).
+
+A system may also be sure to waste its growth another way: its edges multiply so fast that every
+growth of it passes ``max_work`` (``hemls.budget.least_work``) and is cut short, invalid; ``screen``
+says so when given the cap (``ea.screen = 3``).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ import dataclasses
 from collections.abc import Iterator
 from functools import lru_cache
 
+from genr8_dist.hemls.budget import least_work
 from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Symbol
 
 __all__ = ["can_join", "can_split", "firing", "screen"]
@@ -195,14 +200,17 @@ def can_join(system: RewriteSystem, steps: int) -> bool:
 
 
 @lru_cache(maxsize=8192)
-def screen(text: str, label_noise: bool = False, steps: int | None = None) -> tuple[bool, str]:
-    """What the text of a rewrite system shows before growth: (whether it is trivial: no region can
-    split, so it grows one region; its *effective* text: the system without the rules that can
-    never fire). Two texts with one effective text grow the same surface (growth reads only the
-    rules that fire, and its random draws are made by them), so one is a copy of the other. A text
-    that does not parse is neither (growth fails it, as data): ``(False, text)``. ``steps``: the
-    environment's derivation steps; given (screen version 2, ``ea.screen``), a text is also trivial
-    when no step can hold two branches of one label at two vertices (``can_join``)."""
+def screen(text: str, label_noise: bool = False, steps: int | None = None,
+           max_work: int = 0) -> tuple[bool, str]:
+    """What the text of a rewrite system shows before growth: (whether its growth is wasted for
+    sure: no region can split, so it grows one region; its *effective* text: the system without the
+    rules that can never fire). Two texts with one effective text grow the same surface (growth
+    reads only the rules that fire, and its random draws are made by them), so one is a copy of the
+    other. A text that does not parse is neither (growth fails it, as data): ``(False, text)``.
+    ``steps``: the environment's derivation steps; given (screen version 2, ``ea.screen``), a text
+    is also wasted when no step can hold two branches of one label at two vertices (``can_join``);
+    with ``max_work`` too (screen version 3; 0: no cap), when every growth of it spends more than
+    that (``least_work``), so the cap cuts it short."""
     from genr8_dist.hemls.language import parse
 
     try:
@@ -213,7 +221,7 @@ def screen(text: str, label_noise: bool = False, steps: int | None = None) -> tu
     if label_noise:   # the noise draws from every label the system uses: all of it matters
         return not branches, text
     if branches and steps is not None:
-        branches = can_join(system, steps)
+        branches = can_join(system, steps) and not (max_work and least_work(system, steps) > max_work)
     rules = tuple(rule for rule, f in zip(system.rules, fires, strict=True) if f)
     effective = dataclasses.replace(system, rules=rules).to_text()
     names = system.label_ids()

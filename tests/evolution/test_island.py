@@ -575,22 +575,46 @@ def _rows_digest(config: RunConfig) -> str:
     return hashlib.sha256(repr(rows).encode()).hexdigest()
 
 
-@pytest.mark.parametrize("mode, before", [
-    ("weighted", "87da54dbc284f87e4607072ad4aac0ce790d2122022443fb9d88862801103018"),
-    ("pareto", "5d018a831bbd7638136350bc2eea3a64645170f0240eb9513b3ea9a77869414c"),
+@pytest.mark.parametrize("mode, before, replayed", [
+    ("weighted", "87da54dbc284f87e4607072ad4aac0ce790d2122022443fb9d88862801103018",
+     "4b4652d20511d2e46763e3f572af609b75c1eb510964fbc2b368e1b224f7be96"),
+    ("pareto", "5d018a831bbd7638136350bc2eea3a64645170f0240eb9513b3ea9a77869414c",
+     "815a8ec0e8a4309a38ce8fcddd208bb5d35cee6166b2c0e6ab40ecf589a7c48d"),
 ])
-def test_screen_1_breeds_as_round_7_and_screen_2_the_same_rows_twice(mode, before):
+def test_screen_1_breeds_as_round_7_and_screen_2_as_round_12(mode, before, replayed):
     """``ea.screen = 1`` (what a run created before the screen was recorded reads) breeds the rows
     it bred before the replay existed, bit for bit (these digests are round 7's); ``ea.screen = 2``
-    breeds other rows, the same ones on every run of the configuration."""
+    breeds other rows, those it bred before the bound on work existed (round 12's), on every run."""
     def config(screen: int) -> RunConfig:
         return RunConfig.from_dict({"universe": "tiles", "seed": 3, "search": {"mode": mode},
                                     "ea": {"population": 10, "generations": 4, "screen": screen},
                                     "environment": {"steps": 3}})
 
     assert _rows_digest(config(1)) == before
-    new = _rows_digest(config(2))
-    assert new != before and new == _rows_digest(config(2))
+    assert _rows_digest(config(2)) == replayed != before
+
+
+def test_screen_3_grows_no_text_sure_to_be_capped_and_spends_fewer_growths(monkeypatch):
+    """Under ``ea.screen = 3`` no text whose least work (``hemls.budget.least_work``) passes the
+    environment's ``max_work`` is grown, where screen 2 grows such texts and sees them capped; the
+    growths spent fall (subdivide.toml's settings, 8 generations)."""
+    from genr8_dist.config import load_config
+    from genr8_dist.hemls import parse
+    from genr8_dist.hemls.budget import least_work
+
+    subdivide = Path(__file__).resolve().parents[2] / "examples" / "subdivide.toml"
+    grown = _texts_grown(monkeypatch)
+    spent, past = {}, {}
+    for version in (2, 3):
+        config = load_config(subdivide).replace(ea={"generations": 8, "screen": version})
+        env = config.environment
+        grown.clear()
+        island = Island(config, 0)
+        stored = sum(len(gen) for gen in island.run())
+        spent[version] = island.evaluator.evaluations / stored
+        past[version] = sum(least_work(parse(text), env.steps) > env.max_work for text in set(grown))
+    assert past[2] > 0 and past[3] == 0
+    assert spent[3] < spent[2]
 
 
 def test_screen_2_grows_no_text_the_replay_shows_trivial_and_wastes_less(monkeypatch):

@@ -734,13 +734,21 @@ def test_verify_reports_a_truncated_head_even_when_it_still_reads_as_a_number(st
     assert reopened.verify() == []
 
 
-def test_a_new_run_records_its_screen_and_a_configuration_naming_one_keeps_it(tmp_path: Path) -> None:
+def test_a_new_run_records_its_screen_and_a_configuration_naming_one_keeps_it(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A new run records the screen before growth it uses (``ea.screen``); its configurations use it
-    unless they name one (a run created before it was recorded reads 1: tests/store/test_old_schema_store)."""
+    unless they name one, and a run created under an older screen keeps it once a newer one is the
+    default (a run created before it was recorded reads 1: tests/store/test_old_schema_store)."""
+    from genr8_dist import config as config_module
     from genr8_dist.config import SCREEN
 
     text = "seed = 3\n[ea]\npopulation = 4\n"
     store = RunStore.create(tmp_path / "new", text)
-    assert store.screen == SCREEN == 2 and store.config(1).ea.screen == SCREEN
+    assert store.screen == SCREEN == 3 and store.config(1).ea.screen == SCREEN
+    with monkeypatch.context() as patch:   # a run created when screen 2 was the newest
+        patch.setattr(config_module, "SCREEN", 2)
+        RunStore.create(tmp_path / "older", text)
+    older = RunStore.open(tmp_path / "older")
+    assert older.screen == 2 and older.config(1).ea.screen == 2
     named = RunStore.create(tmp_path / "named", text + "screen = 1\n")
     assert named.screen == 1 and named.config(1).ea.screen == 1
