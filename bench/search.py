@@ -34,7 +34,8 @@ parsed, never grown; under ``ea.screen = 2`` also the replay of its growth's top
 founder-machinery sample a generation 0 of the run's own initialisation bought with as many
 evaluations (the run's generation 0 cost per founder), so what evolution adds is measured apart
 from what initialisation adds. Evaluations per stored individual: the run's evaluations over the
-individuals its generations hold (elites and migrants are stored without an evaluation).
+individuals its generations hold (elites and migrants are stored without an evaluation); growths per
+stored individual: the texts it grew over them (a genome whose text grew before costs no growth).
 Medians are over seeds, with [min, max] beside them.
 """
 
@@ -68,10 +69,14 @@ def phenotype_of_config(config: Any) -> Any:
     return phenotype_of(load_universe(config.universe))
 
 
-def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], list[int]]:
+Run = tuple[list[list[list[Any]]], list[int], int]
+
+
+def run_islands(config: Any, generations: int) -> Run:
     """Generations 0..``generations`` of every island of ``config``, migrating as a run does:
     ``history[g][i]`` is island i's generation g; ``spent[g]`` the genomes evaluated up to it (every
-    founder redraw and re-variation included, cache hits not)."""
+    founder redraw and re-variation included, cache hits not); then the texts grown in all (a genome
+    whose text grew before is evaluated from the grown surface, with no growth)."""
     from genr8_dist.distributed.migration import is_migration_generation, plan_migration
     from genr8_dist.evolution import Island
 
@@ -89,13 +94,12 @@ def run_islands(config: Any, generations: int) -> tuple[list[list[list[Any]]], l
                                       *((choice,) if choice else ()))
         history.append([isl.step(previous[i], g, migrants[i]) for i, isl in enumerate(islands)])
         spent.append(sum(isl.evaluator.evaluations for isl in islands))
-    return history, spent
+    return history, spent, sum(isl.evaluator.growths for isl in islands)
 
 
-def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float, phenotype: Any = None
-             ) -> dict[str, Any]:
+def describe(run: Run, tiles: float, phenotype: Any = None) -> dict[str, Any]:
     """The per-run figures of one run's history (``phenotype``: what trivial means, default surfaces)."""
-    history, spent = run
+    history, spent, growths = run
     by_id = {}
     trivial_share, distinct_share, copy_share = [], [], []
     curve = []   # (evaluations so far, best so far)
@@ -133,7 +137,7 @@ def describe(run: tuple[list[list[list[Any]]], list[int]], tiles: float, phenoty
             "distinct_island_bests": len(set(bests)), "islands": len(last),
             "best_vertices": int(top.sizes.get("vertices", 0)),
             "capped": sum(1 for ind in everyone if ind.capped) / len(everyone), "everyone": everyone,
-            "per_stored": evaluations / len(everyone),
+            "per_stored": evaluations / len(everyone), "grown_per_stored": growths / len(everyone),
             "founder_cost": spent[0] / sum(len(pop) for pop in history[0])}
 
 
@@ -321,7 +325,8 @@ def per_config(path: str, seeds: Sequence[int], generations: int | None,
           f"{len(runs)} seeds; per seed {', '.join(f'{m:+.3f}' for m in founder_margins)}; "
           f"{'MEETS' if met else 'MISSES'} the target (4 of 5 seeds better, median >= 0.20)")
     print(f"- evaluations per stored individual: {spread([r['per_stored'] for r in runs])} "
-          f"(generation 0: {spread([r['founder_cost'] for r in runs])} per founder)")
+          f"(generation 0: {spread([r['founder_cost'] for r in runs])} per founder); growths per "
+          f"stored individual: {spread([r['grown_per_stored'] for r in runs])}")
     if mode == "pareto":
         print(f"- hypervolume of the run's front (normalised, reference 1.1): "
               f"{spread([r['volumes'][0] for r in runs])}; of the random sample's front: "
