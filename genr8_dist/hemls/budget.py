@@ -1,8 +1,9 @@
 """The caps that stop a growth early: edges (``max_edges``), work (``max_work``), time (``max_seconds``).
 
 Work is counted in edge-steps, a count that is the same on every machine: every edge alive when a
-derivation step starts and every edge rewriting makes counts one; each successor placed on a batch
-of edges counts ``WORK_BATCH`` more; ``WORK_PAIRS`` branch pairs tested for joining count one.
+derivation step starts and every edge rewriting adds (a successor of k segments in place of one
+edge adds k - 1) counts one; each successor placed on a batch of edges counts ``WORK_BATCH`` more;
+``WORK_PAIRS`` branch pairs tested for joining count one.
 ``least_work`` reads from a rewrite system's text the least work any growth of it spends, so that a
 system sure to pass ``max_work`` is known before it is grown (``hemls.splitting.screen``).
 """
