@@ -4,6 +4,8 @@ random genomes of every built-in universe, so a text it puts past ``max_work`` i
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from genr8_dist.config import RunConfig
@@ -38,16 +40,20 @@ def test_a_context_may_leave_the_edge_and_a_condition_is_read_on_the_age():
     assert least_work(parse(untimed), 3) == 56
 
 
+_TIMED = Path(__file__).resolve().parents[2] / "plugins" / "timed"   # ages and conditions
+
+
 @pytest.mark.parametrize("universe", ["default", "tiles", "gecco", "symmetric", "reversible",
-                                      "probabilistic"])
+                                      "probabilistic", "timed"])
 def test_no_growth_of_random_genomes_spends_less_than_the_bound(universe):
     """Over random genomes, in an environment that bends and stretches the surface: an uncapped
     growth spends at least ``least_work``, and every text the bound puts past ``max_work`` is capped
-    (so an island never misses a growth it screens out as capped)."""
-    config = RunConfig.from_dict({"universe": universe, "genome": {"length": 60},
+    (so an island never misses a growth it screens out as capped); ``plugins/timed`` writes ages
+    and conditions on them."""
+    config = RunConfig.from_dict({"genome": {"length": 60},
                                   "environment": {"steps": 4, "gravity": [0.0, 0.0, -0.5],
                                                   "scale": [1.3, 1.2, 1.0], "max_work": 4000}})
-    grammar = load_universe(universe)
+    grammar = load_universe(str(_TIMED) if universe == "timed" else universe)
     env = config.environment
     rng = stream(11, "test", "budget", universe)
     grown = past = 0
