@@ -313,7 +313,9 @@ class IslandHost:
                   ticket: int | None) -> dict[tuple[int, ...], Any]:
         """``genomes`` evaluated, here and by ``helpers`` and the helpers offered meanwhile: a thread
         deals batches to the helpers (``_deal``) while this one evaluates what is left, one at a
-        time; a batch whose helper failed goes back to be evaluated by whoever takes it next."""
+        time; a batch whose helper failed goes back to be evaluated by whoever takes it next. An
+        evaluation here that raises abandons the rest: nothing more is dealt, and the dealing thread
+        ends once the batches already dealt are back."""
         deal = _Deal(genomes)
         dealer = threading.Thread(target=self._deal, name="genr8-deal", daemon=True,
                                   args=(model, deal, [_helping(h) for h in helpers], ticket))
@@ -321,9 +323,12 @@ class IslandHost:
         lanes = self._spread(deal, model.config_version, model.config)
         try:
             self._work(deal, model.evaluate, wait=dealer.is_alive)
+        except BaseException:
+            deal.abandon()
+            raise
         finally:
             self._join(lanes)
-        dealer.join()
+            dealer.join()
         if deal.error is not None:
             raise deal.error
         return deal.out
@@ -433,6 +438,7 @@ class _Deal:
         self.away = 0                  # genomes dealt to helpers, not back yet
         self.error: Exception | None = None
         self.open = True               # the dealing thread runs
+        self.abandoned = False         # the owner gave up (``abandon``)
         self._cond = threading.Condition()
 
     def batch(self, workers: int) -> int:
@@ -468,8 +474,17 @@ class _Deal:
 
     def give_back(self, batch: list[tuple[int, ...]]) -> None:
         with self._cond:
-            self.todo.extendleft(reversed(batch))
+            if not self.abandoned:
+                self.todo.extendleft(reversed(batch))
             self.away -= len(batch)
+            self._cond.notify_all()
+
+    def abandon(self) -> None:
+        """Nobody evaluates what is left (the owner's evaluation raised): the untaken genomes are
+        dropped, and a batch that comes back failed is not dealt again."""
+        with self._cond:
+            self.abandoned = True
+            self.todo.clear()
             self._cond.notify_all()
 
     def finished(self) -> bool:

@@ -123,3 +123,29 @@ def test_a_host_of_several_slots_evaluates_genomes_at_once_and_builds_the_same_r
     genomes = [ind.genome for ind in expected][::-1]   # a helper's batch, answered in its order
     assert ([h.fitness for h in wide.evaluate(1, config, genomes)]
             == [h.fitness for h in IslandHost(str(run_dir)).evaluate(1, config, genomes)])
+
+
+def test_an_evaluation_that_raises_ends_the_generations_dealing_thread(tmp_path, monkeypatch):
+    """An evaluation on the owning host that raises (not a failure as data: the evaluator itself
+    broke) reaches the caller, and the generation's dealing thread ends with it instead of waiting
+    on the genomes nobody will take."""
+    import threading
+
+    from genr8_dist.evolution import evaluate as evaluate_module
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml(islands=1))
+    config = parse_config(tiny_toml(islands=1), "tiny")
+    host = IslandHost(str(run_dir))
+    host.advance(0, 0, config, 1)
+    calls = [0]
+
+    def broken(self, genome):
+        calls[0] += 1
+        raise MemoryError("the evaluator broke")
+
+    monkeypatch.setattr(evaluate_module.Evaluator, "evaluate", broken)
+    with pytest.raises(MemoryError, match="the evaluator broke"):
+        host.advance(0, 1, None, 1)
+    assert calls[0] == 1                                   # the rest was abandoned, not evaluated
+    assert not [t for t in threading.enumerate() if t.name == "genr8-deal" and t.is_alive()]
