@@ -220,11 +220,12 @@ def screen(text: str, label_noise: bool = False, steps: int | None = None,
     fires, branches = firing(system, label_noise=label_noise)
     if label_noise:   # the noise draws from every label the system uses: all of it matters
         return not branches, text
-    if branches and steps is not None:
-        branches = can_join(system, steps) and not (max_work and least_work(system, steps) > max_work)
+    wasted = not branches
+    if not wasted and steps is not None:
+        wasted = not can_join(system, steps) or (bool(max_work) and least_work(system, steps) > max_work)
     rules = tuple(rule for rule, f in zip(system.rules, fires, strict=True) if f)
     effective = dataclasses.replace(system, rules=rules).to_text()
     names = system.label_ids()
     if any(not n.startswith("Edge") for n in names):   # letters are numbered after every EdgeN
         effective += f"# labels {sorted(names.items())}\n"
-    return not branches, effective
+    return wasted, effective
