@@ -538,14 +538,17 @@ def test_trivial_offspring_are_varied_again_at_little_cost_and_screened_texts_ne
 def test_an_offspring_trivial_again_after_its_re_variation_is_kept_and_saves_growths(monkeypatch):
     """A child that grows trivial is varied again from its first parent ``_TRIVIAL_RETRIES`` times;
     trivial again, it is kept (``IslandStats.kept_trivial`` counts it), so the growths a parent with
-    a mostly trivial neighbourhood costs stay bounded (quick.toml's settings, one island)."""
+    a mostly trivial neighbourhood costs stay bounded (quick.toml's settings in its former shell
+    environment, one island)."""
     from genr8_dist.config import load_config
+    from genr8_dist.environment import load_environment
     from genr8_dist.evolution import island as island_module
 
-    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
+    examples = Path(__file__).resolve().parents[2] / "examples"
     # screen 1: under 2 the replay catches before growth the children this test needs to grow trivial
-    config = load_config(quick).replace(islands={"count": 1, "migrants": 0},
-                                        ea={"generations": 8, "screen": 1})
+    config = load_config(examples / "quick.toml").replace(
+        islands={"count": 1, "migrants": 0}, ea={"generations": 8, "screen": 1},
+        environment=load_environment(examples / "environments" / "shell.toml"))
 
     def run() -> tuple[list[Individual], int, int]:
         island = Island(config, 0)
