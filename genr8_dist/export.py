@@ -460,17 +460,19 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
 def draw_surface(ax: Any, surface: SurfaceLike, *, elev: float = 32.0, azim: float = -58.0) -> None:
     """Draw ``surface`` on the 3D axes ``ax``: its mesh shaded by height and lit from above through
     smooth normals (no triangle edge drawn), its scaffold as B-spline curves, equal scale on every
-    axis, no axis clutter."""
+    axis, no axis clutter. The box fits the surface on each axis (a flat surface gets a flat box,
+    not a cube of empty height), so the form fills its tile."""
     plt = pyplot()
     v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
     lo, hi = v.min(axis=0), v.max(axis=0)
     centre = (lo + hi) / 2.0
-    radius = max(float((hi - lo).max()) / 2.0, 1e-9)
+    largest = max(float((hi - lo).max()), 1e-9)
+    extent = np.maximum(hi - lo, 0.08 * largest)
     _add_surface(ax, surface, plt, low=0.18, span=0.64, dark=0.55, curve_width=0.45)
-    ax.set_xlim(centre[0] - radius, centre[0] + radius)
-    ax.set_ylim(centre[1] - radius, centre[1] + radius)
-    ax.set_zlim(centre[2] - radius, centre[2] + radius)
-    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
+    ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
+    ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
+    ax.set_box_aspect(tuple(extent / largest), zoom=1.05)
     ax.view_init(elev=elev, azim=azim)
     ax.set_axis_off()
 
