@@ -22,7 +22,7 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
   the mesh lies on the surface meshing 1 gave. A region that is not a simple polygon in that plane
   (it folds over or touches itself, has a side of no length, or no area), or whose added points fall
   outside its meshing-1 triangles, is cut as meshing 1 cuts it, with the shared points on its sides.
-- **meshing 3** (new runs, ``MESHING``): meshing 2 with two changes.
+- **meshing 3** (runs created in rounds 10 to 13, kept bit for bit): meshing 2 with two changes.
   - *A region that crosses itself in its best-fit plane is unrolled* (``_unfold``): its meshing-1
     triangles laid flat one by one across their shared diagonals, each keeping its three side
     lengths (a polygon's triangulation has a tree of diagonals, so this is well defined). A curved
@@ -38,6 +38,24 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     coarse left thin triangles that Triangle may not repair (3.6% of the triangles of regions whose
     corners are all at least 20 degrees).
 
+- **meshing 4** (new runs, ``MESHING``): meshing 3 with three changes.
+  - *A region is unrolled first* (``_chart``): its unfolding is its chart when that is simple, its
+    projection only when it is not. Each piece of the unfolding is one of its meshing-1 triangles
+    laid flat with its side lengths, so a mesh made there keeps its angles in space; a projection
+    shrinks whatever slopes away from the plane, and lifting back stretches it (a strip of a
+    cylinder's wall turning 170 degrees: smallest angle 8 degrees projected, 28 unrolled).
+  - *A needle keeps its sides whole* (``_NEEDLE``): a region with a corner under 20 degrees in its
+    chart is meshed with its sides whole from the first pass, not only after ``_OWN_SPLITS``.
+    Near such a corner Triangle's refinement splits the sides there until its point budget runs out;
+    under meshing 3 one corner of a millionth of a degree split them into some 300,000 points in
+    one pass, every neighbour inherited them, and the surface came out as millions of triangles,
+    most of them thin.
+  - *A long thin region gets the points it needs* (``_SHAPE_CAP``): every other region's budget
+    grows by its shape, ``P^2 / A`` of its corners in its chart (about 4 L / w for a strip of
+    length L and width w, the cells of its width it takes to cover it; 16 for a square), at most
+    ``_SHAPE_CAP``. Under meshing 3's budget a strip 270 times as long as wide ran out of points
+    with 1,112 of its 1,460 triangles thin; with 8,073 points it has none.
+
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
 """
@@ -46,6 +64,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from functools import partial
 from typing import TYPE_CHECKING, Any, NamedTuple, cast
 
 import numpy as np
@@ -70,6 +89,8 @@ _TOL = 1e-9         # tolerance of orientation tests in a region's plane, scaled
 _PASSES = 8         # meshing 3: passes settling the sides' points, at most ...
 _OWN_SPLITS = 3     # ... in at most this many of which one region may split its own sides
 _CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
+_NEEDLE = 20.0      # meshing 4: a region with a corner under this (degrees) keeps its sides whole
+_SHAPE_CAP = 50_000 # meshing 4: the most points a region's shape (P^2 / A) adds to its budget
 
 
 class Mesh(NamedTuple):
@@ -105,7 +126,7 @@ def mesh_surface(surface: Any, meshing: int = MESHING, *,
                     _frozen(np.arange(len(sizes)), np.int64))
     if cut is None:
         raise ValueError("mesh_surface: meshing 2 needs meshing 1's cut (Surface.mesh passes it)")
-    refine = _refine if meshing == 2 else _refine3
+    refine = _refine if meshing == 2 else partial(_refine3, guarded=meshing >= 4)
     points, triangles, regions, fallback = refine(vertices, offsets, cycles, coarse, owners, cut)
     return Mesh(_frozen(points, np.float64), _frozen(triangles, np.int64), _frozen(regions, np.int64),
                 _frozen(fallback, np.int64))
@@ -545,11 +566,11 @@ def _unfold(pos: np.ndarray, tri: np.ndarray) -> np.ndarray | None:
     return None if np.isnan(uv).any() else uv
 
 
-def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.ndarray
-           ) -> np.ndarray | None:
+def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.ndarray,
+           unrolled_first: bool = False) -> np.ndarray | None:
     """Meshing 3's flat coordinates (m, 2) of a region's cycle (``pos`` (m, 3), unique vertices): its
     projection into its best-fit plane if simple there, else its unfolding (``_unfold``) if simple;
-    None if neither is."""
+    None if neither is. ``unrolled_first`` (meshing 4): the unfolding first, then the projection."""
     frame = _frame(normal)
     if frame is None:
         return None
@@ -561,7 +582,7 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
         uv = _unfold(pos, tri) if len(tri) == len(pos) - 2 and len(tri) else None
         return None if uv is None else uv - uv.mean(axis=0)
 
-    for make in (projected, unfolded):
+    for make in ((unfolded, projected) if unrolled_first else (projected, unfolded)):
         uv = make()
         if uv is None:
             continue
@@ -583,11 +604,32 @@ def _sides_found(xy: np.ndarray, points2: np.ndarray, markers: np.ndarray) -> tu
     return segment, np.clip(f, 0.0, 1.0)
 
 
+def _budgets(charts: list[np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
+    """Meshing 4's guards per region, from its corners in its chart: whether it is a needle (a
+    corner under ``_NEEDLE`` degrees), and the points its shape adds to its budget (``P^2 / A``, at
+    most ``_SHAPE_CAP``; none for a needle or a region with no chart)."""
+    needle = np.zeros(len(charts), dtype=bool)
+    extra = np.zeros(len(charts), dtype=np.int64)
+    for r, uv in enumerate(charts):
+        if uv is None:
+            continue
+        a, b = uv - np.roll(uv, 1, 0), np.roll(uv, -1, 0) - uv
+        turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b)))
+        needle[r] = bool(np.any(180.0 - turn < _NEEDLE))
+        area = 0.5 * abs(float(np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])))
+        perimeter = float(np.linalg.norm(b, axis=1).sum())
+        if not needle[r] and area > 0.0:
+            extra[r] = int(min(perimeter * perimeter / area, _SHAPE_CAP))
+    return needle, extra
+
+
 def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
-             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray]
+             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray], *, guarded: bool = False
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
-    points settled by passes until no region's own mesh splits a side (``_PASSES`` at most)."""
+    points settled by passes until no region's own mesh splits a side (``_PASSES`` at most);
+    ``guarded``: meshing 4, regions unrolled first, needles keep their sides whole and budgets follow
+    shapes (``_budgets``)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
@@ -606,8 +648,10 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
     for r in range(n_regions):
         cyc, _, local = coarse_of(r)
         if sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
-            charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r])
+            charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r], unrolled_first=guarded)
     simple = np.array([c is not None for c in charts], dtype=bool)
+    needle, extra = _budgets(charts) if guarded else (np.zeros(n_regions, dtype=bool),
+                                                      np.zeros(n_regions, dtype=np.int64))
     split = _EdgeSplit(vertices, cycles, nxt, region_of, width, simple, n_regions)
     rings = split.rings
     n_vertices = len(vertices)
@@ -635,9 +679,9 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         found_t: list[np.ndarray] = []
         for r in pending:
             ids, xy = ring_xy(r)
-            keep = splits[r] >= _OWN_SPLITS or pass_ == _PASSES
-            got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}{'Y' if keep else ''}QS"
-                                          f"{_STEINER * len(ids) + _STEINER_FLOOR}", marked=True)
+            keep = splits[r] >= _OWN_SPLITS or pass_ == _PASSES or bool(needle[r])
+            budget = _STEINER * len(ids) + _STEINER_FLOOR + int(extra[r])
+            got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}{'Y' if keep else ''}QS{budget}", marked=True)
             if got is None:
                 continue
             points2, tri, markers = got

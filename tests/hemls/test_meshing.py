@@ -41,7 +41,7 @@ def _fresh(s, meshing=None):
 
 def test_tiles_meshed_without_an_angle_below_twenty_degrees_and_watertight():
     surface = grow(load_system("three-sided-tiles"), Environment(steps=3)).surface
-    assert surface.meshing == MESHING == 3
+    assert surface.meshing == MESHING == 4
     mesh = surface.mesh()
     assert np.array_equal(mesh.points[:surface.n_vertices], surface.vertices)
     assert triangle_min_angles(mesh.points, mesh.triangles).min() >= 20.0
@@ -113,15 +113,80 @@ def test_meshing_2_is_kept_bit_for_bit_for_runs_that_recorded_it():
 
 
 def test_random_default_surfaces_far_fewer_thin_triangles_than_meshing_1():
-    thin = {1: [0, 0], 3: [0, 0]}
+    thin = {1: [0, 0], MESHING: [0, 0]}
     for surface in _random_surfaces(6):
-        for meshing in (1, 3):
+        for meshing in (1, MESHING):
             mesh = surface.with_meshing(meshing).mesh()
             angles = triangle_min_angles(mesh.points, mesh.triangles)
             thin[meshing][0] += int(np.sum(angles < 15.0))
             thin[meshing][1] += len(angles)
-    share1, share3 = thin[1][0] / thin[1][1], thin[3][0] / thin[3][1]
-    assert share1 > 0.5 and share3 < share1 / 10
+    share1, share = thin[1][0] / thin[1][1], thin[MESHING][0] / thin[MESHING][1]
+    assert share1 > 0.5 and share < share1 / 10
+
+
+def test_meshing_3_is_kept_bit_for_bit_for_runs_that_recorded_it():
+    """Runs created under meshing 3 regrow their meshes as they were (this digest is round 13's)."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for surface in _random_surfaces(3):
+        mesh = surface.with_meshing(3).mesh()
+        digest.update(mesh.points.tobytes() + mesh.triangles.tobytes())
+    assert digest.hexdigest() == "7631c24e1a9db3a8fe68d72109ec5151ecf0677e62fbf28619d7a2e1702f6f5b"
+
+
+def _square_and_needle(reach: float):
+    """Two regions sharing a side: a unit square, and a needle from that side to a point ``reach``
+    away (its corner there is 2 atan(0.5 / (reach - 1)): 0.03 degrees at 2,000)."""
+    from genr8_dist.hemls import Surface
+
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [reach, 0.5, 0]], dtype=np.float64)
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [1, 4], [4, 2]])
+    zeros = np.zeros(len(edges), dtype=np.int64)
+    return Surface(vertices, edges, zeros, zeros, np.array([0, 4, 7]), np.array([0, 1, 2, 3, 1, 4, 2]),
+                   np.array([0, 1, 4, 2, 3]))
+
+
+def test_a_needle_keeps_its_sides_whole_and_hands_its_neighbours_no_points():
+    """Meshing 3 lets the needle's refinement split its sides towards its 0.03-degree corner
+    (16,960 triangles for two regions); meshing 4 keeps them whole: a mesh of the needle's own size,
+    the square still well shaped, the two meeting watertight."""
+    surface = _square_and_needle(2000.0)
+    assert len(surface.with_meshing(3).mesh().triangles) > 10_000
+    mesh = surface.mesh()
+    assert len(mesh.triangles) < 200 and not len(mesh.fallback)
+    angles = triangle_min_angles(mesh.points, mesh.triangles)
+    assert angles[mesh.regions == 0].min() >= 20.0
+    e = np.sort(np.concatenate([mesh.triangles[:, [0, 1]], mesh.triangles[:, [1, 2]],
+                                mesh.triangles[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    assert counts.max() == 2
+
+
+def test_meshing_4_budgets_follow_each_region_shape():
+    """A needle (a corner under 20 degrees) keeps its sides and adds nothing; a square adds P^2/A = 16
+    points; a strip 270 times as long as wide about 4 x 270, the cells of its width."""
+    from genr8_dist.hemls.meshing import _budgets
+
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    strip = square * np.array([3.3, 3.3 / 270])
+    needle = np.array([[0.0, 0.0], [2000.0, 0.5], [0.0, 1.0]])
+    flags, extra = _budgets([square, strip, needle, None])
+    assert flags.tolist() == [False, False, True, False]
+    assert extra[0] == 16 and 4 * 270 <= extra[1] <= 4 * 272 and extra[2] == extra[3] == 0
+
+
+@pytest.mark.parametrize("turn", [150.0, 170.0])
+def test_a_curved_region_is_meshed_unrolled_so_its_triangles_keep_their_angles_in_space(turn):
+    """Meshing 3 meshes a strip of a cylinder turning 150-170 degrees in its best-fit plane (it is
+    simple there), and lifting it back onto the wall bends its triangles (170: smallest angle 8
+    degrees); meshing 4 meshes it unrolled first, so no angle is under 28 degrees in space."""
+    strip = _strip(turn)
+    if turn == 170.0:
+        old = strip.with_meshing(3).mesh()
+        assert triangle_min_angles(old.points, old.triangles).min() < 15.0
+    mesh = strip.mesh()
+    assert not len(mesh.fallback) and triangle_min_angles(mesh.points, mesh.triangles).min() >= 27.0
 
 
 def test_the_same_map_meshes_to_the_same_bytes():
