@@ -1,4 +1,4 @@
-"""Meshings 1, 2 and 3 (issue 25): thin exported triangles, slivers, and meshing's CPU cost.
+"""Every meshing (issue 25): thin exported triangles, slivers, and meshing's CPU cost.
 
     python bench/meshing.py --genomes 300                      # random genomes of each built-in universe
     python bench/meshing.py --genomes 0 --run /tmp/mesh/quick  # a run's best 12 distinct surfaces
@@ -136,7 +136,8 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
 
 def show(name: str, m: dict[str, float]) -> None:
     for v in MESHINGS:
-        ratio = "" if v == 1 else f" ({m['thin1'] / max(m[f'thin{v}'], 1e-12):.1f}x)"
+        ratio = "" if v == 1 else " (none left)" if not m[f"thin{v}"] else \
+            f" ({m['thin1'] / m[f'thin{v}']:.1f}x)"
         print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
               f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'fallback{v}']:.1%} | "
               f"{m[f'cpu{v}'] * 1e3:.1f} ms | {m.get('failed', 0):.0f} |")

@@ -39,11 +39,15 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     corners are all at least 20 degrees).
 
 - **meshing 4** (new runs, ``MESHING``): meshing 3 with three changes.
-  - *A region is unrolled first* (``_chart``): its unfolding is its chart when that is simple, its
-    projection only when it is not. Each piece of the unfolding is one of its meshing-1 triangles
-    laid flat with its side lengths, so a mesh made there keeps its angles in space; a projection
-    shrinks whatever slopes away from the plane, and lifting back stretches it (a strip of a
-    cylinder's wall turning 170 degrees: smallest angle 8 degrees projected, 28 unrolled).
+  - *A curved region is unrolled first* (``_chart``): where its projection keeps less than 90% of
+    its area (``_UNROLL_BELOW``: it slopes away from its plane), its unfolding is its chart when
+    that is simple, its projection only when it is not. Each piece of the unfolding is one of its
+    meshing-1 triangles laid flat with its side lengths, so a mesh made there keeps its angles in
+    space; a projection shrinks whatever slopes away from the plane, and lifting back stretches it
+    (a strip of a cylinder's wall turning 170 degrees: smallest angle 8 degrees projected, 28
+    unrolled). A nearly flat region stays projected: unrolled through a fan of meshing-1 slivers
+    that bend a little, its triangles lift less well (the main job's best 12: 2 triangles under 15
+    degrees unrolled, none projected).
   - *A needle keeps its sides whole* (``_NEEDLE``): a region with a corner under 20 degrees in its
     chart is meshed with its sides whole from the first pass, not only after ``_OWN_SPLITS``.
     Near such a corner Triangle's refinement splits the sides there until its point budget runs out;
@@ -91,6 +95,7 @@ _OWN_SPLITS = 3     # ... in at most this many of which one region may split its
 _CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
 _NEEDLE = 20.0      # meshing 4: a region with a corner under this (degrees) keeps its sides whole
 _SHAPE_CAP = 50_000 # meshing 4: the most points a region's shape (P^2 / A) adds to its budget
+_UNROLL_BELOW = 0.9 # meshing 4: a region is unrolled first when its projection keeps less of its area
 
 
 class Mesh(NamedTuple):
@@ -570,7 +575,8 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
            unrolled_first: bool = False) -> np.ndarray | None:
     """Meshing 3's flat coordinates (m, 2) of a region's cycle (``pos`` (m, 3), unique vertices): its
     projection into its best-fit plane if simple there, else its unfolding (``_unfold``) if simple;
-    None if neither is. ``unrolled_first`` (meshing 4): the unfolding first, then the projection."""
+    None if neither is. ``unrolled_first`` (meshing 4): the unfolding first, then the projection,
+    where the projection keeps less than ``_UNROLL_BELOW`` of the meshing-1 triangles' area."""
     frame = _frame(normal)
     if frame is None:
         return None
@@ -582,6 +588,12 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
         uv = _unfold(pos, tri) if len(tri) == len(pos) - 2 and len(tri) else None
         return None if uv is None else uv - uv.mean(axis=0)
 
+    if unrolled_first and len(tri):   # only where the projection shrinks the region (it slopes away)
+        t3, t2 = pos[tri], projected()[tri]
+        area3 = float(np.linalg.norm(np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0]), axis=1).sum())
+        u, w = t2[:, 1] - t2[:, 0], t2[:, 2] - t2[:, 0]
+        area2 = float(np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]).sum())
+        unrolled_first = area3 > 0.0 and area2 < _UNROLL_BELOW * area3
     for make in ((unfolded, projected) if unrolled_first else (projected, unfolded)):
         uv = make()
         if uv is None:
@@ -628,8 +640,8 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
     points settled by passes until no region's own mesh splits a side (``_PASSES`` at most);
-    ``guarded``: meshing 4, regions unrolled first, needles keep their sides whole and budgets follow
-    shapes (``_budgets``)."""
+    ``guarded``: meshing 4, curved regions unrolled first, needles keep their sides whole and budgets
+    follow shapes (``_budgets``)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
