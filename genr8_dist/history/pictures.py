@@ -166,8 +166,9 @@ def curves_figure(store: RunLike, table: pa.Table | None = None) -> Any:
     if len(islands) > 2:  # the run's best over all islands, on top, so the trend reads at a glance
         overall = [np.nanmin(best[gen == g]) if np.isfinite(best[gen == g]).any() else np.nan
                    for g in sorted(set(gen.tolist()))]
-        ax.plot(sorted(set(gen.tolist())), overall, color="black", lw=1.6, alpha=0.85,
-                label="best of all islands", zorder=5)
+        # a wide grey band under the islands' lines, so the island holding the best stays visible
+        ax.plot(sorted(set(gen.tolist())), overall, color="black", lw=6.0, alpha=0.18,
+                solid_capstyle="round", label="best of all islands", zorder=1)
     finite = best[np.isfinite(best)]
     if finite.size and finite.min() > 0 and finite.max() / finite.min() > 50:
         ax.set_yscale("log")
