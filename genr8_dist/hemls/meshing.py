@@ -38,22 +38,25 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     coarse left thin triangles that Triangle may not repair (3.6% of the triangles of regions whose
     corners are all at least 20 degrees).
 
-- **meshing 4** (new runs, ``MESHING``): meshing 3 with three changes.
+- **meshing 4** (new runs, ``MESHING``): meshing 3 with four changes.
   - *A curved region is unrolled first* (``_chart``): where its projection keeps less than 90% of
     its area (``_UNROLL_BELOW``: it slopes away from its plane), its unfolding is its chart when
     that is simple, its projection only when it is not. Each piece of the unfolding is one of its
     meshing-1 triangles laid flat with its side lengths, so a mesh made there keeps its angles in
     space; a projection shrinks whatever slopes away from the plane, and lifting back stretches it
     (a strip of a cylinder's wall turning 170 degrees: smallest angle 8 degrees projected, 28
-    unrolled). A nearly flat region stays projected: unrolled through a fan of meshing-1 slivers
-    that bend a little, its triangles lift less well (the main job's best 12: 2 triangles under 15
-    degrees unrolled, none projected).
-  - *A needle keeps its sides whole* (``_NEEDLE``): a region with a corner under 20 degrees in its
-    chart is meshed with its sides whole from the first pass, not only after ``_OWN_SPLITS``.
-    Near such a corner Triangle's refinement splits the sides there until its point budget runs out;
-    under meshing 3 one corner of a millionth of a degree split them into some 300,000 points in
-    one pass, every neighbour inherited them, and the surface came out as millions of triangles,
-    most of them thin.
+    unrolled). A nearly flat region stays projected.
+  - *A projected region spans its sides as a membrane* (``_membrane``): its added points, lifted
+    onto its meshing-1 triangles, have their offsets from the ring's best-fit plane relaxed
+    ``_MEMBRANE_PASSES`` times to their neighbours' mean. Meshing 1's fan of a bent polygon is a
+    fan of slivers creased in space, and a mesh lifted onto it copies the creases as thin triangles
+    (one bent 759-gon of a random default surface: 622 of its 4,145 triangles under 15 degrees).
+  - *A needle whose refinement runs out of points keeps its sides whole* (``_NEEDLE``): a region
+    with a corner under 20 degrees in its chart whose Triangle call spends its whole point budget is
+    meshed again at once with its sides whole, and keeps them so in later passes. Near such a
+    corner the refinement splits the sides without end: under meshing 3 one corner of a millionth of
+    a degree split them into 311,040 points in one pass, every neighbour inherited them, and the
+    surface came out as millions of triangles, most of them thin.
   - *A long thin region gets the points it needs* (``_SHAPE_CAP``): every other region's budget
     grows by its shape, ``P^2 / A`` of its corners in its chart (about 4 L / w for a strip of
     length L and width w, the cells of its width it takes to cover it; 16 for a square), at most
@@ -93,9 +96,11 @@ _TOL = 1e-9         # tolerance of orientation tests in a region's plane, scaled
 _PASSES = 8         # meshing 3: passes settling the sides' points, at most ...
 _OWN_SPLITS = 3     # ... in at most this many of which one region may split its own sides
 _CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
-_NEEDLE = 20.0      # meshing 4: a region with a corner under this (degrees) keeps its sides whole
+_NEEDLE = 20.0      # meshing 4: a region with a corner under this (degrees) whose refinement runs
+                    # out of points keeps its sides whole
 _SHAPE_CAP = 50_000 # meshing 4: the most points a region's shape (P^2 / A) adds to its budget
 _UNROLL_BELOW = 0.9 # meshing 4: a region is unrolled first when its projection keeps less of its area
+_MEMBRANE_PASSES = 50  # meshing 4: relaxations of a projected region's added points (``_membrane``)
 
 
 class Mesh(NamedTuple):
@@ -439,14 +444,35 @@ def _assemble(rings: _Rings, meshed: list[np.ndarray | None], inside: list[np.nd
     return points, triangles, regions, failed
 
 
+def _membrane(points2: np.ndarray, tri: np.ndarray, ring3: np.ndarray, lifted: np.ndarray) -> np.ndarray:
+    """Meshing 4's lift of a projected region's added points (``lifted``: onto its meshing-1
+    triangles; ``points2`` its flat mesh, the ring's ``len(ring3)`` points first; ``tri`` its
+    triangles): their offsets from the plane that best fits the ring relaxed ``_MEMBRANE_PASSES``
+    times to their neighbours' mean, the ring's held, so the region spans its sides as a membrane
+    rather than following the creases of meshing 1's fan, whose slivers bend in space."""
+    n = len(ring3)
+    flat = np.c_[points2, np.ones(len(points2))]
+    fit, *_ = np.linalg.lstsq(flat[:n], ring3, rcond=None)
+    base = flat @ fit
+    offset = np.concatenate([ring3, lifted]) - base
+    a = np.concatenate([tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]])
+    b = np.concatenate([tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]])
+    degree = np.maximum(np.bincount(a, minlength=len(offset)), 1).astype(np.float64)
+    for _ in range(_MEMBRANE_PASSES):
+        mean = np.stack([np.bincount(a, weights=offset[b, k], minlength=len(offset))
+                         for k in range(3)], axis=1) / degree[:, None]
+        offset[n:] = mean[n:]
+    return cast(np.ndarray, (base + offset)[n:])
+
+
 def _lifted(rings: _Rings, sizes: np.ndarray,
             final: Callable[[int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None],
-            triangulate_polygons: Callable[..., np.ndarray]
+            triangulate_polygons: Callable[..., np.ndarray], membrane: np.ndarray | None = None
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The mesh of every region from ``final(r)``: its flat mesh (points, the ring's first;
     triangles) and its meshing-1 triangles' corners flat and in space, through which the added points
-    are lifted; a region ``final`` gives None for, or whose points fall outside those triangles, is
-    cut as meshing 1 cuts it (``_assemble``)."""
+    are lifted (where ``membrane[r]``, then relaxed: ``_membrane``); a region ``final`` gives None
+    for, or whose points fall outside those triangles, is cut as meshing 1 cuts it (``_assemble``)."""
     meshed: list[np.ndarray | None] = [None] * len(sizes)
     inside: list[np.ndarray] = []
     next_point = len(rings.points)
@@ -463,6 +489,8 @@ def _lifted(rings: _Rings, sizes: np.ndarray,
             lifted = _lift(new, corners2, corners3)
             if lifted is None:
                 continue
+            if membrane is not None and membrane[r]:
+                lifted = _membrane(points2, tri, rings.points[ids], lifted)
             inside.append(lifted)
         local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
         next_point += len(new)
@@ -572,14 +600,15 @@ def _unfold(pos: np.ndarray, tri: np.ndarray) -> np.ndarray | None:
 
 
 def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.ndarray,
-           unrolled_first: bool = False) -> np.ndarray | None:
+           unrolled_first: bool = False) -> tuple[np.ndarray | None, bool]:
     """Meshing 3's flat coordinates (m, 2) of a region's cycle (``pos`` (m, 3), unique vertices): its
     projection into its best-fit plane if simple there, else its unfolding (``_unfold``) if simple;
-    None if neither is. ``unrolled_first`` (meshing 4): the unfolding first, then the projection,
-    where the projection keeps less than ``_UNROLL_BELOW`` of the meshing-1 triangles' area."""
+    None if neither is; and whether it is the projection. ``unrolled_first`` (meshing 4): the
+    unfolding first, then the projection, where the projection keeps less than ``_UNROLL_BELOW`` of
+    the meshing-1 triangles' area."""
     frame = _frame(normal)
     if frame is None:
-        return None
+        return None, False
 
     def projected() -> np.ndarray | None:
         return cast(np.ndarray, (pos - centroid) @ frame.T)
@@ -589,7 +618,7 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
         return None if uv is None else uv - uv.mean(axis=0)
 
     if unrolled_first and len(tri):   # only where the projection shrinks the region (it slopes away)
-        t3, t2 = pos[tri], projected()[tri]
+        t3, t2 = pos[tri], ((pos - centroid) @ frame.T)[tri]
         area3 = float(np.linalg.norm(np.cross(t3[:, 1] - t3[:, 0], t3[:, 2] - t3[:, 0]), axis=1).sum())
         u, w = t2[:, 1] - t2[:, 0], t2[:, 2] - t2[:, 0]
         area2 = float(np.abs(u[:, 0] * w[:, 1] - u[:, 1] * w[:, 0]).sum())
@@ -600,8 +629,8 @@ def _chart(pos: np.ndarray, tri: np.ndarray, centroid: np.ndarray, normal: np.nd
             continue
         extent = float(np.abs(uv).max())
         if extent > 0 and _simple(uv / extent):
-            return uv
-    return None
+            return uv, make is projected
+    return None, False
 
 
 def _sides_found(xy: np.ndarray, points2: np.ndarray, markers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -640,8 +669,9 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
     points settled by passes until no region's own mesh splits a side (``_PASSES`` at most);
-    ``guarded``: meshing 4, curved regions unrolled first, needles keep their sides whole and budgets
-    follow shapes (``_budgets``)."""
+    ``guarded``: meshing 4, curved regions unrolled first, projected ones lifted as membranes,
+    needles whose refinement runs out of points keep their sides whole, budgets follow shapes
+    (``_budgets``)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
@@ -657,10 +687,13 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), own)] if len(own) else own.reshape(-1, 3)
         return cyc, own, local
 
+    membrane = np.zeros(n_regions, dtype=bool)     # meshing 4: projected regions lift as membranes
     for r in range(n_regions):
         cyc, _, local = coarse_of(r)
         if sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
-            charts[r] = _chart(vertices[cyc], local, centroid[r], newell[r], unrolled_first=guarded)
+            charts[r], membrane[r] = _chart(vertices[cyc], local, centroid[r], newell[r],
+                                            unrolled_first=guarded)
+    membrane &= guarded
     simple = np.array([c is not None for c in charts], dtype=bool)
     needle, extra = _budgets(charts) if guarded else (np.zeros(n_regions, dtype=bool),
                                                       np.zeros(n_regions, dtype=np.int64))
@@ -686,14 +719,18 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
     done: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     splits = np.zeros(n_regions, dtype=np.int64)     # passes in which each region split its sides
     pending = [r for r in range(n_regions) if simple[r]]
+    spent = np.zeros(n_regions, dtype=bool)   # needles whose refinement ran out of points
     for pass_ in range(_PASSES + 1):
         found_edges: list[np.ndarray] = []
         found_t: list[np.ndarray] = []
         for r in pending:
             ids, xy = ring_xy(r)
-            keep = splits[r] >= _OWN_SPLITS or pass_ == _PASSES or bool(needle[r])
+            keep = splits[r] >= _OWN_SPLITS or pass_ == _PASSES or bool(spent[r])
             budget = _STEINER * len(ids) + _STEINER_FLOOR + int(extra[r])
             got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}{'Y' if keep else ''}QS{budget}", marked=True)
+            if needle[r] and not keep and got is not None and len(got[0]) - len(xy) >= budget:
+                spent[r] = True     # its refinement ran out of points: its sides stay as they are
+                got = _triangulate_region(xy, f"pq{_MIN_ANGLE:g}YQS{budget}", marked=True)
             if got is None:
                 continue
             points2, tri, markers = got
@@ -719,4 +756,4 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         assert uv is not None
         return done[r][0], done[r][1], uv[local], vertices[own]
 
-    return _lifted(rings, sizes, final, triangulate_polygons)
+    return _lifted(rings, sizes, final, triangulate_polygons, membrane)

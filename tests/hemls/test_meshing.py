@@ -148,9 +148,10 @@ def _square_and_needle(reach: float):
 
 
 def test_a_needle_keeps_its_sides_whole_and_hands_its_neighbours_no_points():
-    """Meshing 3 lets the needle's refinement split its sides towards its 0.03-degree corner
-    (16,960 triangles for two regions); meshing 4 keeps them whole: a mesh of the needle's own size,
-    the square still well shaped, the two meeting watertight."""
+    """Meshing 3 lets the needle's refinement split its sides towards its 0.03-degree corner until
+    its budget runs out, and the square inherits the points (16,960 triangles for two regions);
+    meshing 4 then keeps them whole: a mesh of the needle's own size, the square still well shaped,
+    the two meeting watertight."""
     surface = _square_and_needle(2000.0)
     assert len(surface.with_meshing(3).mesh().triangles) > 10_000
     mesh = surface.mesh()
@@ -164,7 +165,7 @@ def test_a_needle_keeps_its_sides_whole_and_hands_its_neighbours_no_points():
 
 
 def test_meshing_4_budgets_follow_each_region_shape():
-    """A needle (a corner under 20 degrees) keeps its sides and adds nothing; a square adds P^2/A = 16
+    """A needle (a corner under 20 degrees) is marked and adds nothing; a square adds P^2/A = 16
     points; a strip 270 times as long as wide about 4 x 270, the cells of its width."""
     from genr8_dist.hemls.meshing import _budgets
 
@@ -266,3 +267,24 @@ def test_an_old_run_regrows_with_meshing_1(tmp_path):
         if checked == 3:
             break
     assert checked >= 1
+
+
+def test_a_bent_region_spans_its_sides_as_a_membrane_not_meshing_1s_creased_fan():
+    """An oval of 240 corners whose height rises and falls three times round it (bent, but not
+    enough to unroll): meshing 1's fan of it is creased in space, and meshing 3's points lifted
+    onto the fan copy the creases (smallest angle 9 degrees, 26 triangles under 15); meshing 4's
+    membrane has none under 25 and stays within the heights of its sides."""
+    from genr8_dist.hemls import Surface
+
+    n = 240
+    angle = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    radius = 2.0 * (1.0 + 0.3 * np.cos(2 * angle))
+    ring = np.c_[radius * np.cos(angle), radius * np.sin(angle), 0.3 * np.cos(3 * angle)]
+    cycle = np.arange(n)
+    zeros = np.zeros(n, dtype=np.int64)
+    surface = Surface(ring, np.c_[cycle, np.roll(cycle, -1)], zeros, zeros, np.array([0, n]), cycle, cycle)
+    old = surface.with_meshing(3).mesh()
+    assert triangle_min_angles(old.points, old.triangles).min() < 15.0
+    mesh = surface.mesh()
+    assert not len(mesh.fallback) and triangle_min_angles(mesh.points, mesh.triangles).min() >= 25.0
+    assert mesh.points[:, 2].min() >= -0.3 - 1e-9 and mesh.points[:, 2].max() <= 0.3 + 1e-9
