@@ -2,6 +2,7 @@
 
     python bench/meshing.py --genomes 300                      # random genomes of each built-in universe
     python bench/meshing.py --genomes 0 --run /tmp/mesh/quick  # a run's best 12 distinct surfaces
+    python bench/meshing.py --meshings 1,4                     # only meshings 1 and 4
 
 Printed per universe (N random genomes, each grown in the empty environment, those with at least one
 region) and meshing: surfaces, triangles, the share of triangles whose smallest angle is below 15
@@ -26,6 +27,9 @@ from genr8_dist.environment import Environment
 from genr8_dist.fitness import slivers, triangle_min_angles
 from genr8_dist.hemls import Surface, grow, parse
 from genr8_dist.hemls.meshing import MESHINGS, _frame, _region_geometry
+
+#: The meshings measured (``--meshings``; meshing 1 always, the others' ratios are to it).
+CHOSEN: tuple[int, ...] = MESHINGS
 
 UNIVERSES = ("default", "gecco", "probabilistic", "reversible", "symmetric", "symmetric_thesis", "tiles")
 
@@ -68,7 +72,7 @@ def one_surface(s: Any) -> dict[str, float]:
     """One surface's counts under every meshing (summed by ``measure``)."""
     ok, flat_ok = corner_ok(s), corner_ok(s) & ~folded(s)
     out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum())}
-    for meshing in MESHINGS:
+    for meshing in CHOSEN:
         f = fresh(s, meshing)
         t0 = time.process_time()
         mesh = f.mesh()
@@ -123,7 +127,7 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
                              "regions": sum(s.n_regions for s, _ in kept),
                              "good_regions": total.get("good_regions", 0),
                              "flat_good_regions": total.get("flat_good_regions", 0)}
-    for m in MESHINGS:
+    for m in CHOSEN:
         tri = total.get(f"tri{m}", 0)
         out[f"tri{m}"] = tri
         out[f"thin{m}"] = total.get(f"thin{m}", 0) / max(tri, 1)
@@ -135,7 +139,7 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
 
 
 def show(name: str, m: dict[str, float]) -> None:
-    for v in MESHINGS:
+    for v in CHOSEN:
         ratio = "" if v == 1 else " (none left)" if not m[f"thin{v}"] else \
             f" ({m['thin1'] / m[f'thin{v}']:.1f}x)"
         print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
@@ -184,11 +188,11 @@ def run_best(run: str, memory: float = 0.0) -> dict[str, Any]:
     print(f"\nrun {run} (meshing {store.meshing}): best 12 distinct\n" + HEADER)
     figures: dict[str, Any] = dict(measure(surfaces, memory))
     show("best 12", figures)
-    print("\n| id | " + " | ".join(f"slivers meshing {v}" for v in MESHINGS) + " |\n|---|"
-          + "---|" * len(MESHINGS))
+    print("\n| id | " + " | ".join(f"slivers meshing {v}" for v in CHOSEN) + " |\n|---|"
+          + "---|" * len(CHOSEN))
     figures["slivers"] = {}
     for i, s in zip(best, surfaces, strict=True):
-        values = [slivers(fresh(s, v)) for v in MESHINGS]
+        values = [slivers(fresh(s, v)) for v in CHOSEN]
         figures["slivers"][i] = values
         print(f"| {i} | " + " | ".join(f"{x:.3f}" for x in values) + " |")
     return figures
@@ -204,7 +208,11 @@ def main() -> None:
     parser.add_argument("--json", metavar="FILE", help="also write the figures to FILE as JSON")
     parser.add_argument("--memory", type=float, default=4.0, metavar="GB",
                         help="address space each surface's meshing may use (0: no limit)")
+    parser.add_argument("--meshings", default=",".join(map(str, MESHINGS)),
+                        help="the meshings to measure, comma-separated (1 is always measured)")
     args = parser.parse_args()
+    global CHOSEN
+    CHOSEN = tuple(sorted({1, *(int(m) for m in args.meshings.split(","))}))
     figures: dict[str, Any] = {"genomes": args.genomes, "universes": {}}
     if args.genomes:
         print(f"{args.genomes} random genomes per universe, empty environment\n" + HEADER)

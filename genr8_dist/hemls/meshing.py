@@ -52,11 +52,13 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     fan of slivers creased in space, and a mesh lifted onto it copies the creases as thin triangles
     (one bent 759-gon of a random default surface: 622 of its 4,145 triangles under 15 degrees).
   - *A needle whose refinement runs out of points keeps its sides whole* (``_NEEDLE``): a region
-    with a corner under 20 degrees in its chart whose Triangle call spends its whole point budget is
-    meshed again at once with its sides whole, and keeps them so in later passes. Near such a
-    corner the refinement splits the sides without end: under meshing 3 one corner of a millionth of
-    a degree split them into 311,040 points in one pass, every neighbour inherited them, and the
-    surface came out as millions of triangles, most of them thin.
+    with a corner under a hundredth of a degree in its chart whose Triangle call spends its whole
+    point budget is meshed again at once with its sides whole, and keeps them so in later passes.
+    Near such a corner the refinement splits the sides without end: under meshing 3 one corner of a
+    millionth of a degree split them into 311,040 points in one pass, every neighbour inherited
+    them, and the surface came out as millions of triangles, most of them thin. Wider corners are
+    left to refine (guarded from 20 degrees, 98 random tiles surfaces had 0.97% of their triangles
+    under 15 degrees, against 0.29%).
   - *A long thin region gets the points it needs* (``_SHAPE_CAP``): every other region's budget
     grows by its shape, ``P^2 / A`` of its corners in its chart (about 4 L / w for a strip of
     length L and width w, the cells of its width it takes to cover it; 16 for a square), at most
@@ -96,7 +98,7 @@ _TOL = 1e-9         # tolerance of orientation tests in a region's plane, scaled
 _PASSES = 8         # meshing 3: passes settling the sides' points, at most ...
 _OWN_SPLITS = 3     # ... in at most this many of which one region may split its own sides
 _CHUNK = 1_000_000  # pair tests (simplicity) or barycentric tests (lifting) handled at once
-_NEEDLE = 20.0      # meshing 4: a region with a corner under this (degrees) whose refinement runs
+_NEEDLE = 0.01      # meshing 4: a region with a corner under this (degrees) whose refinement runs
                     # out of points keeps its sides whole
 _SHAPE_CAP = 50_000 # meshing 4: the most points a region's shape (P^2 / A) adds to its budget
 _UNROLL_BELOW = 0.9 # meshing 4: a region is unrolled first when its projection keeps less of its area

@@ -137,7 +137,7 @@ def test_meshing_3_is_kept_bit_for_bit_for_runs_that_recorded_it():
 
 def _square_and_needle(reach: float):
     """Two regions sharing a side: a unit square, and a needle from that side to a point ``reach``
-    away (its corner there is 2 atan(0.5 / (reach - 1)): 0.03 degrees at 2,000)."""
+    away (its corner there is 2 atan(0.5 / (reach - 1)): 0.0006 degrees at 100,000)."""
     from genr8_dist.hemls import Surface
 
     vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [reach, 0.5, 0]], dtype=np.float64)
@@ -148,12 +148,12 @@ def _square_and_needle(reach: float):
 
 
 def test_a_needle_keeps_its_sides_whole_and_hands_its_neighbours_no_points():
-    """Meshing 3 lets the needle's refinement split its sides towards its 0.03-degree corner until
-    its budget runs out, and the square inherits the points (16,960 triangles for two regions);
-    meshing 4 then keeps them whole: a mesh of the needle's own size, the square still well shaped,
-    the two meeting watertight."""
-    surface = _square_and_needle(2000.0)
-    assert len(surface.with_meshing(3).mesh().triangles) > 10_000
+    """Meshing 3 lets the needle's refinement split its sides towards its 0.0006-degree corner until
+    its budget runs out, and the square inherits the points (118,071 triangles for two regions,
+    2,842 under 15 degrees); meshing 4 then keeps them whole: a mesh of the needle's own size, the
+    square still well shaped, the two meeting watertight."""
+    surface = _square_and_needle(100_000.0)
+    assert len(surface.with_meshing(3).mesh().triangles) > 100_000
     mesh = surface.mesh()
     assert len(mesh.triangles) < 200 and not len(mesh.fallback)
     angles = triangle_min_angles(mesh.points, mesh.triangles)
@@ -165,13 +165,13 @@ def test_a_needle_keeps_its_sides_whole_and_hands_its_neighbours_no_points():
 
 
 def test_meshing_4_budgets_follow_each_region_shape():
-    """A needle (a corner under 20 degrees) is marked and adds nothing; a square adds P^2/A = 16
-    points; a strip 270 times as long as wide about 4 x 270, the cells of its width."""
+    """A needle (a corner under a hundredth of a degree) is marked and adds nothing; a square adds
+    P^2/A = 16 points; a strip 270 times as long as wide about 4 x 270, the cells of its width."""
     from genr8_dist.hemls.meshing import _budgets
 
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
     strip = square * np.array([3.3, 3.3 / 270])
-    needle = np.array([[0.0, 0.0], [2000.0, 0.5], [0.0, 1.0]])
+    needle = np.array([[0.0, 0.0], [100_000.0, 0.5], [0.0, 1.0]])
     flags, extra = _budgets([square, strip, needle, None])
     assert flags.tolist() == [False, False, True, False]
     assert extra[0] == 16 and 4 * 270 <= extra[1] <= 4 * 272 and extra[2] == extra[3] == 0
