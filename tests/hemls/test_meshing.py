@@ -288,3 +288,25 @@ def test_a_bent_region_spans_its_sides_as_a_membrane_not_meshing_1s_creased_fan(
     mesh = surface.mesh()
     assert not len(mesh.fallback) and triangle_min_angles(mesh.points, mesh.triangles).min() >= 25.0
     assert mesh.points[:, 2].min() >= -0.3 - 1e-9 and mesh.points[:, 2].max() <= 0.3 + 1e-9
+
+
+def test_a_region_overlapping_itself_in_every_chart_is_meshed_in_pieces():
+    """A ramp winding 420 degrees round an axis (a spiral stair's flight) overlaps itself projected
+    and unrolled: meshing 3 cuts it as meshing 1 does (64 of 78 triangles under 15 degrees); meshing
+    4 cuts it into pieces along its meshing-1 diagonals, meshes them as neighbours, and counts every
+    triangle as the ramp's, none under 25 degrees."""
+    from genr8_dist.hemls import Surface
+
+    theta = np.radians(np.linspace(0.0, 420.0, 40))
+    inner = np.c_[np.cos(theta), np.sin(theta), 0.02 * theta]
+    outer = np.c_[2.0 * np.cos(theta), 2.0 * np.sin(theta), 0.02 * theta][::-1]
+    vertices = np.concatenate([inner, outer])
+    cycle = np.arange(len(vertices))
+    zeros = np.zeros(len(cycle), dtype=np.int64)
+    ramp = Surface(vertices, np.c_[cycle, np.roll(cycle, -1)], zeros, zeros, np.array([0, len(cycle)]),
+                   cycle, cycle)
+    assert ramp.with_meshing(3).mesh().fallback.tolist() == [0]
+    mesh = ramp.mesh()
+    assert not len(mesh.fallback) and set(mesh.regions.tolist()) == {0}
+    assert triangle_min_angles(mesh.points, mesh.triangles).min() >= 25.0
+    assert np.array_equal(mesh.points[:len(vertices)], vertices)
