@@ -262,6 +262,12 @@ def _frame(normal: np.ndarray) -> np.ndarray | None:
     return np.stack([e1, np.cross(n, e1)])
 
 
+def _twice_area(xy: np.ndarray) -> float:
+    """Twice the signed area of the closed polygon ``xy`` (m, 2): the shoelace sum, positive when
+    counter-clockwise."""
+    return float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
+
+
 def _simple(xy: np.ndarray) -> bool:
     """Whether the closed polygon ``xy`` (m, 2; unit extent) is simple with some area: no side of no
     length, no two sides that are not neighbours meeting or touching (within ``_TOL``)."""
@@ -269,8 +275,7 @@ def _simple(xy: np.ndarray) -> bool:
     d = np.roll(xy, -1, axis=0) - xy
     if m < 3 or m > _SIMPLE_MAX or np.any(np.hypot(d[:, 0], d[:, 1]) <= _TOL):
         return False
-    twice_area = float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
-    if twice_area <= _TOL:
+    if _twice_area(xy) <= _TOL:
         return False
     q = xy + d
     lo, hi = np.minimum(xy, q) - _TOL, np.maximum(xy, q) + _TOL
@@ -400,7 +405,7 @@ def _triangulate_region(xy: np.ndarray, options: str, marked: bool = False
     p = points2[tri]
     areas = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) \
         - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    shoelace = float(np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1]))
+    shoelace = _twice_area(xy)
     if np.any(areas <= 0) or abs(float(areas.sum()) - shoelace) > 1e-9 * abs(shoelace):
         return None
     markers = np.asarray(out.get("vertex_markers", np.zeros((len(points2), 1))), dtype=np.int64).reshape(-1)
@@ -729,7 +734,7 @@ def _budgets(charts: list[np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
         a, b = uv - np.roll(uv, 1, 0), np.roll(uv, -1, 0) - uv
         turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b)))
         needle[r] = bool(np.any(180.0 - turn < _NEEDLE))
-        area = 0.5 * abs(float(np.sum(uv[:, 0] * np.roll(uv[:, 1], -1) - np.roll(uv[:, 0], -1) * uv[:, 1])))
+        area = 0.5 * abs(_twice_area(uv))
         perimeter = float(np.linalg.norm(b, axis=1).sum())
         if not needle[r] and area > 0.0:
             extra[r] = int(min(perimeter * perimeter / area, _SHAPE_CAP))
