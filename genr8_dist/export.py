@@ -428,12 +428,7 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
             legend = _legend(env)
             if legend:
                 fig.text(0.5, -0.01, legend, ha="center", va="top", fontsize=8, color="0.25")
-        centre = (lo + hi) / 2
-        extent = np.maximum(hi - lo, 0.08 * float(np.max(hi - lo)) if np.any(hi > lo) else 1.0)
-        ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
-        ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
-        ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
-        ax.set_box_aspect(tuple(extent / np.max(extent)))
+        extent = _fit_box(ax, lo, hi)
         ax.set_xlabel("x")
         ax.set_ylabel("y")
         ax.set_zlabel("z")
@@ -457,6 +452,19 @@ def render_png(surface: SurfaceLike, path: str | Path, *, title: str, env: Envir
     return path
 
 
+def _fit_box(ax: Any, lo: np.ndarray, hi: np.ndarray, zoom: float = 1.0) -> np.ndarray:
+    """Set the 3D axes ``ax`` to the box ``lo``..``hi`` at equal scale on every axis, each side at
+    least 8% of the longest (a flat surface gets a flat box, not a cube of empty height; a point,
+    a unit cube); returns the sides."""
+    centre = (lo + hi) / 2
+    extent: np.ndarray = np.maximum(hi - lo, 0.08 * float(np.max(hi - lo)) if np.any(hi > lo) else 1.0)
+    ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
+    ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
+    ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
+    ax.set_box_aspect(tuple(extent / np.max(extent)), zoom=zoom)
+    return extent
+
+
 def draw_surface(ax: Any, surface: SurfaceLike, *, elev: float = 32.0, azim: float = -58.0) -> None:
     """Draw ``surface`` on the 3D axes ``ax``: its mesh shaded by height and lit from above through
     smooth normals (no triangle edge drawn), its scaffold as B-spline curves, equal scale on every
@@ -464,15 +472,8 @@ def draw_surface(ax: Any, surface: SurfaceLike, *, elev: float = 32.0, azim: flo
     not a cube of empty height), so the form fills its tile."""
     plt = pyplot()
     v = np.asarray(surface.vertices, dtype=np.float64).reshape(-1, 3)
-    lo, hi = v.min(axis=0), v.max(axis=0)
-    centre = (lo + hi) / 2.0
-    largest = max(float((hi - lo).max()), 1e-9)
-    extent = np.maximum(hi - lo, 0.08 * largest)
     _add_surface(ax, surface, plt, low=0.18, span=0.64, dark=0.55, curve_width=0.45)
-    ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
-    ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
-    ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
-    ax.set_box_aspect(tuple(extent / largest), zoom=1.05)
+    _fit_box(ax, v.min(axis=0), v.max(axis=0), zoom=1.05)
     ax.view_init(elev=elev, azim=azim)
     ax.set_axis_off()
 

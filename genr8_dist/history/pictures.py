@@ -163,7 +163,7 @@ def curves_figure(store: RunLike, table: pa.Table | None = None) -> Any:
         rows = isl == i
         ax.plot(gen[rows], best[rows], color=colours[i], lw=2.0, label=f"island {i} best")
         ax.plot(gen[rows], median[rows], color=colours[i], lw=1.0, ls="--", alpha=0.6)
-    if len(islands) > 2:  # the run's best over all islands, on top, so the trend reads at a glance
+    if len(islands) > 2:  # the run's best over all islands, so the trend reads at a glance
         overall = [np.nanmin(best[gen == g]) if np.isfinite(best[gen == g]).any() else np.nan
                    for g in sorted(set(gen.tolist()))]
         # a wide grey band under the islands' lines, so the island holding the best stays visible
