@@ -149,7 +149,8 @@ def mesh_surface(surface: Any, meshing: int = MESHING, *,
     refine = _refine if meshing == 2 else partial(_refine3, guarded=meshing >= 4)
     origin = None
     if meshing >= 4:
-        offsets, cycles, coarse, owners, origin = _pieces(vertices, offsets, cycles, coarse, owners)
+        offsets, cycles, coarse, owners, origin, known = _pieces(vertices, offsets, cycles, coarse, owners)
+        refine = partial(_refine3, guarded=True, known=known)
     points, triangles, regions, fallback = refine(vertices, offsets, cycles, coarse, owners, cut)
     if origin is not None:
         regions, fallback = origin[regions], np.unique(origin[fallback])
@@ -157,25 +158,32 @@ def mesh_surface(surface: Any, meshing: int = MESHING, *,
                 _frozen(fallback, np.int64))
 
 
+def _local(cyc: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Triangles ``tri`` of vertex ids as indices into the cycle ``cyc`` (its vertices unique)."""
+    return cast(np.ndarray, np.argsort(cyc)[np.searchsorted(np.sort(cyc), tri)])
+
+
 def _pieces(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
-            owners: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            owners: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                         list[tuple[np.ndarray | None, bool] | None]]:
     """Meshing 4: every region that is simple neither projected nor unrolled (``_chart``) cut along
     diagonals of its meshing-1 triangles, the most even cut first, until each piece is (or is one
     triangle, or ``_PIECE_DEPTH`` cuts deep): the pieces' offsets, cycles, meshing-1 triangles and
-    their owners, and each piece's region (``origin``). The pieces share the diagonals as map edges,
-    so their meshes meet as neighbouring regions' do."""
+    their owners, each piece's region (``origin``), and the chart found for each region left whole
+    (``known``, None elsewhere: ``_refine3`` reuses it rather than unrolling the region again). The
+    pieces share the diagonals as map edges, so their meshes meet as neighbouring regions' do."""
     sizes = np.diff(offsets)
     starts = np.searchsorted(owners, np.arange(len(sizes) + 1))
+    centroid, newell, *_ = _region_geometry(vertices, offsets, cycles)
 
     def simple(cyc: np.ndarray, tri: np.ndarray) -> bool:
         pos = vertices[cyc]
         centre = pos.mean(axis=0)
         normal = np.cross(pos - centre, np.roll(pos, -1, axis=0) - centre).sum(axis=0)
-        local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), tri)]
-        return _chart(pos, local, centre, normal, unrolled_first=True)[0] is not None
+        return _chart(pos, _local(cyc, tri), centre, normal, unrolled_first=True)[0] is not None
 
     def cut(cyc: np.ndarray, tri: np.ndarray, depth: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        if len(tri) < 2 or depth >= _PIECE_DEPTH or simple(cyc, tri):
+        if len(tri) < 2 or depth >= _PIECE_DEPTH or (depth > 0 and simple(cyc, tri)):
             return [(cyc, tri)]
         at = {int(v): i for i, v in enumerate(cyc)}
         pairs = {}
@@ -196,22 +204,27 @@ def _pieces(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coars
         return out
 
     new_cycles, new_tri, origin = [], [], []
+    known: list[tuple[np.ndarray | None, bool] | None] = []
     for r in range(len(sizes)):
         cyc = cycles[offsets[r]:offsets[r + 1]]
         tri = coarse[starts[r]:starts[r + 1]]
-        whole = [(cyc, tri)]
+        whole, chart = [(cyc, tri)], None
         if sizes[r] >= 4 and len(np.unique(cyc)) == len(cyc) and len(tri) == sizes[r] - 2:
-            whole = cut(cyc, tri, 0)
+            # the chart _refine3 would find (the same centroid and Newell vector)
+            chart = _chart(vertices[cyc], _local(cyc, tri), centroid[r], newell[r], unrolled_first=True)
+            if chart[0] is None:
+                whole, chart = cut(cyc, tri, 0), None
         for piece, piece_tri in whole:
             new_cycles.append(piece)
             new_tri.append(piece_tri)
             origin.append(r)
+            known.append(chart)
     piece_sizes = [len(c) for c in new_cycles]
     new_offsets = np.concatenate([[0], np.cumsum(piece_sizes)]).astype(np.int64)
     new_owners = np.repeat(np.arange(len(new_cycles)), [len(t) for t in new_tri])
     return (new_offsets, np.concatenate(new_cycles).astype(np.int64),
             np.concatenate(new_tri).reshape(-1, 3).astype(np.int64), new_owners.astype(np.int64),
-            np.asarray(origin, dtype=np.int64))
+            np.asarray(origin, dtype=np.int64), known)
 
 
 def _region_geometry(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray
@@ -742,13 +755,15 @@ def _budgets(charts: list[np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
-             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray], *, guarded: bool = False
+             owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray], *, guarded: bool = False,
+             known: list[tuple[np.ndarray | None, bool] | None] | None = None
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
     points settled by passes until no region's own mesh splits a side (``_PASSES`` at most);
     ``guarded``: meshing 4, curved regions unrolled first, projected ones lifted as membranes,
     needles whose refinement runs out of points keep their sides whole, budgets follow shapes
-    (``_budgets``); ``mesh_surface`` has cut regions simple in no chart into pieces (``_pieces``)."""
+    (``_budgets``); ``mesh_surface`` has cut regions simple in no chart into pieces (``_pieces``),
+    and ``known`` holds the charts it found on the way (None: find it here)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
@@ -761,13 +776,16 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         """Region r's cycle, its meshing-1 triangles, and those as indices into the cycle."""
         cyc = cycles[offsets[r]:offsets[r + 1]]
         own = coarse[coarse_start[r]:coarse_start[r + 1]]
-        local = np.argsort(cyc)[np.searchsorted(np.sort(cyc), own)] if len(own) else own.reshape(-1, 3)
+        local = _local(cyc, own) if len(own) else own.reshape(-1, 3)
         return cyc, own, local
 
     membrane = np.zeros(n_regions, dtype=bool)     # meshing 4: projected regions lift as membranes
     for r in range(n_regions):
         cyc, _, local = coarse_of(r)
-        if sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
+        found = known[r] if known is not None else None
+        if found is not None:
+            charts[r], membrane[r] = found
+        elif sizes[r] >= 3 and len(np.unique(cyc)) == len(cyc):
             charts[r], membrane[r] = _chart(vertices[cyc], local, centroid[r], newell[r],
                                             unrolled_first=guarded)
     membrane &= guarded
