@@ -47,8 +47,9 @@ In ``weighted`` mode an offspring that grows trivial is varied again
 too, from its first parent (its own variation broke what made the parent split its regions, so
 its neighbourhood is mostly trivial), as is one whose growth was capped; trivial again after
 ``_TRIVIAL_RETRIES`` such re-variations, it is kept (``IslandStats.kept_trivial``): a parent whose
-neighbourhood is mostly trivial would cost growth after growth (quick.toml: 1.24 evaluations per
-stored individual with no bound, 1.11 with one re-variation, 3-4% of offspring kept trivial).
+neighbourhood is mostly trivial would cost growth after growth (quick.toml in shell.toml: 1.24
+evaluations per stored individual with no bound, 1.11 with one re-variation, 3-4% of offspring kept
+trivial).
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
