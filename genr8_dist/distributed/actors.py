@@ -1,10 +1,12 @@
-"""The island host: a Ray actor that keeps one or several islands and advances them a generation at a time.
+"""The island host: a Ray actor that keeps one or several islands and advances them generation by generation.
 
 ``IslandHost`` is a plain class (testable without Ray); ``remote_host_class()`` wraps it as a Ray actor.
 An actor holds each island's latest generation and the configuration versions it was sent, so they are
-not sent back and forth: per generation the coordinator sends the generation number, the configuration
-version in force (the configuration itself only the first time), the incoming migrants and any injected
-individuals, and receives the new generation (genomes, criteria, provenance; never phenotypes). A host
+not sent back and forth: one call (``advance_steps``) asks for one or several consecutive generations of
+an island within an epoch, each a ``Step``: the generation number, the configuration version in force
+(the configuration itself only the first time), the incoming migrants and any injected individuals;
+the answer is a ``Generated`` per generation (fitness values, emigrant candidates, the part file the
+host wrote; never rows or phenotypes). A host
 that lacks the generation before the one asked for (it was just created to replace a dead actor, or
 it adopted an island from one) reads it from the run store: per-generation traffic stays small, and a
 restarted actor rebuilds its state from the last commit. Because ``Island.step`` is a pure function of
@@ -33,9 +35,11 @@ while one of its islands waits for its slowest genome.
 from __future__ import annotations
 
 import functools
+import math
 import os
 import socket
 import threading
+import time
 from collections import deque
 from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -50,7 +54,7 @@ if TYPE_CHECKING:
     from genr8_dist.evolution.island import Island
     from genr8_dist.store import Part, RunStore
 
-__all__ = ["HELPING", "OFFERS", "Generated", "IslandHost", "remote_host_class"]
+__all__ = ["HELPING", "OFFERS", "Generated", "IslandHost", "Step", "remote_host_class"]
 
 # The actor's concurrency groups serving ``offer`` and ``evaluate`` (for other hosts) while ``advance``
 # runs in the default one.
@@ -60,6 +64,28 @@ HELPING = "helping"
 BATCH = 8
 # Seconds the owner's dealing thread waits for a helper's answer before it looks for offers again.
 DEAL_POLL = 0.02
+
+
+@dataclass(frozen=True, slots=True)
+class Step:
+    """One generation the coordinator asks of an island's host (``IslandHost.advance_steps``).
+
+    ``config`` is configuration version ``config_version``; the coordinator sends it until the host
+    has answered a generation of that version, and ``None`` afterwards (the host keeps it; a host
+    with several slots may start a later call first). ``migrants``: the individuals arriving after
+    a migration generation; ``injected``: what a user injected; ``hand``: individuals with the
+    fitness a designer gave them, parents of this generation (``Island.breed``). ``write``: write
+    the island's rows not yet in a part (this generation's included) as a part file; ``emigrants``:
+    ``(k, mode)``, return the generation's emigrant candidates."""
+
+    generation: int
+    config_version: int
+    config: RunConfig | None = None
+    migrants: tuple[Individual, ...] = ()
+    injected: tuple[Any, ...] = ()
+    hand: tuple[tuple[Individual, float], ...] = ()
+    write: bool = False
+    emigrants: tuple[int, str] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -96,6 +122,7 @@ class IslandHost:
         self._helped = 0                      # genomes evaluated for other hosts' islands
         self._cpu = threading.BoundedSemaphore(self.slots)   # ``slots`` evaluations at once, whoever for
         self._running: set[int] = set()       # tickets of the generations under way here
+        self._cuts: set[int] = set()          # tickets of calls to answer after their generation under way
         self._lanes = (ThreadPoolExecutor(self.slots - 1, thread_name_prefix="genr8-lane")
                        if self.slots > 1 else None)
         self._lane = threading.local()        # each lane's evaluators
@@ -179,18 +206,59 @@ class IslandHost:
         emigrants: tuple[int, str] | None = None,
         live: bool = False,
     ) -> Generated:
-        """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest.
+        """Compute ``island``'s ``generation`` (0: the initial population) and keep it as the latest:
+        ``advance_steps`` with one ``Step`` (its fields say what the arguments mean)."""
+        step = Step(generation, config_version, config, tuple(migrants), tuple(injected), tuple(hand), write,
+                    emigrants)
+        return self.advance_steps(island, [step], helpers, ticket, live)[0]
 
-        ``config`` is the configuration version ``config_version``; the coordinator sends it with every
-        call to a host until that host has answered a generation of that version, and ``None``
-        afterwards (the host keeps it; a host with several slots may start a later call first).
-        ``helpers`` (Ray handles of idle hosts) evaluate a share of the new genomes, and so do helpers
-        offered with this ``ticket``. ``hand``: individuals with the fitness a designer gave them,
-        parents of this generation (``Island.breed``).
-        ``write``: write the island's rows not yet in a part (this generation's included) as a part
-        file; ``emigrants``: ``(k, mode)``, return the generation's emigrant candidates; ``live``: write the
+    def advance_steps(
+        self,
+        island: int,
+        steps: Sequence[Step],
+        helpers: Sequence[Any] = (),
+        ticket: int | None = None,
+        live: bool = False,
+        answer_after: float = math.inf,
+    ) -> list[Generated]:
+        """Compute ``island``'s generations ``steps`` (consecutive, within one epoch) one after the
+        other, each kept as the latest; their ``Generated``, in order.
+
+        One call for several generations: the driver's cost is per call (a submission and an answer),
+        so a run of many islands asks for an epoch at a time. ``answer_after``: answer once this many
+        seconds have gone in the call, with the generations done so far (at least one), so that the
+        driver hears of an island often enough to show its progress. ``helpers`` (Ray handles of idle
+        hosts) evaluate a share of every generation's genomes, and so do the helpers offered with this
+        ``ticket`` (they stay with the call: the coordinator lent them to it). ``live``: write each
         generation to the run's live view for the studio (``store/live.py``; local runs only)."""
-        model = self._island(island, config, config_version)
+        started = time.perf_counter()
+        crew = [_helping(h) for h in helpers]
+        out: list[Generated] = []
+        if ticket is not None:
+            self._running.add(ticket)
+        try:
+            for k, step in enumerate(steps):
+                out.append(self._step(island, step, crew, ticket, live))
+                if k + 1 < len(steps) and (ticket in self._cuts
+                                           or time.perf_counter() - started >= answer_after):
+                    break
+        finally:
+            self._running.discard(ticket)
+            self._cuts.discard(ticket)
+        return out
+
+    def cut(self, ticket: int) -> bool:
+        """Answer the call of ``ticket`` after the generation it is computing, or after its first if
+        it has not started (served beside it): a user's request waits for the generations no island
+        has started. Whether that call was under way (a ticket of a call already answered is kept:
+        a few integers per request)."""
+        self._cuts.add(ticket)
+        return ticket in self._running
+
+    def _step(self, island: int, step: Step, crew: list[Any], ticket: int | None, live: bool) -> Generated:
+        """One generation of ``island`` (``advance_steps``)."""
+        generation = step.generation
+        model = self._island(island, step.config, step.config_version)
         held = self._latest.get(island)
         if held is None or held[0] != generation - 1:
             self._unwritten.pop(island, None)   # its parents come from the store: committed already
@@ -198,14 +266,9 @@ class IslandHost:
             births = model.breed(0)
         else:
             previous = self._previous(island, generation - 1)
-            births = model.breed(generation, previous, migrants=tuple(migrants), injected=tuple(injected),
-                                 hand=tuple(hand))
-        if ticket is not None:
-            self._running.add(ticket)
-        try:
-            evaluated = self._evaluate(model, model.pending(births), helpers, ticket)
-        finally:
-            self._running.discard(ticket)
+            births = model.breed(generation, previous, migrants=tuple(step.migrants),
+                                 injected=tuple(step.injected), hand=tuple(step.hand))
+        evaluated = self._evaluate(model, model.pending(births), crew, ticket)
         population = model.complete(generation, births, evaluated)
         self._latest[island] = (generation, population)
         with self._writing:
@@ -213,13 +276,13 @@ class IslandHost:
         if live:
             self._store_of().live().write(island, generation, population)
         candidates = None
-        if emigrants is not None:
+        if step.emigrants is not None:
             from genr8_dist.distributed.migration import select_emigrants
 
-            k, mode = emigrants
+            k, mode = step.emigrants
             candidates = tuple(population if mode == "novel" else select_emigrants(population, k))
         return Generated(island, generation, tuple(float(ind.fitness) for ind in population),
-                         self.flush(island) if write else None, candidates, emigrants)
+                         self.flush(island) if step.write else None, candidates, step.emigrants)
 
     def flush(self, island: int) -> Part | None:
         """Write ``island``'s rows computed since its last part as a new part file of the run and
@@ -309,16 +372,16 @@ class IslandHost:
             if not lane.cancel():
                 lane.result()
 
-    def _evaluate(self, model: Any, genomes: list[tuple[int, ...]], helpers: Sequence[Any],
+    def _evaluate(self, model: Any, genomes: list[tuple[int, ...]], crew: list[Any],
                   ticket: int | None) -> dict[tuple[int, ...], Any]:
-        """``genomes`` evaluated, here and by ``helpers`` and the helpers offered meanwhile: a thread
-        deals batches to the helpers (``_deal``) while this one evaluates what is left, one at a
-        time; a batch whose helper failed goes back to be evaluated by whoever takes it next. An
-        evaluation here that raises abandons the rest: nothing more is dealt, and the dealing thread
-        ends once the batches already dealt are back."""
+        """``genomes`` evaluated, here and by the call's helpers (``crew``: their ``evaluate``, which
+        the helpers offered meanwhile join): a thread deals batches to the helpers (``_deal``) while
+        this one evaluates what is left, one at a time; a batch whose helper failed goes back to be
+        evaluated by whoever takes it next. An evaluation here that raises abandons the rest: nothing
+        more is dealt, and the dealing thread ends once the batches already dealt are back."""
         deal = _Deal(genomes)
         dealer = threading.Thread(target=self._deal, name="genr8-deal", daemon=True,
-                                  args=(model, deal, [_helping(h) for h in helpers], ticket))
+                                  args=(model, deal, crew, ticket))
         dealer.start()
         lanes = self._spread(deal, model.config_version, model.config)
         try:
@@ -333,16 +396,20 @@ class IslandHost:
             raise deal.error
         return deal.out
 
-    def _deal(self, model: Any, deal: _Deal, helpers: list[Any], ticket: int | None) -> None:
-        """The dealing thread of one generation: keep each helper busy with one batch until no genome
-        is left untaken, collect the answers; ends when every batch dealt has come back."""
+    def _deal(self, model: Any, deal: _Deal, crew: list[Any], ticket: int | None) -> None:
+        """The dealing thread of one generation: keep each helper of the call (``crew``, which the
+        helpers offered meanwhile join for the call's later generations) busy with one batch until no
+        genome is left untaken, collect the answers; ends when every batch dealt has come back. A
+        helper that failed leaves the crew."""
         import ray
 
         try:
-            idle = list(helpers)
+            idle = list(crew)
             out: dict[Any, tuple[Any, list[tuple[int, ...]]]] = {}
             while True:
-                idle.extend(self._taken_offers(ticket))
+                offered = self._taken_offers(ticket)
+                crew.extend(offered)
+                idle.extend(offered)
                 while idle:
                     batch = deal.take(deal.batch(len(idle) + len(out) + 1))
                     if not batch:
@@ -363,6 +430,8 @@ class IslandHost:
                         found = ray.get(ref)
                     except ray.exceptions.RayError:   # the helper died or failed: its batch goes back
                         deal.give_back(batch)
+                        if helper in crew:
+                            crew.remove(helper)
                         continue
                     deal.done(zip(batch, found, strict=True))
                     idle.append(helper)

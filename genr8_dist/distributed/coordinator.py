@@ -1,8 +1,12 @@
 """The coordinator: runs a run's generations on the island hosts and commits every epoch to the store.
 
 An *epoch* is the generations after one migration generation (a multiple of
-``islands.migration_interval``) up to the next, or to the run's last generation. Each island advances
-one generation per actor call, so an interrupt waits for no more than what is already complete. No row
+``islands.migration_interval``) up to the next, or to the run's last generation. One actor call asks
+for an island's generations to the end of the epoch, answered early once the island has had its share
+of the driver's answers (``ANSWERS_PER_SECOND``): the driver's cost is per call, so a run of hundreds of
+islands asks for whole epochs, while a run of a few still hears of every generation as it completes.
+An interrupt waits for no more than what is already complete: at a stop, each host writes the
+generations it completed, those of a call under way included, and they are committed. No row
 comes back to the driver: at the end of an epoch each island's host writes the epoch's rows as a part
 file (``store.parts``) and returns it with the generation's fitness values and emigrant candidates
 (``actors.Generated``); once every island has completed the epoch, the coordinator commits all its
@@ -52,7 +56,6 @@ the tests that inject faults; the coordinator calls none of them by name.
 from __future__ import annotations
 
 import contextlib
-import functools
 import itertools
 import json
 import threading
@@ -63,7 +66,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from genr8_dist.distributed.actors import OFFERS
-from genr8_dist.distributed.migration import is_migration_generation, migrants_for, sources
+from genr8_dist.distributed.migration import destinations, is_migration_generation, migrants_for, sources
 from genr8_dist.errors import Genr8Error, RunError
 from genr8_dist.evolution.individual import Individual
 
@@ -95,6 +98,12 @@ _TICKETS = itertools.count(1)
 COMPACT_ROWS = 100_000
 # Offers of help kept unanswered before the answered ones are let go (``Pipeline.lend``).
 OFFERS_KEPT = 64
+# The islands' answers the driver receives per second at most, all together: each costs it about 1.5 ms
+# (a submission and an answer), so that 8 a second keep it near 1% of its time. An island's call spans
+# its generations to the end of the epoch, answered early once ``islands / ANSWERS_PER_SECOND``
+# seconds have gone in it: a run of a few islands still shows each generation as it completes, one of
+# hundreds asks for whole epochs.
+ANSWERS_PER_SECOND = 8
 
 
 def last_generation(config: RunConfig) -> int:
@@ -457,8 +466,16 @@ class Coordinator:
         islands = config.islands
         if not islands.migrants or self.n_islands < 2:
             return ()
-        found = _sources(islands.topology, self.n_islands, int(config.seed), generation)[island]
+        found = sources(islands.topology, self.n_islands, int(config.seed), generation)[island]
         return tuple(sorted({*found, island})) if islands.emigrants == "novel" else found
+
+    def destinations_of(self, island: int, generation: int, config: RunConfig) -> tuple[int, ...]:
+        """The islands whose migrants after ``generation`` come (partly) from ``island``: those whose
+        ``sources_of`` hold it."""
+        islands = config.islands
+        if not islands.migrants or self.n_islands < 2:
+            return ()
+        return destinations(islands.topology, self.n_islands, int(config.seed), generation)[island]
 
     def migration_event(self, generation: int, config: RunConfig,
                         moves: Mapping[int, Sequence[Individual]]) -> Any:
@@ -488,16 +505,20 @@ class Coordinator:
 
     def _island_done(self, island: int, generation: int, done: Any) -> None:
         """One island completed one generation (``done``: the host's ``Generated``; not committed
-        yet): ``on_island``, then the edits queued meanwhile are taken."""
+        yet): ``on_island``. Once a call's generations are all received, the pipeline takes the edits
+        queued meanwhile (``_take_during``)."""
         self.hooks.island_done(self, island, generation, done)
-        self._take_during()
 
     def _take_during(self) -> None:
         """The edits queued meanwhile, in force from the first generation no island has started
-        (``intervene.take_queued``'s ``during``); a request that must wait for an epoch's end (a
-        pause, an edit of the epochs) holds the run at the end of the epoch under way."""
+        (``intervene.take_queued``'s ``during``), once the calls under way that asked for several
+        generations have answered with those they started (``Pipeline.cut``); a request that must wait
+        for an epoch's end (a pause, an edit of the epochs) holds the run at the end of the epoch under
+        way."""
         pipeline = self._now
         if pipeline is None or pipeline.hold is not None or not self.store.queued():
+            return
+        if pipeline.cut():   # calls asked for generations they have not started: they answer first
             return
         first = pipeline.first_unstarted()
         if first <= self.last:
@@ -597,13 +618,6 @@ class Coordinator:
                    if int(e["rows"]) < COMPACT_ROWS)
 
 
-@functools.lru_cache(maxsize=8)
-def _sources(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
-    """``migration.sources``, computed once per migration (each island asks it, each time it may
-    start)."""
-    return sources(topology, n_islands, seed, generation)
-
-
 def _answers(refs: Sequence[Any]) -> dict[Any, Any]:
     """The values of ``refs`` (done), fetched at once; none when one of them failed (each is then
     fetched alone, and its error met where it is handled)."""
@@ -626,9 +640,9 @@ def _with_part(done: Any, part: Any) -> Any:
 
 class Pipeline:
     """The run's generations from the committed ones on, with no barrier but migration's own: each
-    island advances one generation per host call as soon as it may, idle hosts are lent to
-    generations under way, lost hosts' islands restart, and each epoch is committed (one manifest) in a
-    thread of its own once every island has completed it, while the next epoch runs.
+    island advances as soon as it may (a host call to the epoch's end: ``submit``), idle hosts are
+    lent to generations under way, lost hosts' islands restart, and each epoch is committed (one
+    manifest) in a thread of its own once every island has completed it, while the next epoch runs.
 
     An island may start generation ``g + 1`` when it has completed ``g`` and, after a migration
     generation, when the islands its migrants come from have completed ``g`` (their emigrant
@@ -644,7 +658,9 @@ class Pipeline:
         self.committed = dict(committed)  # durable
         self.cursor = dict(committed)     # island -> its newest generation done (committed or not)
         self.results: dict[int, dict[int, Any]] = {i: {} for i in committed}
-        self.pending: dict[Any, tuple[int, int]] = {}   # ref of a generation under way -> (island, g)
+        self.pending: dict[Any, tuple[int, int]] = {}   # ref of a call under way -> (island, its last g)
+        self.firsts: dict[Any, int] = {}    # ref of a call under way -> its first generation
+        self.cutting: set[Any] = set()      # calls asked to answer early: nothing is submitted meanwhile
         self.busy: set[int] = set()         # the islands of ``pending``
         self.tickets: dict[Any, int] = {}
         self.lent: dict[int, Any] = {}      # idle host -> the generation (its ref) it helps
@@ -671,8 +687,22 @@ class Pipeline:
         return epoch_end(low, self.run_.interval, self.run_.last)
 
     def first_unstarted(self) -> int:
-        """The first generation no island has started."""
+        """The first generation no island has been asked for."""
         return max([*self.cursor.values(), *(g for _, g in self.pending.values())]) + 1
+
+    def cut(self) -> bool:
+        """A request is queued: ask every call under way that spans several generations to answer
+        after the one it is computing (``IslandHost.cut``), and submit nothing until they have, so
+        that the request is in force from the first generation no island has started, as if every
+        call had asked for one. Whether calls are still to answer."""
+        cut = self.cutting & set(self.pending)
+        for ref, (island, last) in self.pending.items():
+            if ref not in self.cutting and last > self.firsts[ref]:
+                host = self.run_.hosts.host_of(island)
+                self.offers.append(host.cut.options(concurrency_group=OFFERS).remote(self.tickets[ref]))
+                cut.add(ref)
+        self.cutting = cut
+        return bool(cut)
 
     def hold_at(self, started: int) -> None:
         """Start nothing after the end of the epoch holding generation ``started`` (a request
@@ -732,42 +762,60 @@ class Pipeline:
         return g, version, config, migrants
 
     def submit(self, island: int, limit: int | None = None) -> bool:
-        """Ask ``island``'s host for its next generation if it may start, naming free hosts as its
-        helpers; whether it was submitted."""
+        """Ask ``island``'s host for its next generations if it may start: one call up to the end of
+        the epoch (or the hold, or the look-ahead's limit), answered early once the island has had its
+        share of the driver's answers (``ANSWERS_PER_SECOND``); free hosts are named its helpers.
+        Whether it was submitted."""
+        from genr8_dist.distributed.actors import Step
+
         run = self.run_
         prepared = self.ready(island, limit)
         if prepared is None:
             return False
-        g, version, config, migrants = prepared
-        injected = run._injections.get((g, island), ())
-        hand = run._hand.get((g, island), ())
-        emigrants = None
-        if is_migration_generation(g, run.interval) and g < run.last:
-            emigrants = run.emigrant_spec(run.config_for(g + 1)[1])
+        first, version, config, migrants = prepared
+        end = min(self.boundary(first), run.last, self.limit() if limit is None else limit)
+        if self.hold is not None:
+            end = min(end, self.hold)
         host = run.hosts.host_of(island)
-        send = (id(host), version) not in run._configured
+        steps = []
+        sent: set[int] = set()
+        for g in range(first, end + 1):
+            if g > first:
+                version, config = run.config_for(g)
+            send = (id(host), version) not in run._configured and version not in sent
+            sent.add(version)
+            emigrants = None
+            if is_migration_generation(g, run.interval) and g < run.last:
+                emigrants = run.emigrant_spec(run.config_for(g + 1)[1])
+            steps.append(Step(g, version, config if send else None, tuple(migrants) if g == first else (),
+                              tuple(run._injections.get((g, island), ())),
+                              tuple(run._hand.get((g, island), ())),
+                              g == self.boundary(g) or g == self.hold, emigrants))
         # The first generation under way gets one helper at once; ``lend`` spreads the free hosts
         # over the generations under way right after.
         own = run.hosts.placement_of(island)
         helpers = [n for n in self.free() if n != own][:1] if not self.pending else []
         ticket = next(_TICKETS)
-        write = g == self.boundary(g) or g == self.hold
-        ref = host.advance.remote(island, g, config if send else None, version, migrants, injected,
-                                  [run.hosts.handle(n) for n in helpers], ticket, hand, write,
-                                  emigrants, bool(getattr(run, "live", False)))
-        self.pending[ref] = (island, g)
+        ref = host.advance_steps.remote(island, steps, [run.hosts.handle(n) for n in helpers], ticket,
+                                        bool(getattr(run, "live", False)), run.n_islands / ANSWERS_PER_SECOND)
+        self.pending[ref] = (island, end)
+        self.firsts[ref] = first
         self.busy.add(island)
         self.tickets[ref] = ticket
         self.helpers[ref] = len(helpers)
         self.lent.update(dict.fromkeys(helpers, ref))
         return True
 
-    def submit_ready(self, islands: Any = None) -> None:
-        """Submit the next generation of every island (of ``islands``) that may start."""
+    def submit_ready(self, islands: Any = None) -> bool:
+        """Submit the next generation of every island (of ``islands``) that may start; whether it
+        looked (not while calls are cut for a queued request: the caller keeps ``islands``)."""
+        if self.cutting & set(self.pending):
+            return False
         limit = self.limit()
         for island in sorted(self.cursor if islands is None else islands):
             if island not in self.busy and self.cursor[island] < limit:
                 self.submit(island, limit)
+        return True
 
     def affected(self, island: int, g: int) -> set[int]:
         """The islands that may start now that ``island`` completed ``g``: itself, and after a
@@ -775,10 +823,7 @@ class Pipeline:
         run = self.run_
         out = {island}
         if is_migration_generation(g, run.interval):
-            config = run.config_for(g + 1)[1]
-            for dest in range(run.n_islands):
-                if island in run.sources_of(dest, g, config):
-                    out.add(dest)
+            out.update(run.destinations_of(island, g, run.config_for(g + 1)[1]))
         return out
 
     def release(self, ref: Any) -> tuple[int, int]:
@@ -787,6 +832,7 @@ class Pipeline:
             del self.lent[n]
         self.helpers.pop(ref, None)
         self.tickets.pop(ref, None)
+        self.firsts.pop(ref, None)
         found = self.pending.pop(ref)
         self.busy.discard(found[0])
         return found
@@ -938,6 +984,7 @@ class Pipeline:
         try:
             self.submit_ready()
             dirty: set[int] | None = set()   # the islands that may start since (None: any)
+            polled = time.perf_counter()      # when queued requests were last looked for
             while not run.stop:
                 if self.collect():
                     dirty = None   # a commit: the look-ahead moved on
@@ -961,9 +1008,10 @@ class Pipeline:
                 for ref in ready:
                     if ref not in self.pending:
                         continue
+                    first = self.firsts[ref]
                     island, g = self.release(ref)
                     try:
-                        population = answers[ref] if ref in answers else ray.get(ref)
+                        generated = answers[ref] if ref in answers else ray.get(ref)
                     except (ray.exceptions.RayActorError, ray.exceptions.ObjectLostError) as exc:
                         self.recover(island, exc)
                         dirty = None
@@ -973,13 +1021,18 @@ class Pipeline:
                         if isinstance(cause, Genr8Error):
                             raise cause from None
                         what = f"{type(cause).__name__}: {cause}" if cause is not None else str(exc)
-                        raise RunError(f"island {island} failed at generation {g} on its host: "
+                        at = f"generation {g}" if g == first else f"generations {first}..{g}"
+                        raise RunError(f"island {island} failed at {at} on its host: "
                                        f"{what.strip().splitlines()[0]}") from exc
-                    self.receive(island, g, population)
-                    if dirty is not None:
-                        dirty |= self.affected(island, g)
-                if not run.stop:
-                    self.submit_ready(dirty)
+                    for done in generated:
+                        self.receive(island, done.generation, done)
+                        if dirty is not None:
+                            dirty |= self.affected(island, done.generation)
+                if ready or time.perf_counter() - polled >= run.poll_seconds:
+                    # requests queued meanwhile: looked for at each answer, and while calls run long
+                    polled = time.perf_counter()
+                    run._take_during()
+                if not run.stop and self.submit_ready(dirty):
                     dirty = set()
                     if not self.pending and self.inflight is None and not self.due():
                         raise RunError(f"the run cannot go on from generations {self.cursor} (committed: "
@@ -991,12 +1044,15 @@ class Pipeline:
 
     def flush(self) -> None:
         """Stopping: each island's host writes the generations it completed since its last part
-        (served beside a generation under way), so that what is complete is committed."""
+        (served beside a call under way, whose completed generations it holds too), so that what is
+        complete is committed."""
         import ray
+
+        from genr8_dist.distributed.actors import Generated
 
         asked = {}
         for island, gens in self.results.items():
-            if gens and getattr(gens[max(gens)], "part", None) is None:
+            if island in self.busy or (gens and getattr(gens[max(gens)], "part", None) is None):
                 host = self.run_.hosts.host_of(island)
                 asked[island] = host.flush.options(concurrency_group=OFFERS).remote(island)
         for island, ref in asked.items():
@@ -1004,6 +1060,14 @@ class Pipeline:
                 part = ray.get(ref)
             except ray.exceptions.RayError:   # its host is gone: those generations are recomputed
                 continue
-            if part is not None:   # it may hold a generation completed since (then committed too)
-                newest = max(self.results[island])
-                self.results[island][newest] = _with_part(self.results[island][newest], part)
+            if part is None:
+                continue
+            gens = self.results[island]
+            span = part.islands.get(str(island))
+            if gens and getattr(gens[max(gens)], "part", None) is None:
+                # it may hold generations completed since (then committed too)
+                newest = max(gens)
+                gens[newest] = _with_part(gens[newest], part)
+            elif span is not None and span[1] > max(gens, default=self.committed[island]):
+                # generations of the call under way, which the driver has not heard of
+                gens[span[1]] = Generated(island, span[1], (), part)

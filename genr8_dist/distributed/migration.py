@@ -22,6 +22,7 @@ Topologies (every island receives at most ``k`` migrants, whatever the topology)
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 
@@ -99,8 +100,10 @@ def select_novel(population: Sequence[Individual], destination: Sequence[Individ
     return sorted(chosen, key=_rank_key)
 
 
+@functools.lru_cache(maxsize=16)
 def destinations(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
-    """For each source island, the islands its emigrants go to after ``generation``."""
+    """For each source island, the islands its emigrants go to after ``generation`` (computed once
+    per migration: every island asks; read it, never change it)."""
     if topology not in TOPOLOGIES:
         raise ConfigError(
             f"islands.topology: {topology!r} is not a migration topology; use one of {', '.join(TOPOLOGIES)}"
@@ -115,9 +118,11 @@ def destinations(topology: str, n_islands: int, seed: int, generation: int) -> d
     return {order[j]: (order[(j + 1) % n_islands],) for j in range(n_islands)}
 
 
+@functools.lru_cache(maxsize=16)
 def sources(topology: str, n_islands: int, seed: int, generation: int) -> dict[int, tuple[int, ...]]:
     """For each destination island, the islands whose emigrants it receives after ``generation``
-    (what its migrants wait for: ``migrants_for``)."""
+    (what its migrants wait for: ``migrants_for``; computed once per migration, read it, never change
+    it)."""
     out: dict[int, list[int]] = {i: [] for i in range(n_islands)}
     for source, targets in destinations(topology, n_islands, seed, generation).items():
         for target in targets:

@@ -42,6 +42,33 @@ def test_a_new_host_rebuilds_an_island_from_the_store(tmp_path):
     assert RunStore.open(run_dir).committed_generations() == {1: 0}
 
 
+def test_one_call_for_an_epoch_builds_what_a_call_a_generation_builds(tmp_path):
+    from genr8_dist.distributed.actors import Step
+
+    run_dir = tmp_path / "run"
+    new_run(run_dir, tiny_toml(islands=2))
+    config = parse_config(tiny_toml(islands=2), "tiny")
+    single = IslandHost(str(run_dir))
+    expected = [single.advance(0, g, config if g == 0 else None, 1, write=g == 2) for g in range(3)]
+    rows = _untimed(single.latest(0))
+
+    epoch = IslandHost(str(run_dir))
+    steps = [Step(0, 1, config), Step(1, 1), Step(2, 1, write=True, emigrants=(2, "best"))]
+    got = epoch.advance_steps(0, steps)
+    assert [d.generation for d in got] == [0, 1, 2]
+    assert [d.fitness for d in got] == [d.fitness for d in expected]
+    assert _untimed(epoch.latest(0)) == rows
+    assert got[-1].part.islands == {"0": [0, 2]} and got[-1].part.rows == 18 and got[0].part is None
+    assert len(got[-1].emigrants) == 2 and got[-1].emigrants_for == (2, "best")
+
+    early = IslandHost(str(run_dir))   # answered once the time it was given has gone: one generation
+    (first,) = early.advance_steps(0, steps, answer_after=0.0)
+    assert (first.generation, first.fitness) == (0, expected[0].fitness)
+    rest = early.advance_steps(0, steps[1:])   # the rest asked again: the same generations
+    assert [d.fitness for d in rest] == [d.fitness for d in expected[1:]]
+    assert _untimed(early.latest(0)) == rows
+
+
 @pytest.fixture
 def two_hosts(ray_local, tmp_path):
     """Two island hosts as Ray actors, serving a new 2-island run."""

@@ -30,7 +30,7 @@ class _Hosts:
         self.log: list = []
         self.size = n
         self.replaced: list[int] = []
-        self._hosts = [SimpleNamespace(advance=_Call(self.log, ("advance", i)),
+        self._hosts = [SimpleNamespace(advance_steps=_Call(self.log, ("advance", i)),
                                        offer=_Call(self.log, ("offer", i))) for i in range(n)]
 
     def idle(self, busy):
@@ -72,7 +72,13 @@ def _run(n_islands: int = 2, interval: int = 10, last: int = 1000):
 
 
 def _advances(run):
+    """(island, arguments) of each call asked of a host."""
     return [(entry[1], entry[2]) for entry in run.hosts.log if entry[0] == "advance"]
+
+
+def _asked(run):
+    """(island, the generations asked) of each call."""
+    return [(i, [step.generation for step in args[1]]) for i, args in _advances(run)]
 
 
 def _done(island, g, part=None):
@@ -84,17 +90,38 @@ def _part(island, lo, hi):
 
 
 def test_submit_sends_a_configuration_once_per_host_and_lends_a_free_host():
-    run, _, _, _ = _run()
-    pipeline = Pipeline(run, {0: 0, 1: 3})
-    run.last = 3                                    # island 1 is done: its host is free
+    run, _, _, _ = _run(interval=2)
+    pipeline = Pipeline(run, {0: 0, 1: 3})          # island 1 is ahead: its host is free
     assert pipeline.submit(0)
     (island, args), = _advances(run)
-    assert island == 0 and args[:4] == (0, 1, "config@1", 1) and args[6] == ["host1"]
-    assert list(pipeline.pending.values()) == [(0, 1)] and pipeline.lent == {1: next(iter(pipeline.pending))}
+    assert island == 0 and args[2] == ["host1"]
+    assert [(s.generation, s.config_version, s.config) for s in args[1]] == [(1, 1, "config@1"), (2, 1, None)]
+    assert [s.write for s in args[1]] == [False, True]   # the epoch's end writes the part
+    assert args[1][-1].emigrants == (2, "best")          # and returns the emigrant candidates
+    assert list(pipeline.pending.values()) == [(0, 2)] and pipeline.lent == {1: next(iter(pipeline.pending))}
     pipeline.release(next(iter(pipeline.pending)))
     pipeline.receive(0, 1, _done(0, 1))
-    assert pipeline.submit(0)                       # next generation: no configuration sent again
-    assert _advances(run)[-1][1][:3] == (0, 2, None)
+    pipeline.receive(0, 2, _done(0, 2))
+    assert pipeline.submit(0)                       # next epoch: no configuration sent again
+    assert [(s.generation, s.config) for s in _advances(run)[-1][1][1]] == [(3, None), (4, None)]
+    assert _advances(run)[-1][1][1][0].migrants == ("migrant-2-0-from-[1]",)
+
+
+def test_a_call_spans_the_epoch_and_is_answered_within_the_islands_share_of_the_driver():
+    from genr8_dist.distributed.coordinator import ANSWERS_PER_SECOND
+
+    run, _, _, _ = _run(n_islands=4, interval=5, last=12)
+    run.sources_of = lambda i, g, config: ()
+    pipeline = Pipeline(run, {0: -1, 1: 4, 2: 7, 3: 10})
+    pipeline.submit_ready()
+    # to each epoch's end, and no more than one epoch beyond the oldest not committed (0..5): island 3 waits
+    assert _asked(run) == [(0, [0, 1, 2, 3, 4, 5]), (1, [5]), (2, [8, 9, 10])]
+    assert {args[5] for _, args in _advances(run)} == {4 / ANSWERS_PER_SECOND}
+    # an answer with fewer generations than asked: the rest is asked again
+    ref = next(r for r, (i, _) in pipeline.pending.items() if i == 2)
+    pipeline.release(ref)
+    pipeline.receive(2, 8, _done(2, 8))
+    assert pipeline.submit(2) and _asked(run)[-1] == (2, [9, 10])
 
 
 def test_every_call_to_a_host_carries_the_configuration_until_it_answered_one():
@@ -106,12 +133,12 @@ def test_every_call_to_a_host_carries_the_configuration_until_it_answered_one():
     run.hosts._hosts[1] = shared
     pipeline = Pipeline(run, {0: 0, 1: 0})
     assert pipeline.submit(0) and pipeline.submit(1)
-    assert [args[2] for _, args in _advances(run)] == ["config@1", "config@1"]
+    assert [args[1][0].config for _, args in _advances(run)] == ["config@1", "config@1"]
     ref = next(r for r, (island, _) in pipeline.pending.items() if island == 0)
     pipeline.release(ref)
     pipeline.receive(0, 1, _done(0, 1))
     assert pipeline.submit(0)
-    assert _advances(run)[-1][1][:3] == (0, 2, None)
+    assert [(s.generation, s.config) for s in _advances(run)[-1][1][1]] == [(2, None), (3, None)]
 
 
 def test_release_frees_the_hosts_lent_to_a_generation():
@@ -119,7 +146,7 @@ def test_release_frees_the_hosts_lent_to_a_generation():
     pipeline = Pipeline(run, {0: 0, 1: 3})
     pipeline.submit(0)
     ref = next(iter(pipeline.pending))
-    assert pipeline.release(ref) == (0, 1)
+    assert pipeline.release(ref) == (0, 3)
     assert pipeline.pending == {} and pipeline.lent == {} and pipeline.free() == [0, 1]
 
 
@@ -133,20 +160,21 @@ def test_lend_offers_free_hosts_to_the_generation_with_fewest_helpers():
     pipeline.lend()
     offers = [(o[1], o[2][1]) for o in run.hosts.log if o[0] == "offer"]
     assert sorted(offers) == [(0, "host3"), (1, "host2")]  # one each; the most generations left first
-    assert pipeline.pending[pipeline.lent[2]] == (1, 2)
+    assert pipeline.pending[pipeline.lent[2]] == (1, 5)
 
 
 def test_an_island_starts_after_a_migration_once_its_source_has_completed_it():
     run, _, _, _ = _run(n_islands=2, interval=2)
     pipeline = Pipeline(run, {0: 2, 1: 1})     # ring: island 0 receives from island 1, 1 from 0
     pipeline.submit_ready()
-    assert [(i, args[1]) for i, args in _advances(run)] == [(1, 2)]   # island 0 waits for island 1
+    assert _asked(run) == [(1, [2])]   # island 0 waits for island 1
     pipeline.release(next(iter(pipeline.pending)))
     pipeline.receive(1, 2, _done(1, 2, _part(1, 2, 2)))
     pipeline.submit_ready()
-    sent = {i: args for i, args in _advances(run)[1:]}
-    assert sent[0][1] == 3 and sent[0][4] == ["migrant-2-0-from-[1]"]
-    assert sent[1][1] == 3 and sent[1][4] == ["migrant-2-1-from-[0]"]
+    sent = {i: args[1] for i, args in _advances(run)[1:]}
+    assert [s.generation for s in sent[0]] == [3, 4] and sent[0][0].migrants == ("migrant-2-0-from-[1]",)
+    assert [s.generation for s in sent[1]] == [3, 4] and sent[1][0].migrants == ("migrant-2-1-from-[0]",)
+    assert sent[0][1].migrants == ()                 # only the generation after the migration
     (event,) = pipeline.events[4]                    # recorded with the epoch the migrants enter
     assert (event.kind, event.generation) == ("migration", 2)
 
@@ -179,7 +207,7 @@ def test_an_epoch_is_committed_while_the_next_one_runs():
     pipeline.commit_due()
     assert started.wait(5) and pipeline.inflight is not None
     assert pipeline.limit() == 6                 # the next epoch may start, and the one after it
-    assert pipeline.submit(0) and _advances(run)[-1][1][1] == 3
+    assert pipeline.submit(0) and _asked(run)[-1] == (0, [3, 4])
     pipeline.collect()
     assert pipeline.committed == {0: 0, 1: 0}    # not yet durable
     gate.set()
@@ -203,7 +231,8 @@ def test_recover_restarts_a_lost_hosts_islands_from_their_committed_generation()
     assert run.hosts.replaced == [0] and lost not in pipeline.pending
     assert pipeline.results[0] == {} and pipeline.cursor[0] == 0
     pipeline.submit_ready()
-    assert sorted(pipeline.pending.values()) == [(0, 1), (1, 1)]
+    assert sorted(pipeline.pending.values()) == [(0, 10), (1, 10)]
+    assert sorted(pipeline.firsts.values()) == [1, 1]
     (event,) = pipeline.events[10]
     assert (event.kind, event.generation, event.island) == ("recovery", 1, 0)
     assert event.detail == {"reason": "RuntimeError: node died", "restarted_from": 0}
