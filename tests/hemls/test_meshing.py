@@ -135,6 +135,17 @@ def test_meshing_3_is_kept_bit_for_bit_for_runs_that_recorded_it():
     assert digest.hexdigest() == "7631c24e1a9db3a8fe68d72109ec5151ecf0677e62fbf28619d7a2e1702f6f5b"
 
 
+def test_meshing_4_is_kept_bit_for_bit_for_runs_that_recorded_it():
+    """Runs created under meshing 4 regrow their meshes as they were (the digest before meshing 5)."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for surface in _random_surfaces(3):
+        mesh = surface.with_meshing(4).mesh()
+        digest.update(mesh.points.tobytes() + mesh.triangles.tobytes())
+    assert digest.hexdigest() == "9d7b784c84e10b0529e7a9b6233880c41b5daf0ab398ea0695a93f225ced7876"
+
+
 def _square_and_needle(reach: float):
     """Two regions sharing a side: a unit square, and a needle from that side to a point ``reach``
     away (its corner there is 2 atan(0.5 / (reach - 1)): 0.0006 degrees at 100,000)."""
