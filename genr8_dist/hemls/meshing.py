@@ -111,6 +111,8 @@ _SHAPE_CAP = 50_000 # meshing 4: the most points a region's shape (P^2 / A) adds
 _UNROLL_BELOW = 0.9 # meshing 4: a region is unrolled first when its projection keeps less of its area
 _MEMBRANE_PASSES = 50   # meshing 4: relaxations of a projected region's added points (``_membrane``)
 _PIECE_DEPTH = 6        # meshing 4: cuts at most, one inside another, of a region into pieces
+_TIDY_BELOW = 20.0      # meshing 5: triangles with an angle under this (degrees) in space are tidied ...
+_TIDY_ROUNDS = 6        # ... in at most this many rounds of edge flips and point moves
 
 
 class Mesh(NamedTuple):
@@ -150,7 +152,7 @@ def mesh_surface(surface: Any, meshing: int = MESHING, *,
     origin = None
     if meshing >= 4:
         offsets, cycles, coarse, owners, origin, known = _pieces(vertices, offsets, cycles, coarse, owners)
-        refine = partial(_refine3, guarded=True, known=known)
+        refine = partial(_refine3, guarded=True, known=known, tidy=meshing >= 5)
     points, triangles, regions, fallback = refine(vertices, offsets, cycles, coarse, owners, cut)
     if origin is not None:
         regions, fallback = origin[regions], np.unique(origin[fallback])
@@ -555,14 +557,142 @@ def _membrane(points2: np.ndarray, tri: np.ndarray, ring3: np.ndarray, lifted: n
     return cast(np.ndarray, (base + offset)[n:])
 
 
+def _angles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(T,) the smallest angle (degrees) of each triangle ``tri`` (T, 3) of points ``p`` (P, 3)."""
+    q = p[tri]
+    out = np.full(len(tri), 180.0)
+    for k in range(3):
+        u, w = q[:, (k + 1) % 3] - q[:, k], q[:, (k + 2) % 3] - q[:, k]
+        out = np.minimum(out, np.degrees(np.arctan2(np.linalg.norm(np.cross(u, w), axis=1),
+                                                    np.einsum("ij,ij->i", u, w))))
+    return out
+
+
+def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Meshing 5: a region's lifted mesh (points ``p`` (P, 3), the ``fixed`` ring points first;
+    triangles ``tri``) with its triangles under ``_TIDY_BELOW`` degrees in space improved: edges
+    inside the region flipped where that raises the smaller angle of the two triangles beside them,
+    and added points moved to their neighbours' mean where that raises the smallest angle round
+    them, neither turning a triangle over; ``_TIDY_ROUNDS`` rounds at most, in a fixed order. The
+    ring's points and sides stay, so the region still meets its neighbours on the same points.
+    Triangle's angles hold in the chart, but lifting bends them: across the creases of meshing 1's
+    triangles, where a projected region slopes, and where the region folds over itself."""
+    bad = _angles(p, tri) < _TIDY_BELOW
+    if not bad.any():
+        return p, tri
+    # only the triangles round the thin ones' corners change: those corners' stars are whole there
+    corners = np.unique(tri[bad])
+    near = np.flatnonzero(np.isin(tri, corners).any(axis=1))
+    movable = set(corners[corners >= fixed].tolist())
+    used = np.unique(tri[near])
+    pts = dict(zip(used.tolist(), map(tuple, p[used].tolist()), strict=True))
+    tris = [tuple(t) for t in tri[near].tolist()]
+
+    def normal(a: int, b: int, c: int) -> tuple[float, float, float]:
+        (ax, ay, az), (bx, by, bz), (cx, cy, cz) = pts[a], pts[b], pts[c]
+        ux, uy, uz, wx, wy, wz = bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az
+        return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+    def smallest(a: int, b: int, c: int) -> float:
+        n = normal(a, b, c)
+        twice = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
+        out = 180.0
+        for i, j, k in ((a, b, c), (b, c, a), (c, a, b)):
+            pi, pj, pk = pts[i], pts[j], pts[k]
+            dot = sum((pj[d] - pi[d]) * (pk[d] - pi[d]) for d in range(3))
+            out = min(out, math.degrees(math.atan2(twice, dot)))
+        return out
+
+    def dot(u: tuple[float, float, float], w: tuple[float, float, float]) -> float:
+        return u[0] * w[0] + u[1] * w[1] + u[2] * w[2]
+
+    owner = {(t[k], t[(k + 1) % 3]): i for i, t in enumerate(tris) for k in range(3)}
+    angle = [smallest(*t) for t in tris]
+
+    def flips(queue: list[int]) -> bool:
+        changed = False
+        budget = 20 * len(queue) + 100
+        while queue and budget:
+            i = queue.pop(0)
+            if angle[i] >= _TIDY_BELOW:
+                continue
+            for k in range(3):
+                a, b, c = tris[i][k], tris[i][(k + 1) % 3], tris[i][(k + 2) % 3]
+                j = owner.get((b, a))
+                if j is None:
+                    continue
+                d = next(x for x in tris[j] if x != a and x != b)
+                if c == d or (c, d) in owner or (d, c) in owner:
+                    continue
+                new1, new2 = (c, a, d), (d, b, c)
+                got = min(smallest(*new1), smallest(*new2))
+                if got <= min(angle[i], angle[j]) + 1e-9:
+                    continue
+                n1, n2 = normal(*new1), normal(*new2)
+                old = tuple(x + y for x, y in zip(normal(*tris[i]), normal(*tris[j]), strict=True))
+                if dot(n1, n2) <= 0.0 or dot(n1, old) <= 0.0 or dot(n2, old) <= 0.0:
+                    continue
+                for t in (tris[i], tris[j]):
+                    for m in range(3):
+                        del owner[(t[m], t[(m + 1) % 3])]
+                tris[i], tris[j] = new1, new2
+                for idx, t in ((i, new1), (j, new2)):
+                    for m in range(3):
+                        owner[(t[m], t[(m + 1) % 3])] = idx
+                    angle[idx] = smallest(*t)
+                queue += [i, j]
+                budget -= 1
+                changed = True
+                break
+        return changed
+
+    def moves() -> bool:
+        star: dict[int, list[int]] = {}
+        for i, t in enumerate(tris):
+            for v in t:
+                star.setdefault(v, []).append(i)
+        targets = sorted({v for i, t in enumerate(tris) if angle[i] < _TIDY_BELOW for v in t if v in movable})
+        changed = False
+        for v in targets:
+            around = star[v]
+            near = sorted({x for i in around for x in tris[i] if x != v})
+            mean = tuple(sum(pts[x][d] for x in near) / len(near) for d in range(3))
+            before = min(angle[i] for i in around)
+            old_n = [normal(*tris[i]) for i in around]
+            home = pts[v]
+            for step in (1.0, 0.5):
+                pts[v] = tuple(home[d] + step * (mean[d] - home[d]) for d in range(3))
+                got = [smallest(*tris[i]) for i in around]
+                if min(got) > before + 1e-9 and all(dot(normal(*tris[i]), n) > 0.0
+                                                    for i, n in zip(around, old_n, strict=True)):
+                    for i, g in zip(around, got, strict=True):
+                        angle[i] = g
+                    changed = True
+                    break
+                pts[v] = home
+        return changed
+
+    for _ in range(_TIDY_ROUNDS):
+        flipped = flips([i for i in range(len(tris)) if angle[i] < _TIDY_BELOW])
+        if not (moves() or flipped):
+            break
+    out = tri.copy()
+    out[near] = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    moved = p.copy()
+    at = np.asarray(sorted(movable), dtype=np.int64)
+    moved[at] = np.asarray([pts[v] for v in at.tolist()], dtype=np.float64).reshape(-1, 3)
+    return moved, out
+
+
 def _lifted(rings: _Rings, sizes: np.ndarray,
             final: Callable[[int], tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None],
-            triangulate_polygons: Callable[..., np.ndarray], membrane: np.ndarray | None = None
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            triangulate_polygons: Callable[..., np.ndarray], membrane: np.ndarray | None = None,
+            tidy: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The mesh of every region from ``final(r)``: its flat mesh (points, the ring's first;
     triangles) and its meshing-1 triangles' corners flat and in space, through which the added points
-    are lifted (where ``membrane[r]``, then relaxed: ``_membrane``); a region ``final`` gives None
-    for, or whose points fall outside those triangles, is cut as meshing 1 cuts it (``_assemble``)."""
+    are lifted (where ``membrane[r]``, then relaxed: ``_membrane``; where ``tidy``, then tidied in
+    space: ``_tidy``); a region ``final`` gives None for, or whose points fall outside those triangles,
+    is cut as meshing 1 cuts it (``_assemble``)."""
     meshed: list[np.ndarray | None] = [None] * len(sizes)
     inside: list[np.ndarray] = []
     next_point = len(rings.points)
@@ -575,12 +705,18 @@ def _lifted(rings: _Rings, sizes: np.ndarray,
         points2, tri, corners2, corners3 = got
         ids = rings.ring[rings.offsets[r]:rings.offsets[r + 1]]     # as meshed (points renumbered since)
         new = points2[len(ids):]
+        lifted = np.zeros((0, 3))
         if len(new):
-            lifted = _lift(new, corners2, corners3)
-            if lifted is None:
+            got_lift = _lift(new, corners2, corners3)
+            if got_lift is None:
                 continue
+            lifted = got_lift
             if membrane is not None and membrane[r]:
                 lifted = _membrane(points2, tri, rings.points[ids], lifted)
+        if tidy:
+            moved, tri = _tidy(np.concatenate([rings.points[ids], lifted]), tri, len(ids))
+            lifted = moved[len(ids):]
+        if len(new):
             inside.append(lifted)
         local_ids = np.concatenate([ids, next_point + np.arange(len(new))])
         next_point += len(new)
@@ -756,14 +892,15 @@ def _budgets(charts: list[np.ndarray | None]) -> tuple[np.ndarray, np.ndarray]:
 
 def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coarse: np.ndarray,
              owners: np.ndarray, triangulate_polygons: Callable[..., np.ndarray], *, guarded: bool = False,
-             known: list[tuple[np.ndarray | None, bool] | None] | None = None
+             known: list[tuple[np.ndarray | None, bool] | None] | None = None, tidy: bool = False
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Meshing 3 of checked arrays (as ``_refine``): each region in its chart (``_chart``), the sides'
     points settled by passes until no region's own mesh splits a side (``_PASSES`` at most);
     ``guarded``: meshing 4, curved regions unrolled first, projected ones lifted as membranes,
     needles whose refinement runs out of points keep their sides whole, budgets follow shapes
     (``_budgets``); ``mesh_surface`` has cut regions simple in no chart into pieces (``_pieces``),
-    and ``known`` holds the charts it found on the way (None: find it here)."""
+    and ``known`` holds the charts it found on the way (None: find it here); ``tidy``: meshing 5,
+    each region's triangles tidied in space once lifted (``_tidy``)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
@@ -851,4 +988,4 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
         assert uv is not None
         return done[r][0], done[r][1], uv[local], vertices[own]
 
-    return _lifted(rings, sizes, final, triangulate_polygons, membrane)
+    return _lifted(rings, sizes, final, triangulate_polygons, membrane, tidy)

@@ -41,7 +41,7 @@ def _fresh(s, meshing=None):
 
 def test_tiles_meshed_without_an_angle_below_twenty_degrees_and_watertight():
     surface = grow(load_system("three-sided-tiles"), Environment(steps=3)).surface
-    assert surface.meshing == MESHING == 4
+    assert surface.meshing == MESHING == 5
     mesh = surface.mesh()
     assert np.array_equal(mesh.points[:surface.n_vertices], surface.vertices)
     assert triangle_min_angles(mesh.points, mesh.triangles).min() >= 20.0
