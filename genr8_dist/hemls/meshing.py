@@ -113,6 +113,7 @@ _MEMBRANE_PASSES = 50   # meshing 4: relaxations of a projected region's added p
 _PIECE_DEPTH = 6        # meshing 4: cuts at most, one inside another, of a region into pieces
 _TIDY_BELOW = 20.0      # meshing 5: triangles with an angle under this (degrees) in space are tidied ...
 _TIDY_ROUNDS = 6        # ... in at most this many rounds of edge flips and point moves
+_TWIN = 0.01            # meshing 5: side points nearer than this x their gaps are one (``_EdgeSplit``)
 
 
 class Mesh(NamedTuple):
@@ -443,11 +444,13 @@ class _EdgeSplit:
     """The points on the map's edges, shared by the two regions beside each: every edge first split
     into equal pieces no longer than ``_SPACING`` x the thinner region's width beside it (at most
     ``_MAX_SPLIT``), but an edge beside a region with no flat coordinates (``fixed``: it keeps its
-    own); then any points a region's mesh put on its sides (``add``)."""
+    own); then any points a region's mesh put on its sides (``add``). ``merge`` (meshing 5): a point
+    closer to the one before it than this x the larger gap on either side of the two is dropped."""
 
     def __init__(self, vertices: np.ndarray, cycles: np.ndarray, nxt: np.ndarray, region_of: np.ndarray,
-                 width: np.ndarray, simple: np.ndarray, n_regions: int) -> None:
+                 width: np.ndarray, simple: np.ndarray, n_regions: int, merge: float = 0.0) -> None:
         n_vertices = len(vertices)
+        self.merge = merge
         self.vertices, self.cycles, self.region_of, self.n_regions = vertices, cycles, region_of, n_regions
         lo, hi = np.minimum(cycles, nxt), np.maximum(cycles, nxt)
         keys, first, inverse = np.unique(lo * n_vertices + hi, return_index=True, return_inverse=True)
@@ -490,6 +493,22 @@ class _EdgeSplit:
         t1 = np.where(same_side, rings.t[nxt_at], np.where(self.forward[s], 1.0, 0.0))
         return self.inverse[s], t0 + frac * (t1 - t0)
 
+    def _twins(self, e: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Which points (sorted by edge ``e``, then parameter ``t``) are a twin of the one before: nearer
+        it than ``merge`` x the larger of the gaps before the pair and after it (an edge's ends count).
+        Two regions splitting the same stretch of a side in one pass put their points there each in
+        its own chart; rounding sets them apart by a billionth of the edge or so, more than ``add``'s
+        tolerance, and the two regions' meshes then hold a side a billionth as long as its
+        neighbours, with a needle-thin triangle on it (meshing 4)."""
+        same = np.zeros(len(t), dtype=bool)
+        same[1:] = e[1:] == e[:-1]
+        gap = np.where(same, t - np.roll(t, 1), t)  # from the point before, or the edge start
+        after = np.ones(len(t), dtype=bool)
+        after[:-1] = ~same[1:]
+        gap_next = np.where(after, 1.0 - t, np.roll(gap, -1))      # to the point after, or the edge's end
+        gap_prev = np.roll(gap, 1)                                   # before the pair (only read where same)
+        return same & (gap <= self.merge * np.maximum(gap_prev, gap_next))
+
     def add(self, edges: np.ndarray, t: np.ndarray) -> _Rings:
         """The rings once points at parameters ``t`` on map ``edges`` are added (but on fixed edges,
         at an end, or within 1e-9 of a point there)."""
@@ -501,6 +520,9 @@ class _EdgeSplit:
         e_all, t_all = e_all[keep], t_all[keep]
         close = np.zeros(len(t_all), dtype=bool)
         close[1:] = (e_all[1:] == e_all[:-1]) & (t_all[1:] - t_all[:-1] <= 1e-9)
+        if self.merge:
+            e_all, t_all = e_all[~close], t_all[~close]
+            close = self._twins(e_all, t_all)
         old_e, old_t = self.edge_of_point, self.t_flat
         self.edge_of_point, self.t_flat = e_all[~close], t_all[~close]
         added = np.bincount(self.edge_of_point, minlength=self.n_edges).astype(np.int64)
@@ -929,7 +951,7 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
     simple = np.array([c is not None for c in charts], dtype=bool)
     needle, extra = _budgets(charts) if guarded else (np.zeros(n_regions, dtype=bool),
                                                       np.zeros(n_regions, dtype=np.int64))
-    split = _EdgeSplit(vertices, cycles, nxt, region_of, width, simple, n_regions)
+    split = _EdgeSplit(vertices, cycles, nxt, region_of, width, simple, n_regions, _TWIN if tidy else 0.0)
     rings = split.rings
     n_vertices = len(vertices)
 
