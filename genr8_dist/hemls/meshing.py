@@ -79,6 +79,7 @@ predicates and a fixed seed; everything else is numpy in a fixed order).
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable
 from functools import partial
 from typing import TYPE_CHECKING, Any, NamedTuple, cast
@@ -112,7 +113,7 @@ _UNROLL_BELOW = 0.9 # meshing 4: a region is unrolled first when its projection 
 _MEMBRANE_PASSES = 50   # meshing 4: relaxations of a projected region's added points (``_membrane``)
 _PIECE_DEPTH = 6        # meshing 4: cuts at most, one inside another, of a region into pieces
 _TIDY_BELOW = 20.0      # meshing 5: triangles with an angle under this (degrees) in space are tidied ...
-_TIDY_ROUNDS = 6        # ... in at most this many rounds of edge flips and point moves
+_TIDY_ROUNDS = 3        # ... in at most this many rounds of edge flips and point moves
 _TWIN = 0.01            # meshing 5: side points nearer than this x their gaps are one (``_EdgeSplit``)
 
 
@@ -616,14 +617,20 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
         return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
 
     def smallest(a: int, b: int, c: int) -> float:
-        n = normal(a, b, c)
-        twice = math.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
-        out = 180.0
-        for i, j, k in ((a, b, c), (b, c, a), (c, a, b)):
-            pi, pj, pk = pts[i], pts[j], pts[k]
-            dot = sum((pj[d] - pi[d]) * (pk[d] - pi[d]) for d in range(3))
-            out = min(out, math.degrees(math.atan2(twice, dot)))
-        return out
+        """The triangle's smallest angle: the one facing its shortest side."""
+        (ax, ay, az), (bx, by, bz), (cx, cy, cz) = pts[a], pts[b], pts[c]
+        ux, uy, uz, wx, wy, wz = bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az
+        vx, vy, vz = cx - bx, cy - by, cz - bz
+        nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+        twice = math.sqrt(nx * nx + ny * ny + nz * nz)
+        ab, ac, bc = ux * ux + uy * uy + uz * uz, wx * wx + wy * wy + wz * wz, vx * vx + vy * vy + vz * vz
+        if bc <= ab and bc <= ac:
+            facing = ux * wx + uy * wy + uz * wz                    # at a
+        elif ac <= ab:
+            facing = -(ux * vx + uy * vy + uz * vz)                 # at b
+        else:
+            facing = wx * vx + wy * vy + wz * vz                    # at c
+        return math.degrees(math.atan2(twice, facing))
 
     def dot(u: tuple[float, float, float], w: tuple[float, float, float]) -> float:
         return u[0] * w[0] + u[1] * w[1] + u[2] * w[2]
@@ -631,11 +638,11 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
     owner = {(t[k], t[(k + 1) % 3]): i for i, t in enumerate(tris) for k in range(3)}
     angle = [smallest(*t) for t in tris]
 
-    def flips(queue: list[int]) -> bool:
+    def flips(bad: list[int]) -> bool:
         changed = False
-        budget = 20 * len(queue) + 100
+        queue, budget = deque(bad), 2 * len(bad)
         while queue and budget:
-            i = queue.pop(0)
+            i = queue.popleft()
             if angle[i] >= _TIDY_BELOW:
                 continue
             for k in range(3):
@@ -662,7 +669,7 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
                     for m in range(3):
                         owner[(t[m], t[(m + 1) % 3])] = idx
                     angle[idx] = smallest(*t)
-                queue += [i, j]
+                queue.extend(x for x in (i, j) if angle[x] < _TIDY_BELOW)
                 budget -= 1
                 changed = True
                 break
