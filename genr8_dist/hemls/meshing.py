@@ -38,7 +38,7 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     coarse left thin triangles that Triangle may not repair (3.6% of the triangles of regions whose
     corners are all at least 20 degrees).
 
-- **meshing 4** (new runs, ``MESHING``): meshing 3 with five changes.
+- **meshing 4** (runs created before meshing 5, kept bit for bit): meshing 3 with five changes.
   - *A curved region is unrolled first* (``_chart``): where its projection keeps less than 90% of
     its area (``_UNROLL_BELOW``: it slopes away from its plane), its unfolding is its chart when
     that is simple, its projection only when it is not. Each piece of the unfolding is one of its
@@ -71,6 +71,24 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     length L and width w, the cells of its width it takes to cover it; 16 for a square), at most
     ``_SHAPE_CAP``. Under meshing 3's budget a strip 270 times as long as wide ran out of points
     with 1,112 of its 1,460 triangles thin; with 8,073 points it has none.
+
+- **meshing 5** (new runs, ``MESHING``): meshing 4 with two changes.
+  - *Each region's triangles are tidied in space once lifted* (``_tidy``): where one has an angle
+    under ``_TIDY_BELOW`` degrees, edges inside the region are flipped and its added points moved to
+    their neighbours' mean where that raises the smallest angle round them without turning a
+    triangle over, the ring's points held so the region still meets its neighbours on them.
+    Triangle's angles hold in the chart; lifting bends them across the creases of meshing 1's
+    triangles and where a projected region slopes (60 random default genomes: 0.29% of the
+    triangles of regions with corners of at least 20 degrees under 15 degrees, 0.17% tidied).
+  - *Twin points on a side are one* (``_TWIN``): two regions splitting the same stretch of a shared
+    side in one pass each place their point in their own chart, Triangle's concentric-shell splits
+    then differ by about 1e-4 of the gap, far more than the 1e-9 tolerance on an edge's parameter,
+    and both regions held a side 10,000 times shorter than its neighbours with needle-thin triangles
+    on it. Points nearer than ``_TWIN`` of the larger gap beside them are merged.
+  What is left thin in regions whose corners are all at least 20 degrees lies almost all in regions
+  that cross themselves in their plane (turning number 0: a figure eight whose lobes turn opposite
+  ways): any mesh of such a ring that lies on the region folds, and the triangles across the fold
+  are flattened; no flip or move on the surface mends them.
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
@@ -658,7 +676,8 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
                 if got <= min(angle[i], angle[j]) + 1e-9:
                     continue
                 n1, n2 = normal(*new1), normal(*new2)
-                old = tuple(x + y for x, y in zip(normal(*tris[i]), normal(*tris[j]), strict=True))
+                (ux, uy, uz), (wx, wy, wz) = normal(*tris[i]), normal(*tris[j])
+                old = (ux + wx, uy + wy, uz + wz)
                 if dot(n1, n2) <= 0.0 or dot(n1, old) <= 0.0 or dot(n2, old) <= 0.0:
                     continue
                 for t in (tris[i], tris[j]):
@@ -929,7 +948,8 @@ def _refine3(vertices: np.ndarray, offsets: np.ndarray, cycles: np.ndarray, coar
     needles whose refinement runs out of points keep their sides whole, budgets follow shapes
     (``_budgets``); ``mesh_surface`` has cut regions simple in no chart into pieces (``_pieces``),
     and ``known`` holds the charts it found on the way (None: find it here); ``tidy``: meshing 5,
-    each region's triangles tidied in space once lifted (``_tidy``)."""
+    each region's triangles tidied in space once lifted (``_tidy``) and twin side points merged
+    (``_TWIN``)."""
     sizes = np.diff(offsets)
     n_regions = len(sizes)
     centroid, newell, perimeter, region_of, nxt = _region_geometry(vertices, offsets, cycles)
