@@ -516,9 +516,10 @@ class _EdgeSplit:
         """Which points (sorted by edge ``e``, then parameter ``t``) are a twin of the one before: nearer
         it than ``merge`` x the larger of the gaps before the pair and after it (an edge's ends count).
         Two regions splitting the same stretch of a side in one pass put their points there each in
-        its own chart; rounding sets them apart by a billionth of the edge or so, more than ``add``'s
-        tolerance, and the two regions' meshes then hold a side a billionth as long as its
-        neighbours, with a needle-thin triangle on it (meshing 4)."""
+        its own chart, whose scales differ, so Triangle's concentric-shell splits land about 1e-4 of
+        the gap apart (a billionth of the edge or so, more than ``add``'s tolerance), and both
+        regions' meshes then hold a side 10,000 times shorter than its neighbours, with needle-thin
+        triangles on it (meshing 4)."""
         same = np.zeros(len(t), dtype=bool)
         same[1:] = e[1:] == e[:-1]
         gap = np.where(same, t - np.roll(t, 1), t)  # from the point before, or the edge start
@@ -625,6 +626,7 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
     corners = np.unique(tri[bad])
     near = np.flatnonzero(np.isin(tri, corners).any(axis=1))
     movable = set(corners[corners >= fixed].tolist())
+    hub = set(corners.tolist())      # a new edge ends at one, so every edge it could repeat is here
     used = np.unique(tri[near])
     pts = dict(zip(used.tolist(), map(tuple, p[used].tolist()), strict=True))
     tris = [tuple(t) for t in tri[near].tolist()]
@@ -669,7 +671,7 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
                 if j is None:
                     continue
                 d = next(x for x in tris[j] if x != a and x != b)
-                if c == d or (c, d) in owner or (d, c) in owner:
+                if c == d or (c not in hub and d not in hub) or (c, d) in owner or (d, c) in owner:
                     continue
                 new1, new2 = (c, a, d), (d, b, c)
                 got = min(smallest(*new1), smallest(*new2))
