@@ -85,10 +85,12 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
     then differ by about 1e-4 of the gap, far more than the 1e-9 tolerance on an edge's parameter,
     and both regions held a side 10,000 times shorter than its neighbours with needle-thin triangles
     on it. Points nearer than ``_TWIN`` of the larger gap beside them are merged.
-  What is left thin in regions whose corners are all at least 20 degrees lies almost all in regions
-  that cross themselves in their plane (turning number 0: a figure eight whose lobes turn opposite
-  ways): any mesh of such a ring that lies on the region folds, and the triangles across the fold
-  are flattened; no flip or move on the surface mends them.
+  300 random genomes of each built-in universe: 0.04-0.61% of the triangles of regions whose corners
+  are all at least 20 degrees under 15 degrees (meshing 4: 0.10-0.76%). What is left lies almost all
+  in regions that cross themselves in their plane (a figure eight whose lobes turn opposite ways, a
+  spike folded back over the region): any mesh of such a ring that lies on the region folds, and the
+  triangles across the fold are flattened; no flip or move on the surface mends them. In those simple
+  in their plane, 0.00-0.03% are left (60 genomes; meshing 4: 0.00-0.14%).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
