@@ -430,7 +430,13 @@ class RunConfig:
         MESHING,
         (
             "how surfaces are cut into triangles for export, pictures and the studio "
-            "(`genr8_dist.hemls.meshing`): `4` as 3, but a region that slopes away from its best-fit "
+            "(`genr8_dist.hemls.meshing`): `5` as 4, but each region's triangles are tidied in space "
+            "once lifted (edges inside it flipped and its added points moved where that raises the "
+            "smallest angle; its sides' points held, so neighbours still meet on them: lifting bent "
+            "Triangle's angles across creases and slopes) and two points a pass put on a side within a "
+            "hundredth of the gaps beside them are one (under 4 they stayed a billionth of the side "
+            "apart, with needle-thin triangles on them); "
+            "`4` as 3, but a region that slopes away from its best-fit "
             "plane (the projection keeps less than 90% of its area) is meshed unrolled first (its "
             "meshing-1 triangles laid flat with their side lengths, so its triangles keep their angles in "
             "space), a region meshed in its plane spans its sides as a membrane (not through meshing 1's "
@@ -446,9 +452,9 @@ class RunConfig:
             "region); `2` the same in the best-fit plane only, sides fixed after one pass, regions "
             "crossing themselves cut as in 1; `1` each region of m vertices cut into m - 2 triangles on "
             "its own vertices. A new run records the meshing it uses in its manifest and regrows with it: "
-            "runs created before meshing was recorded keep 1, runs that recorded 2 or 3 keep it bit for "
-            "bit. Under 2, 3 and 4 `slivers` measures thin regions, not triangles, so its values are the "
-            "same under 2, 3 and 4; under 1 (old runs) it measures the triangles, so their stored values "
+            "runs created before meshing was recorded keep 1, runs that recorded 2, 3 or 4 keep it bit "
+            "for bit. Under 2 to 5 `slivers` measures thin regions, not triangles, so its values are the "
+            "same under 2 to 5; under 1 (old runs) it measures the triangles, so their stored values "
             "stay as they were"
         ),
         read=lambda value, path, config: check_meshing(value, path),
