@@ -8,7 +8,9 @@ Printed per universe (N random genomes, each grown in the empty environment, tho
 region) and meshing: surfaces, triangles, the share of triangles whose smallest angle is below 15
 degrees (all; inside regions whose own corners are all at least 20 degrees in their plane; inside
 those of them that do not fold over themselves, i.e. no meshing-1 triangle faces against the
-region's normal), the regions cut as meshing 1 cuts them, and the CPU seconds per surface
+region's normal; inside those of them whose outline does not cross itself in their plane, as
+meshing's ``_simple`` tells: a figure-eight outline has a crossing, a corner its vertices do not
+show), the regions cut as meshing 1 cuts them, and the CPU seconds per surface
 (``time.process_time``). With ``--run``: the same for the run's best 12 distinct surfaces, and each
 one's ``slivers`` under each meshing. ``--json FILE`` also writes the figures as JSON.
 """
@@ -26,7 +28,7 @@ import numpy as np
 from genr8_dist.environment import Environment
 from genr8_dist.fitness import slivers, triangle_min_angles
 from genr8_dist.hemls import Surface, grow, parse
-from genr8_dist.hemls.meshing import MESHINGS, _frame, _region_geometry
+from genr8_dist.hemls.meshing import MESHINGS, _frame, _region_geometry, _simple
 
 #: The meshings measured (``--meshings``; meshing 1 always, the others' ratios are to it).
 CHOSEN: tuple[int, ...] = MESHINGS
@@ -55,6 +57,20 @@ def corner_ok(s: Any) -> np.ndarray:
     return ok
 
 
+def simple_in_plane(s: Any, among: np.ndarray) -> np.ndarray:
+    """(F,) whether each region of ``among`` (a mask) has an outline that does not cross itself in
+    the region's plane."""
+    centroid, newell, _, _, _ = _region_geometry(s.vertices, s.region_offsets, s.region_vertices)
+    out = np.zeros(s.n_regions, dtype=bool)
+    for r in np.flatnonzero(among):
+        frame = _frame(newell[r])
+        if frame is None:
+            continue
+        xy = (s.vertices[s.regions[r]] - centroid[r]) @ frame.T
+        out[r] = _simple(xy / max(float(np.abs(xy).max()), 1e-300))
+    return out
+
+
 def folded(s: Any) -> np.ndarray:
     """(F,) whether some meshing-1 triangle of each region faces against the region's normal (the
     region folds over itself in space)."""
@@ -70,8 +86,10 @@ def folded(s: Any) -> np.ndarray:
 
 def one_surface(s: Any) -> dict[str, float]:
     """One surface's counts under every meshing (summed by ``measure``)."""
-    ok, flat_ok = corner_ok(s), corner_ok(s) & ~folded(s)
-    out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum())}
+    ok = corner_ok(s)
+    flat_ok, simple_ok = ok & ~folded(s), ok & simple_in_plane(s, ok)
+    out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum()),
+                             "simple_good_regions": int(simple_ok.sum())}
     for meshing in CHOSEN:
         f = fresh(s, meshing)
         t0 = time.process_time()
@@ -84,6 +102,8 @@ def one_surface(s: Any) -> dict[str, float]:
         out[f"goodthin{meshing}"] = int(np.sum(ok[mesh.regions] & thin_))
         out[f"flat{meshing}"] = int(np.sum(flat_ok[mesh.regions]))
         out[f"flatthin{meshing}"] = int(np.sum(flat_ok[mesh.regions] & thin_))
+        out[f"simple{meshing}"] = int(np.sum(simple_ok[mesh.regions]))
+        out[f"simplethin{meshing}"] = int(np.sum(simple_ok[mesh.regions] & thin_))
         out[f"fallback{meshing}"] = len(mesh.fallback) if meshing > 1 else 0
     return out
 
@@ -126,13 +146,15 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
     out: dict[str, float] = {"surfaces": len(kept), "failed": len(surfaces) - len(kept),
                              "regions": sum(s.n_regions for s, _ in kept),
                              "good_regions": total.get("good_regions", 0),
-                             "flat_good_regions": total.get("flat_good_regions", 0)}
+                             "flat_good_regions": total.get("flat_good_regions", 0),
+                             "simple_good_regions": total.get("simple_good_regions", 0)}
     for m in CHOSEN:
         tri = total.get(f"tri{m}", 0)
         out[f"tri{m}"] = tri
         out[f"thin{m}"] = total.get(f"thin{m}", 0) / max(tri, 1)
         out[f"goodthin{m}"] = total.get(f"goodthin{m}", 0) / max(total.get(f"good{m}", 0), 1)
         out[f"flatthin{m}"] = total.get(f"flatthin{m}", 0) / max(total.get(f"flat{m}", 0), 1)
+        out[f"simplethin{m}"] = total.get(f"simplethin{m}", 0) / max(total.get(f"simple{m}", 0), 1)
         out[f"cpu{m}"] = total.get(f"cpu{m}", 0.0) / max(len(kept), 1)
         out[f"fallback{m}"] = total.get(f"fallback{m}", 0) / max(out["regions"], 1)
     return out
@@ -143,13 +165,15 @@ def show(name: str, m: dict[str, float]) -> None:
         ratio = "" if v == 1 else " (none left)" if not m[f"thin{v}"] else \
             f" ({m['thin1'] / m[f'thin{v}']:.1f}x)"
         print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
-              f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'fallback{v}']:.1%} | "
+              f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'simplethin{v}']:.3%} | "
+              f"{m[f'fallback{v}']:.1%} | "
               f"{m[f'cpu{v}'] * 1e3:.1f} ms | {m.get('failed', 0):.0f} |")
 
 
 HEADER = ("| set | meshing | surfaces | triangles | under 15 deg | same, regions with corners >= 20 deg | "
-          "same, of those not folded | regions cut as m1 | CPU per surface | failed (memory) |\n"
-          "|---|---|---|---|---|---|---|---|---|---|")
+          "same, of those not folded | same, of those simple in their plane | regions cut as m1 | "
+          "CPU per surface | failed (memory) |\n"
+          "|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 def random_surfaces(name: str, n: int) -> list[Any]:
