@@ -158,6 +158,7 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path, studio):
     within its first seconds it shows the founders and then each generation the islands complete,
     drawn in 3D and marked "not yet committed", a design of it selectable; after the commit the same
     generation is shown as durable."""
+    from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
@@ -187,10 +188,17 @@ def test_the_studio_streams_generations_before_their_commit(tmp_path, studio):
     assert "not yet committed" in driver.find_element(By.ID, "gen-view").text
     assert not any("-1" in label for label in labels)
     assert any("founders" in label or "committed none yet" in label for label in labels)
-    first = next(r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
-                 if "invalid" not in (r.get_attribute("class") or ""))
-    ident = first.get_attribute("data-id")
-    first.click()
+    def click_a_design():   # the list is drawn again as each island's generation arrives: find it again
+        try:
+            row = next(r for r in driver.find_elements(By.CSS_SELECTOR, "#gen-list [data-id]")
+                       if "invalid" not in (r.get_attribute("class") or ""))
+            found = row.get_attribute("data-id")
+            row.click()
+            return found
+        except StaleElementReferenceException:
+            return None
+
+    ident = _wait("a design of the list clicked", click_a_design, 30)
     _wait("the design's panel", lambda: driver.find_element(By.ID, "d-id").text == ident, 30)
     assert "not yet committed" in driver.find_element(By.ID, "d-origin").text
 
