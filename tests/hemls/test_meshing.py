@@ -124,26 +124,20 @@ def test_random_default_surfaces_far_fewer_thin_triangles_than_meshing_1():
     assert share1 > 0.5 and share < share1 / 10
 
 
-def test_meshing_3_is_kept_bit_for_bit_for_runs_that_recorded_it():
-    """Runs created under meshing 3 regrow their meshes as they were (this digest is round 13's)."""
+@pytest.mark.parametrize(("meshing", "expected"), [
+    (3, "7631c24e1a9db3a8fe68d72109ec5151ecf0677e62fbf28619d7a2e1702f6f5b"),   # round 13's code
+    (4, "9d7b784c84e10b0529e7a9b6233880c41b5daf0ab398ea0695a93f225ced7876"),   # before meshing 5
+])
+def test_an_old_meshing_is_kept_bit_for_bit_for_runs_that_recorded_it(meshing, expected):
+    """Runs created under meshing 3 or 4 regrow their meshes as they were: the digests are those of
+    the code before the next meshing was written."""
     import hashlib
 
     digest = hashlib.sha256()
     for surface in _random_surfaces(3):
-        mesh = surface.with_meshing(3).mesh()
+        mesh = surface.with_meshing(meshing).mesh()
         digest.update(mesh.points.tobytes() + mesh.triangles.tobytes())
-    assert digest.hexdigest() == "7631c24e1a9db3a8fe68d72109ec5151ecf0677e62fbf28619d7a2e1702f6f5b"
-
-
-def test_meshing_4_is_kept_bit_for_bit_for_runs_that_recorded_it():
-    """Runs created under meshing 4 regrow their meshes as they were (the digest before meshing 5)."""
-    import hashlib
-
-    digest = hashlib.sha256()
-    for surface in _random_surfaces(3):
-        mesh = surface.with_meshing(4).mesh()
-        digest.update(mesh.points.tobytes() + mesh.triangles.tobytes())
-    assert digest.hexdigest() == "9d7b784c84e10b0529e7a9b6233880c41b5daf0ab398ea0695a93f225ced7876"
+    assert digest.hexdigest() == expected
 
 
 def _square_and_needle(reach: float):
