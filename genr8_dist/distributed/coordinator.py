@@ -773,9 +773,7 @@ class Pipeline:
         if prepared is None:
             return False
         first, version, config, migrants = prepared
-        end = min(self.boundary(first), run.last, self.limit() if limit is None else limit)
-        if self.hold is not None:
-            end = min(end, self.hold)
+        end = min(self.boundary(first), self.limit() if limit is None else limit)   # the limit holds the hold
         host = run.hosts.host_of(island)
         steps = []
         sent: set[int] = set()
