@@ -42,10 +42,12 @@ def fresh(s: Any, meshing: int) -> Surface:
                    s.masses, s.stopped, meshing=meshing)
 
 
-def corner_ok(s: Any) -> np.ndarray:
-    """(F,) whether every corner of each region is at least 20 degrees in the region's plane."""
+def region_shapes(s: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(F,) masks from one projection of each region into its plane: whether every corner is at
+    least 20 degrees there, and whether, among those, the outline does not cross itself."""
     centroid, newell, _, _, _ = _region_geometry(s.vertices, s.region_offsets, s.region_vertices)
     ok = np.zeros(s.n_regions, dtype=bool)
+    simple = np.zeros(s.n_regions, dtype=bool)
     for r, cyc in enumerate(s.regions):
         frame = _frame(newell[r])
         if frame is None:
@@ -54,21 +56,8 @@ def corner_ok(s: Any) -> np.ndarray:
         a, b = xy - np.roll(xy, 1, 0), np.roll(xy, -1, 0) - xy
         turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b)))
         ok[r] = np.all(180.0 - turn >= 20.0)
-    return ok
-
-
-def simple_in_plane(s: Any, among: np.ndarray) -> np.ndarray:
-    """(F,) whether each region of ``among`` (a mask) has an outline that does not cross itself in
-    the region's plane."""
-    centroid, newell, _, _, _ = _region_geometry(s.vertices, s.region_offsets, s.region_vertices)
-    out = np.zeros(s.n_regions, dtype=bool)
-    for r in np.flatnonzero(among):
-        frame = _frame(newell[r])
-        if frame is None:
-            continue
-        xy = (s.vertices[s.regions[r]] - centroid[r]) @ frame.T
-        out[r] = _simple(xy / max(float(np.abs(xy).max()), 1e-300))
-    return out
+        simple[r] = ok[r] and _simple(xy / max(float(np.abs(xy).max()), 1e-300))
+    return ok, simple
 
 
 def folded(s: Any) -> np.ndarray:
@@ -86,8 +75,8 @@ def folded(s: Any) -> np.ndarray:
 
 def one_surface(s: Any) -> dict[str, float]:
     """One surface's counts under every meshing (summed by ``measure``)."""
-    ok = corner_ok(s)
-    flat_ok, simple_ok = ok & ~folded(s), ok & simple_in_plane(s, ok)
+    ok, simple_ok = region_shapes(s)
+    flat_ok = ok & ~folded(s)
     out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum()),
                              "simple_good_regions": int(simple_ok.sum())}
     for meshing in CHOSEN:

@@ -50,6 +50,7 @@ import numpy as np
 
 from genr8_dist.errors import ConfigError
 from genr8_dist.fields import read_float
+from genr8_dist.hemls.meshing import triangle_min_angles
 
 __all__ = [
     "CRITERIA",
@@ -180,24 +181,6 @@ def cells(surface: Any) -> float:
 
 
 SLIVER_DEGREES = 10.0
-
-
-def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
-    """The smallest angle (degrees) of each triangle ``(T, 3)`` of ``vertices``; 0 for a degenerate one."""
-    p = _positions(vertices)
-    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    if not len(t):
-        return np.zeros(0)
-    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
-
-    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
-        cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
-        return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 0.0)
-
-    first, second = angle(b - a, c - a), angle(a - b, c - b)
-    third = np.clip(180.0 - first - second, 0.0, 180.0)
-    return np.asarray(np.minimum(np.minimum(first, second), third))
 
 
 def sliver_roundness(degrees: float = SLIVER_DEGREES) -> float:

@@ -601,15 +601,26 @@ def _membrane(points2: np.ndarray, tri: np.ndarray, ring3: np.ndarray, lifted: n
     return cast(np.ndarray, (base + offset)[n:])
 
 
-def _angles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """(T,) the smallest angle (degrees) of each triangle ``tri`` (T, 3) of points ``p`` (P, 3)."""
-    q = p[tri]
-    out = np.full(len(tri), 180.0)
-    for k in range(3):
-        u, w = q[:, (k + 1) % 3] - q[:, k], q[:, (k + 2) % 3] - q[:, k]
-        out = np.minimum(out, np.degrees(np.arctan2(np.linalg.norm(np.cross(u, w), axis=1),
-                                                    np.einsum("ij,ij->i", u, w))))
-    return out
+def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
+    """The smallest angle (degrees) of each triangle ``(T, 3)`` of ``vertices`` ``(V, 3)``; 0 for a
+    degenerate one. The one measure of a triangle's shape: the tidy pass's, the ``slivers``
+    criterion's and the benches'."""
+    p = np.asarray(vertices, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"vertices must be a (V, 3) array, got shape {p.shape}")
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if not len(t):
+        return np.zeros(0)
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+
+    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+        cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
+        return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 0.0)
+
+    first, second = angle(b - a, c - a), angle(a - b, c - b)
+    third = np.clip(180.0 - first - second, 0.0, 180.0)
+    return np.asarray(np.minimum(np.minimum(first, second), third))
 
 
 def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -621,7 +632,7 @@ def _tidy(p: np.ndarray, tri: np.ndarray, fixed: int) -> tuple[np.ndarray, np.nd
     ring's points and sides stay, so the region still meets its neighbours on the same points.
     Triangle's angles hold in the chart, but lifting bends them: across the creases of meshing 1's
     triangles, where a projected region slopes, and where the region folds over itself."""
-    bad = _angles(p, tri) < _TIDY_BELOW
+    bad = triangle_min_angles(p, tri) < _TIDY_BELOW
     if not bad.any():
         return p, tri
     # only the triangles round the thin ones' corners change: those corners' stars are whole there

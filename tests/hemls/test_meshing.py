@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from genr8_dist.environment import Environment
-from genr8_dist.fitness import SLIVER_DEGREES, sliver_roundness, slivers, triangle_min_angles
+from genr8_dist.fitness import SLIVER_DEGREES, sliver_roundness, slivers
 from genr8_dist.hemls import grow, load_system, parse
-from genr8_dist.hemls.meshing import MESHING, mesh_surface
+from genr8_dist.hemls.meshing import MESHING, mesh_surface, triangle_min_angles
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -318,7 +318,7 @@ def test_a_region_overlapping_itself_in_every_chart_is_meshed_in_pieces():
 
 
 def _bench_meshing():
-    """bench/meshing.py as a module: its ``corner_ok`` and ``folded`` define the regions the issue's
+    """bench/meshing.py as a module: its ``region_shapes`` and ``folded`` define the regions the issue's
     figure is about."""
     import importlib.util
 
@@ -338,7 +338,7 @@ def test_meshing_5_leaves_far_fewer_thin_triangles_in_regions_with_wide_corners(
     bench = _bench_meshing()
     thin = {4: [0, 0], 5: [0, 0]}
     for surface in [s for i, s in enumerate(_random_surfaces(6)) if i in (0, 4, 5)]:
-        good = bench.corner_ok(surface)
+        good = bench.region_shapes(surface)[0]
         flat = good & ~bench.folded(surface)
         for meshing in (4, 5):
             mesh = surface.with_meshing(meshing).mesh()
