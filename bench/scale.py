@@ -35,7 +35,9 @@ at most ``2 * wall_s`` CPU seconds to everything). ``efficiency_machine_bound`` 
 ideal over the larger of ideal and the engine's CPU seconds (hosts' and driver's) divided by the
 machine's ``machine_cores``; hosts' start-up is in it, so it is a little low. ``--trace-memory`` adds
 ``driver_traced_mb_by_commit``: the Python memory the driver holds after each commit (tracemalloc),
-which stays flat when the driver keeps no history of the run.
+which stays flat when the driver keeps no history of the run. ``--timeline`` logs every wait and
+adds where the CPUs' time went (``timeline_figures``): ``waited_s``, ``overshoot_ms_mean`` and
+``overshoot_ms_p99``, ``waits_span_s``, ``idle_share`` and ``tail_s``.
 
 The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
 driver's time.
@@ -186,6 +188,44 @@ class Instruments:
         coordinator.Pipeline.receive = counted_receive  # type: ignore[method-assign]
 
 
+def timeline_figures(folder: Path, cpus: int) -> dict[str, Any]:
+    """Where the CPUs' time went (``--timeline``), from every wait's log line (``GENR8_WAITS_LOG``):
+    ``waited_s`` (the seconds slept, all waits together, / the CPUs: ``ideal_s`` plus what sleeping
+    overshot, which the machine's load and the hosts' other threads cause), ``overshoot_ms_mean`` and
+    ``overshoot_ms_p99`` (a wait's sleep past what it asked for), ``waits_span_s`` (first wait's start
+    to last wait's end), ``idle_share`` (the share of the CPUs' seconds in that span with no wait on
+    them) and ``tail_s`` (the seconds from the last moment at least 90% of the CPUs were waiting to
+    the end: the islands that finish after the rest, each held by its own chain of long waits)."""
+    starts, ends, asked = [], [], []
+    for path in sorted(folder.glob("*.txt")):
+        for line in path.read_text(encoding="ascii").splitlines():
+            a, b, s = map(float, line.split())
+            starts.append(a)
+            ends.append(b)
+            asked.append(s)
+    if not starts:
+        return {}
+    begin, finish = min(starts), max(ends)
+    overshoot = sorted(max(0.0, b - a - s) for a, b, s in zip(starts, ends, asked, strict=True))
+    events = sorted([(a, 1) for a in starts] + [(b, -1) for b in ends])
+    busy, running, last, full_until = 0.0, 0, begin, begin
+    for t, step in events:
+        busy += min(running, cpus) * (t - last)
+        if running >= 0.9 * cpus:
+            full_until = t
+        running += step
+        last = t
+    span = finish - begin
+    return {
+        "waited_s": sum(b - a for a, b in zip(starts, ends, strict=True)) / cpus,
+        "overshoot_ms_mean": 1e3 * statistics.fmean(overshoot),
+        "overshoot_ms_p99": 1e3 * _percentile(overshoot, 0.99),
+        "waits_span_s": span,
+        "idle_share": 1.0 - busy / (cpus * span) if span > 0 else 0.0,
+        "tail_s": finish - full_until,
+    }
+
+
 def run(args: argparse.Namespace) -> dict[str, Any]:
     """One simulated run; returns the figures."""
     os.environ["GENR8_PLUGINS"] = str(PLUGINS)
@@ -200,6 +240,9 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     config_path = work / "scale.toml"
     config_path.write_text(config_toml(args))
     run_dir = work / "run"
+    if args.timeline:
+        (work / "waits").mkdir()
+        os.environ["GENR8_WAITS_LOG"] = str(work / "waits")
     load_before = os.getloadavg()
     t0 = time.perf_counter()
     per_node = args.cpus / args.nodes
@@ -248,6 +291,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         chains[i] = chains.get(i, 0.0) + w
     critical = max(chains.values(), default=0.0)
     rows = table.num_rows
+    timeline = timeline_figures(work / "waits", args.cpus) if args.timeline else {}
     shutil.rmtree(work, ignore_errors=True)
     wall = summary.wall_seconds
     ideal = waited / args.cpus
@@ -280,6 +324,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         "driver_peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
         "load_before": [round(x, 2) for x in load_before], "load_after": [round(x, 2) for x in load_after],
         "status": summary.status,
+        **timeline,
         **({"driver_traced_mb_by_commit": [round(x, 2) for x in instruments.traced]}
            if args.trace_memory else {}),
     }
@@ -303,6 +348,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")
     parser.add_argument("--json", default=None, help="write the figures to this file as one JSON object")
+    parser.add_argument("--timeline", action="store_true",
+                        help="log every wait and say where the CPUs' time went (waited_s, overshoot, "
+                             "idle_share, tail_s)")
     parser.add_argument("--trace-memory", action="store_true",
                         help="trace the driver's memory (tracemalloc; slows it): its size after each commit")
     parser.add_argument("--profile", default=None,

@@ -6,7 +6,8 @@ time distribution of the default universe's default configuration measured once 
 (heavy tail included), so a run measures only the engine's own costs (breeding, traffic, commits,
 scheduling). The draw is a function of the text alone (its blake2b digest: the same text waits the
 same time everywhere), so rows are the same whatever the scheduling; ``GENR8_WAITS_SCALE`` multiplies
-every wait (default 1; 0 waits nothing). The fitness is another number drawn from the digest,
+every wait (default 1; 0 waits nothing); ``GENR8_WAITS_LOG`` names a folder where each wait is
+logged (``_log``). The fitness is another number drawn from the digest,
 independent of the wait, so selection does not drift towards cheap individuals.
 """
 
@@ -65,6 +66,15 @@ def _draw_wait(text: str, quantiles: tuple[tuple[float, float], ...] = QUANTILES
     return s0 + (s1 - s0) * (u - p0) / (p1 - p0) if p1 > p0 else s1
 
 
+def _log(start: float, end: float, asked: float) -> None:
+    """With ``GENR8_WAITS_LOG`` (a folder: bench/scale.py's ``--timeline``), one line per wait in
+    this process's file: when it began and ended (epoch seconds) and what it asked for."""
+    folder = os.environ.get("GENR8_WAITS_LOG")
+    if folder:
+        with open(os.path.join(folder, f"{os.getpid()}.txt"), "a", encoding="ascii") as f:
+            f.write(f"{start!r} {end!r} {asked!r}\n")
+
+
 def _scale() -> float:
     """``GENR8_WAITS_SCALE``: the factor applied to every wait."""
     return float(os.environ.get("GENR8_WAITS_SCALE", "1"))
@@ -94,7 +104,9 @@ class WaitsPhenotype(Phenotype):
         wait = _draw_wait(text)
         seconds = wait * _scale()
         if seconds > 0:
+            start = time.time()
             time.sleep(seconds)
+            _log(start, time.time(), seconds)
         return Developed({"wait": wait, "score": _unit(digest, 1)}, digest.hex())
 
     def measure(self, developed: Developed, config: Any) -> dict[str, float]:
