@@ -3,24 +3,13 @@ vertices, and the founder-machinery baseline bought with the run's evaluations."
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 from genr8_dist.config import RunConfig
 
-BENCH = Path(__file__).resolve().parents[2] / "bench" / "search.py"
 
-
-def _bench():
-    spec = importlib.util.spec_from_file_location("bench_search", BENCH)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_a_small_run_counts_every_evaluation_and_reports_the_runs_best():
-    bench = _bench()
+def test_a_small_run_counts_every_evaluation_and_reports_the_runs_best(bench_module):
+    bench = bench_module("search")
     config = RunConfig.from_dict({"universe": "tiles", "seed": 2, "genome": {"length": 40},
                                   "ea": {"population": 6, "elites": 1},
                                   "environment": {"steps": 2}, "islands": {"count": 2, "migrants": 1}})

@@ -317,25 +317,12 @@ def test_a_region_overlapping_itself_in_every_chart_is_meshed_in_pieces():
     assert np.array_equal(mesh.points[:len(vertices)], vertices)
 
 
-def _bench_meshing():
-    """bench/meshing.py as a module: its ``region_shapes`` and ``folded`` define the regions the issue's
-    figure is about."""
-    import importlib.util
-
-    path = Path(__file__).resolve().parents[2] / "bench" / "meshing.py"
-    spec = importlib.util.spec_from_file_location("bench_meshing", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_meshing_5_leaves_far_fewer_thin_triangles_in_regions_with_wide_corners():
+def test_meshing_5_leaves_far_fewer_thin_triangles_in_regions_with_wide_corners(bench_module):
     """Three random default surfaces (the first, fifth and sixth of ``_random_surfaces(6)``): in regions
     whose corners are all at least 20 degrees in their plane, meshing 4 leaves 460 triangles under 15
     degrees, 295 of them in regions that do not fold over themselves; meshing 5 tidies them to 84 and
     12. What is left lies in regions that cross themselves in their plane, or on their sides."""
-    bench = _bench_meshing()
+    bench = bench_module("meshing")   # its region_shapes and folded define the issue's regions
     thin = {4: [0, 0], 5: [0, 0]}
     for surface in [s for i, s in enumerate(_random_surfaces(6)) if i in (0, 4, 5)]:
         good = bench.region_shapes(surface)[0]
