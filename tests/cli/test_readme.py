@@ -265,3 +265,11 @@ def test_every_command_block_of_the_readme_and_docs_runs_as_written_in_order(tmp
     for run in ("quick", "bowl", "tables", "live"):   # finished or interrupted, no run keeps its lock
         assert (tmp_path / "runs" / run / "_manifest").is_dir()
         assert not (tmp_path / "runs" / run / "_running.lock").exists(), run
+
+
+def test_the_benchmarks_section_names_every_bench():
+    """Each script of bench/ is listed where a user looks for what the project measures."""
+    section = README.split("\n## Benchmarks\n", 1)[1].split("\n## ", 1)[0]
+    bench = Path(__file__).resolve().parents[2] / "bench"
+    missing = [p.name for p in sorted(bench.glob("*.py")) if f"`{p.name}`" not in section]
+    assert not missing
