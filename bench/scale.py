@@ -206,7 +206,7 @@ def timeline_figures(folder: Path, cpus: int) -> dict[str, Any]:
     if not starts:
         return {}
     begin, finish = min(starts), max(ends)
-    overshoot = sorted(max(0.0, b - a - s) for a, b, s in zip(starts, ends, asked, strict=True))
+    overshoot = [max(0.0, b - a - s) for a, b, s in zip(starts, ends, asked, strict=True)]
     events = sorted([(a, 1) for a in starts] + [(b, -1) for b in ends])
     busy, running, last, full_until = 0.0, 0, begin, begin
     for t, step in events:
@@ -240,6 +240,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     config_path = work / "scale.toml"
     config_path.write_text(config_toml(args))
     run_dir = work / "run"
+    os.environ.pop("GENR8_WAITS_LOG", None)
     if args.timeline:
         (work / "waits").mkdir()
         os.environ["GENR8_WAITS_LOG"] = str(work / "waits")

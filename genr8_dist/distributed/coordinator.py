@@ -769,11 +769,12 @@ class Pipeline:
         from genr8_dist.distributed.actors import Step
 
         run = self.run_
+        limit = self.limit() if limit is None else limit
         prepared = self.ready(island, limit)
         if prepared is None:
             return False
         first, version, config, migrants = prepared
-        end = min(self.boundary(first), self.limit() if limit is None else limit)   # the limit holds the hold
+        end = min(self.boundary(first), limit)   # the limit holds the hold
         host = run.hosts.host_of(island)
         steps = []
         sent: set[int] = set()
@@ -807,7 +808,7 @@ class Pipeline:
     def submit_ready(self, islands: Any = None) -> bool:
         """Submit the next generation of every island (of ``islands``) that may start; whether it
         looked (not while calls are cut for a queued request: the caller keeps ``islands``)."""
-        if self.cutting & set(self.pending):
+        if any(ref in self.pending for ref in self.cutting):
             return False
         limit = self.limit()
         for island in sorted(self.cursor if islands is None else islands):
