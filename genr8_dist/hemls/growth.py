@@ -58,13 +58,16 @@ class StepStats:
 class GrowthResult:
     """The grown surface, per-step statistics, the cap that stopped growth early (``"edges"`` or
     ``"time"``, else None), and with ``keep_steps`` the surface after each step (``history[0]`` is the
-    seed, ``history[i]`` the surface after step i)."""
+    seed, ``history[i]`` the surface after step i). ``fired``: per rule of the system, whether it
+    rewrote an edge (a rule that never did is read only for its predecessor, contexts and
+    condition: its successors could change and the growth would not)."""
 
     surface: Surface
     steps: list[StepStats]
     capped: str | None = None
     history: list[Surface] = field(default_factory=list)
     work: int = 0   # edge-steps spent (what ``max_work`` caps); see ``WORK_PAIRS``
+    fired: tuple[bool, ...] = ()
 
     @property
     def seconds(self) -> float:
@@ -107,6 +110,7 @@ class _Grower(BranchJoining):
         self.ties = getattr(env, "branch_ties", "crossing")
         self._stop_later: list[np.ndarray] = []  # vertices drawn between two stopped ones
         self._keys: np.ndarray | None = None
+        self.fired = [False] * len(system.rules)   # per rule: chosen for an edge (``GrowthResult``)
 
     # -- step ------------------------------------------------------------------------------------
     def step(self, step: int) -> None:
@@ -218,6 +222,7 @@ class _Grower(BranchJoining):
         for rule, sel in chosen:
             if not len(sel):
                 continue
+            self.fired[rule.index] = True
             if len(rule.templates) == 1:
                 parts = [(sel, rule.templates[0])]
             else:
@@ -452,4 +457,4 @@ def grow(system: RewriteSystem, env: Environment | None = None, *, steps: int | 
     spent = grower.budget.spent
     if grower.kernels is None:
         KERNELS.count(spent)
-    return GrowthResult(surface, stats, capped, history, spent)
+    return GrowthResult(surface, stats, capped, history, spent, tuple(grower.fired))

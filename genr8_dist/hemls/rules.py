@@ -8,7 +8,9 @@ successors into many rewrite systems), and a system is compiled once per process
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import hashlib
 import math
 from dataclasses import dataclass, replace
 
@@ -31,7 +33,9 @@ class Group:
 @dataclass(frozen=True)
 class CompiledRule:
     """One rule: its context labels (left, right, the chain after its end), its condition, one
-    template per successor and their cumulative normalised weights."""
+    template per successor, their cumulative normalised weights, and its place among the system's
+    rules (``index``: growth says which rules fired by it) and a digest of each template's arrays
+    (``drawn``: equal digests, equal templates, bit for bit)."""
 
     left: int | None
     right: int | None
@@ -39,6 +43,8 @@ class CompiledRule:
     condition: object
     templates: tuple[Template, ...]
     cumulative: np.ndarray  # cumulative normalized weights
+    index: int = 0
+    drawn: tuple[bytes, ...] = ()
 
     @property
     def unconditional(self) -> bool:
@@ -114,10 +120,17 @@ def _drawn(successor: Successor, angle: float, labels: tuple[int, ...]) -> Templ
                    branch_ages=_frozen(ages[branch]), branch_timed=_frozen(timed[branch]))
 
 
-def _template(successor: Successor, angle: float, ids: dict[str, int]) -> Template:
-    """``draw(successor, angle, ids)``, drawn once per process for each successor, angle and labels
-    (universes write the same successors into many rewrite systems)."""
-    return _drawn(successor, angle, tuple(ids[s.name] for s in _segments(successor.symbols)))
+@functools.lru_cache(maxsize=8192)
+def _digest(successor: Successor, angle: float, labels: tuple[int, ...]) -> bytes:
+    """A digest of ``_drawn(successor, angle, labels)``'s arrays (shapes, types and bytes), once
+    per process for each: two successors with one digest draw the same template."""
+    template = _drawn(successor, angle, labels)
+    h = hashlib.blake2b(digest_size=16)
+    for field in dataclasses.fields(template):
+        value = getattr(template, field.name)
+        h.update(f"{field.name}{value.shape}{value.dtype.str}".encode())
+        h.update(value.tobytes())
+    return h.digest()
 
 
 _CERTAIN = np.ones(1)   # the cumulative weights of a rule with one successor
@@ -129,8 +142,13 @@ def compile_system(system: RewriteSystem) -> CompiledSystem:
     """``system`` compiled for growth (once per process for each system)."""
     ids = system.label_ids()
     groups: dict[int, list[CompiledRule]] = {}
-    for rule in system.rules:
-        templates = tuple(_template(s, system.turn_angle, ids) for s in rule.successors)
+    for index, rule in enumerate(system.rules):
+        # each successor drawn once per process for its shape, angle and labels (universes write the
+        # same successors into many rewrite systems)
+        keys = [(s, system.turn_angle, tuple(ids[g.name] for g in _segments(s.symbols)))
+                for s in rule.successors]
+        templates = tuple(_drawn(*key) for key in keys)
+        drawn = tuple(_digest(*key) for key in keys)
         if len(templates) == 1:
             cum = _CERTAIN
         else:
@@ -141,7 +159,7 @@ def compile_system(system: RewriteSystem) -> CompiledSystem:
             None if rule.left is None else ids[rule.left.name],
             None if rule.right is None else ids[rule.right.name],
             tuple(ids[c.name] for c in rule.chain),
-            rule.condition, templates, cum))
+            rule.condition, templates, cum, index, drawn))
     labels = np.array(sorted(set(ids.values())), dtype=np.int64)
     return CompiledSystem(
         groups=tuple(Group(label, tuple(rules)) for label, rules in groups.items()),

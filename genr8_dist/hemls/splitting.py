@@ -19,18 +19,31 @@ region trivial; ``screen`` uses it when given the environment's steps (``ea.scre
 A system may also be sure to waste its growth another way: its edges multiply so fast that every
 growth of it passes ``max_work`` (``hemls.budget.least_work``) and is cut short, invalid; ``screen``
 says so when given the cap (``ea.screen = 3``).
+
+Two texts may differ and still grow one surface: in a rule that can never fire, in a turn pair
+that cancels, in ``Sync`` where one group of rules draws every branch, in ``BranchAngle`` where no
+rule draws one. ``growth_key`` names what growth reads of a text (the compiled system, its rules
+that can fire), so equal keys mean bit-identical growth in every environment. A growth also says
+which rules fired (``GrowthResult.fired``); ``copy_key`` then names what that growth read, so a
+text that differs from the grown one only in what it did not read (the successors of a rule that
+never fired, say) is known to grow the same surface before it is grown (``same_growth``: an
+island does not grow such a child of a parent, ``evolution.island``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from collections.abc import Iterator
 from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
 
 from genr8_dist.hemls.budget import least_work
 from genr8_dist.hemls.language import Branch, RewriteSystem, Segment, Symbol
 
-__all__ = ["can_join", "can_split", "firing", "screen"]
+__all__ = ["can_join", "can_split", "copy_key", "firing", "growth_key", "same_growth", "screen"]
 
 #: The replay of a growth's topology (``can_join``) gives up past this many edges (it then says
 #: "may join"): a text that stays one region past it is grown as before.
@@ -197,6 +210,102 @@ def can_join(system: RewriteSystem, steps: int) -> bool:
             if len(live) > _REPLAY_EDGES:
                 return True
     return False
+
+
+def growth_key(system: RewriteSystem, fires: tuple[bool, ...]) -> str:
+    """What growth reads of ``system`` (no label noise), as a hex digest: equal keys, bit-identical
+    growth in any environment. ``fires``: which rules can fire (``firing``).
+
+    Growth reads the compiled system (``hemls.rules``): the axiom's labels and directions; the rule
+    groups in order, each rule's contexts, chain, condition, weights and drawn templates (the
+    turtle's points and headings as floats, so ``+ -`` and ``\\ /`` count as nothing exactly when
+    they draw nothing); the join cone; ``Sync``. A rule that cannot fire is never read, nor is a
+    group with none; ``Sync`` only where a group that can fire comes after the first one drawing
+    a branch (else branches join after that group either way: later joins find none new); the cone
+    only where a rule draws a branch. Label ids are kept as drawn, so two texts that name one label
+    differently differ."""
+    from genr8_dist.hemls.rules import compile_system
+
+    c = compile_system(system)
+    h = hashlib.blake2b(digest_size=16)
+
+    def put(*parts: object) -> None:
+        for part in parts:
+            h.update(part.tobytes() if isinstance(part, np.ndarray) else repr(part).encode())
+            h.update(b"|")
+
+    put("axiom", c.axiom_labels, c.axiom_reversed)
+    drawing = []   # per group read: whether a rule of it draws a branch
+    for group in c.groups:
+        rules = [rule for rule in group.rules if fires[rule.index]]
+        if not rules:
+            continue
+        put("group", group.label)
+        for rule in rules:
+            put("rule", rule.left, rule.right, rule.chain, str(rule.condition), rule.cumulative, rule.drawn)
+        drawing.append(any(len(t.branch_labels) for rule in rules for t in rule.templates))
+    if any(drawing):
+        put("cone", c.cos_cone, "sync", c.sync and drawing.index(True) < len(drawing) - 1)
+    return h.hexdigest()
+
+
+class _Read(NamedTuple):
+    """A text as ``same_growth`` compares it: its system, its shape (labels, and every rule's
+    predecessor, contexts, chain and condition, in order) and its ``growth_key`` over the rules that
+    can fire."""
+
+    system: RewriteSystem
+    shape: str
+    key: str
+
+
+@lru_cache(maxsize=8192)
+def _read(text: str) -> _Read | None:
+    """``text`` as ``same_growth`` compares it, once per text (``None``: it does not parse)."""
+    from genr8_dist.hemls.language import parse
+
+    try:
+        system = parse(text)
+    except Exception:   # a failure growth reports with its stage
+        return None
+    shape = repr((sorted(system.label_ids().items()),
+                  [(r.predecessor.name, str(r.left), str(r.right), [str(c) for c in r.chain],
+                    str(r.condition)) for r in system.rules]))
+    return _Read(system, shape, growth_key(system, firing(system)[0]))
+
+
+@lru_cache(maxsize=8192)
+def copy_key(text: str, reads: str) -> str | None:
+    """The key of ``text`` as a growth that fired only the rules marked ``1`` in ``reads`` (one
+    character per rule, ``GrowthResult.fired``) read it: equal for the text that growth grew and for
+    any other with the same axiom, labels and predecessors, contexts and conditions rule by rule, and
+    the same ``growth_key`` over the fired rules. Such a text grows the same surface bit for bit:
+    derivation step by step, every edge is taken by the same rule (the choice reads only what is
+    equal), and only fired rules' successors are drawn. ``None``: the text does not parse or has
+    another number of rules."""
+    read = _read(text)
+    if read is None or len(read.system.rules) != len(reads):
+        return None
+    fired = tuple(mark == "1" for mark in reads)
+    blob = "\n".join((read.shape, reads, growth_key(read.system, fired)))
+    return hashlib.blake2b(blob.encode(), digest_size=16).hexdigest()
+
+
+def same_growth(text: str, other: str, reads: str | None = None) -> bool:
+    """Whether ``text`` grows the surface ``other`` grows, bit for bit, in any environment without
+    label noise, known without growing it: their ``growth_key`` is one, or (``reads``: which rules
+    fired in ``other``'s growth) their ``copy_key`` under those reads. ``False`` says only that
+    neither shows it. Each text is read once (``_read``); a growth key under ``reads`` is computed
+    only for texts of one shape."""
+    mine, theirs = _read(text), _read(other)
+    if mine is None or theirs is None:
+        return False
+    if mine.key == theirs.key:
+        return True
+    if reads is None or mine.shape != theirs.shape:
+        return False
+    key = copy_key(text, reads)
+    return key is not None and key == copy_key(other, reads)
 
 
 @lru_cache(maxsize=8192)

@@ -1,9 +1,12 @@
 """The static check on a rewrite system's text: a system it calls trivial grows one region, and two
 texts with one effective text grow the same surface; the replay of a growth's topology
-(``can_join``): a system it says can never join two branches grows one region (properties over
-random genomes)."""
+(``can_join``): a system it says can never join two branches grows one region; texts with one
+growth key, or one copy key under a growth's reads, grow one surface (properties over random
+genomes)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import pytest
 
@@ -11,7 +14,7 @@ from genr8_dist.config import RunConfig
 from genr8_dist.evolution.evaluate import Evaluator
 from genr8_dist.evolution.operators import random_genome
 from genr8_dist.hemls import load_system, parse
-from genr8_dist.hemls.splitting import can_join, can_split, screen
+from genr8_dist.hemls.splitting import can_join, can_split, copy_key, same_growth, screen
 from genr8_dist.rng import stream
 
 
@@ -119,3 +122,87 @@ def test_texts_the_replay_calls_trivial_grow_one_region(universe):
             assert not evaluation.valid or evaluation.sizes["regions"] <= 1, text
     if universe in ("default", "tiles"):   # their rules seldom fire at more than one edge a step
         assert caught > 0
+
+
+def _variants(text: str) -> list[str]:
+    """Texts that differ from ``text`` in one place: Sync switched, BranchAngle changed, or one
+    rule's successors replaced by the next rule's."""
+    system = parse(text)
+    out = [dataclasses.replace(system, sync=not system.sync).to_text(),
+           dataclasses.replace(system, branch_angle=75.0 if system.branch_angle != 75.0 else 15.0).to_text()]
+    rules = system.rules
+    for i, rule in enumerate(rules):
+        other = rules[(i + 1) % len(rules)]
+        if other.successors != rule.successors:
+            changed = (*rules[:i], dataclasses.replace(rule, successors=other.successors), *rules[i + 1:])
+            out.append(dataclasses.replace(system, rules=changed).to_text())
+    return out
+
+
+@pytest.mark.parametrize("universe", ["default", "tiles", "symmetric"])
+def test_texts_with_one_growth_key_grow_one_surface(universe):
+    """Over random genomes and texts one change away from them: texts with one ``growth_key``
+    (``same_growth`` without a growth's reads) grow the same surface bit for bit, in an environment
+    that bends and stretches it; and the key tells apart texts that grow differently."""
+    config = RunConfig.from_dict({"universe": universe, "genome": {"length": 60},
+                                  "environment": {"steps": 3, "gravity": [0.0, 0.0, -0.5],
+                                                  "scale": [1.3, 1.2, 1.0]}})
+    evaluator = Evaluator(config)
+    rng = stream(7, "test", "growth-key", universe)
+    same = apart = 0
+    for _ in range(40):
+        evaluation = evaluator.evaluate(random_genome(rng, 60, 255))
+        if evaluation.text is None or not evaluation.valid:
+            continue
+        for variant in _variants(evaluation.text):
+            grown = evaluator.evaluate_text(variant)
+            if same_growth(variant, evaluation.text):
+                same += 1
+                assert grown.phenotype_digest == evaluation.phenotype_digest, variant
+            elif grown.phenotype_digest != evaluation.phenotype_digest:
+                apart += 1
+    assert same > 0 and apart > 0
+
+
+@pytest.mark.parametrize("universe", ["default", "tiles"])
+def test_a_text_that_differs_where_growth_did_not_read_grows_the_same_surface(universe):
+    """Over random grown texts and texts one change away from them: a text whose ``copy_key`` under
+    the growth's reads (which rules fired) equals the grown text's grows the same surface bit for
+    bit; the key tells apart texts that grow differently; and it catches copies that the static key
+    (``growth_key``) cannot, a changed successor of a rule that never fired among them."""
+    config = RunConfig.from_dict({"universe": universe, "genome": {"length": 60},
+                                  "environment": {"steps": 3, "gravity": [0.0, 0.0, -0.5]}})
+    evaluator = Evaluator(config)
+    rng = stream(11, "test", "copy-key", universe)
+    copies = beyond = apart = 0
+    for _ in range(60):
+        evaluation = evaluator.evaluate(random_genome(rng, 60, 255))
+        text = evaluation.text
+        if text is None or not evaluation.valid:
+            continue
+        reads = evaluator.reads(text)
+        assert reads is not None and len(reads) == len(parse(text).rules)
+        own = copy_key(text, reads)
+        for variant in _variants(text):
+            grown = evaluator.evaluate_text(variant)
+            if copy_key(variant, reads) == own:
+                copies += 1
+                assert grown.phenotype_digest == evaluation.phenotype_digest, variant
+                beyond += not same_growth(variant, text)
+            elif grown.phenotype_digest != evaluation.phenotype_digest:
+                apart += 1
+    assert copies > 0 and beyond > 0 and apart > 0
+
+
+def test_sync_and_the_join_cone_count_only_where_growth_reads_them():
+    """``Sync`` changes nothing where one group of rules, the last that can fire, draws every branch;
+    the join cone (``BranchAngle``) nothing where no rule draws a branch; ``+ -`` nothing."""
+    last = "Edge0 + Edge0 + Edge1\nEdge0 -> Edge0 Edge1\nEdge1 -> Edge1 [ [ + Edge1 ] - Edge1 ] Edge1\n"
+    first = "Edge0 + Edge0 + Edge1\nEdge1 -> Edge1 [ [ + Edge1 ] - Edge1 ] Edge1\nEdge0 -> Edge0 Edge1\n"
+
+    assert same_growth(last, last + "Sync\n")
+    assert not same_growth(first, first + "Sync\n")
+    assert not same_growth(last, last + "BranchAngle 75\n")
+    plain = "Edge0 + Edge0 + Edge0\nEdge0 -> Edge0 Edge0\n"
+    assert same_growth(plain, plain + "BranchAngle 75\nSync\n")
+    assert same_growth(plain, plain.replace("-> Edge0", "-> + - Edge0"))
