@@ -16,6 +16,10 @@ the report only ever talk to a phenotype through this interface:
                                            wasted for sure (trivial, or failed), and a key equal
                                            for texts that develop alike (default: never wasted,
                                            the text)
+``copies(text, other, reads, config)``     (optional) whether ``text`` develops into ``other``'s
+                                           phenotype, known without developing it (``reads``: what
+                                           ``other``'s development read, ``Developed.reads``);
+                                           default ``False``: cannot say
 ``problem(counts, raw) -> str | None``     why it cannot be scored (degenerate), else ``None``
 ``fitness(raw, config) -> float``          the run's fitness, **lower is better** (the engine
                                            minimises; a phenotype whose paper maximises a score
@@ -72,13 +76,15 @@ class Developed:
     ``digest``: equal digests, equal phenotypes; ``steps``: derivation steps done; ``capped``: what
     cut development short (``None`` when nothing did); ``counts``: its sizes, one per name in the
     phenotype's ``sizes`` (a surface: ``vertices``, ``edges``, ``regions``), stored with the row as
-    ``size_<name>`` (a size left out is stored as 0)."""
+    ``size_<name>`` (a size left out is stored as 0); ``reads``: which parts of the text development
+    read, in the phenotype's own notation (``Phenotype.copies``; ``None``: not said)."""
 
     value: Any
     digest: str
     steps: int = 0
     capped: str | None = None
     counts: Mapping[str, int] = field(default_factory=dict)
+    reads: str | None = None
 
 
 class Phenotype(ABC):
@@ -96,7 +102,8 @@ class Phenotype(ABC):
     ``size_<name>`` integer columns (fixed when the run is created, like its criteria) and a
     MAP-Elites grid may use as descriptors (``size_<name>``); ``trivial_from_sizes``: whether
     ``trivial`` reads only the sizes, not the criteria (then an island redraws a trivial founder
-    without measuring it).
+    without measuring it); ``says_reads``: whether ``develop`` says what it read of the text
+    (``Developed.reads``, which ``copies`` is given).
     """
 
     name: str = "phenotype"
@@ -107,6 +114,7 @@ class Phenotype(ABC):
     stage: str = "grow"
     sizes: tuple[str, ...] = ()
     trivial_from_sizes: bool = False
+    says_reads: bool = False
 
     @property
     def criteria(self) -> tuple[str, ...]:
@@ -138,6 +146,13 @@ class Phenotype(ABC):
         it), and a key equal for two texts only when they develop into one phenotype (a copy, known
         without developing it); by default never wasted, and the text itself."""
         return False, text
+
+    def copies(self, text: str, other: str, reads: str | None, config: RunSettings) -> bool:
+        """Whether ``text`` develops into the phenotype ``other`` develops into, known without
+        developing it (``reads``: what ``other``'s development read, its ``Developed.reads``): an
+        island then knows a child is a copy of its parent before developing it. Never ``True``
+        for two texts that develop differently; by default ``False`` (cannot say)."""
+        return False
 
     def looks(self, developed: Developed) -> list[Any] | None:
         """What a person sees of ``developed``, as blocks of numbers (arrays of a fixed length each,
@@ -181,6 +196,7 @@ class SurfacePhenotype(Phenotype):
     stage = "grow"
     sizes = ("vertices", "edges", "regions")
     trivial_from_sizes = True
+    says_reads = True       # Developed.reads: which rules fired
     export_formats = tuple(SURFACE_FORMATS)   # genr8_dist.export's table of surface formats
     smooths = True      # export takes smooth=N (Loop subdivision steps: genr8 show --smooth)
 
@@ -209,9 +225,11 @@ class SurfacePhenotype(Phenotype):
         n_regions = getattr(surface, "n_regions", None)
         counts = {"vertices": len(surface.vertices), "edges": len(surface.edges),
                   "regions": int(n_regions) if n_regions is not None else len(surface.regions)}
+        fired = getattr(result, "fired", ())
         return Developed(surface, surface.digest(),
                          len(steps) if isinstance(steps, (list, tuple)) else int(steps),
-                         (capped if isinstance(capped, str) else "cap") if capped else None, counts)
+                         (capped if isinstance(capped, str) else "cap") if capped else None, counts,
+                         None if capped or not fired else "".join("1" if f else "0" for f in fired))
 
     def measure(self, developed: Developed, config: RunSettings) -> dict[str, float]:
         from genr8_dist.fitness import score_surface
@@ -236,6 +254,17 @@ class SurfacePhenotype(Phenotype):
         steps = int(env.steps) if env is not None and version >= 2 else None
         max_work = int(getattr(env, "max_work", 0) or 0) if version >= 3 else 0
         return screen(text, bool(getattr(env, "label_noise", 0.0) > 0), steps, max_work)
+
+    def copies(self, text: str, other: str, reads: str | None, config: RunSettings) -> bool:
+        """``reads``: one ``1`` or ``0`` per rule of ``other``, whether it rewrote an edge in its
+        growth (``GrowthResult.fired``); ``hemls.splitting.same_growth`` (never under label noise,
+        which draws from every label a text uses)."""
+        from genr8_dist.hemls.splitting import same_growth
+
+        env = getattr(config, "environment", None)
+        if env is not None and getattr(env, "label_noise", 0.0) > 0:
+            return False
+        return same_growth(text, other, reads)
 
     def problem(self, counts: Mapping[str, Any], raw: Mapping[str, float]) -> str | None:
         if not counts.get("vertices") or not counts.get("edges"):

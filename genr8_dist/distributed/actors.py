@@ -427,12 +427,15 @@ class IslandHost:
                 for ref in done:
                     helper, batch = out.pop(ref)
                     try:
-                        found = ray.get(ref)
+                        found, reads = ray.get(ref)
                     except ray.exceptions.RayError:   # the helper died or failed: its batch goes back
                         deal.give_back(batch)
                         if helper in crew:
                             crew.remove(helper)
                         continue
+                    for evaluation, read in zip(found, reads, strict=True):
+                        if evaluation.text is not None and read is not None:
+                            model.evaluator.learn_reads(evaluation.text, read)
                     deal.done(zip(batch, found, strict=True))
                     idle.append(helper)
         except Exception as exc:   # met again by the owner's thread
@@ -441,10 +444,11 @@ class IslandHost:
             deal.close()
 
     def evaluate(self, config_version: int, config: RunConfig,
-                 genomes: Sequence[Sequence[int]]) -> list[Any]:
+                 genomes: Sequence[Sequence[int]]) -> tuple[list[Any], list[str | None]]:
         """The evaluations of ``genomes`` under configuration version ``config_version`` (``config``),
         for the host of another island (served beside this host's own ``advance``, within its slots),
-        in their order."""
+        in their order; and what each development read (``Evaluator.said_reads``), which the island
+        checks its next children against without developing its parents again."""
         from genr8_dist.evolution.evaluate import Evaluator
 
         evaluator = self._evaluators.get(config_version)
@@ -458,7 +462,8 @@ class IslandHost:
             self._work(deal, evaluator.evaluate, wait=_never)
         finally:
             self._join(lanes)
-        return [deal.out[key] for key in keys]
+        found = [deal.out[key] for key in keys]
+        return found, [evaluator.said_reads(evaluation.text) for evaluation in found]
 
     def helped(self) -> int:
         """How many genomes this host has evaluated for other hosts' islands."""

@@ -202,6 +202,9 @@ def _judge(grown: Evaluation, config: RunConfig, phenotype: Phenotype | None = N
 # the evaluation made for some configuration with that key (see the module docstring).
 _DEVELOPED: OrderedDict[tuple[str, str], Evaluation] = OrderedDict()
 DEVELOPED_CACHE_SIZE = 8192
+# What each of those developments read (``Developed.reads``), kept alike: (development_key, text) ->
+# reads; ``Evaluator.reads`` develops a text again when it is not here.
+_READS: OrderedDict[tuple[str, str], str | None] = OrderedDict()
 
 # The fields of an evaluation that growing and measuring its text produced (rescore keeps them).
 _GROWN_FIELDS = ("text", "sizes", "steps_done", "capped", "phenotype_digest", "grow_seconds",
@@ -301,11 +304,9 @@ class Evaluator:
                 if defer:
                     return self._defer(grown, developed)
                 if developed is None:   # no longer held: develop it again
-                    self.growths += 1
-                    grown, developed = _develop(text, self.config, self.phenotype)
+                    grown, developed = self._develop(text)
             else:
-                self.growths += 1
-                grown, developed = _develop(text, self.config, self.phenotype)
+                grown, developed = self._develop(text)
                 if developed is not None and defer:
                     return self._defer(grown, developed)
             self._unmeasured.pop(text, None)
@@ -313,6 +314,37 @@ class Evaluator:
             self._share(text, judged)
         self._remember(self._texts, text, judged)
         return judged
+
+    def _develop(self, text: str) -> tuple[Evaluation, Developed | None]:
+        """``text`` developed now (``_develop``), counted, and what its development read kept."""
+        self.growths += 1
+        grown, developed = _develop(text, self.config, self.phenotype)
+        self.learn_reads(text, None if developed is None else developed.reads)
+        return grown, developed
+
+    def learn_reads(self, text: str, reads: str | None) -> None:
+        """Keep what developing ``text`` read (``Developed.reads``), here or in another process
+        (a helper's answer carries it: ``reads`` then need not develop it again)."""
+        key = (self.development_key, text)
+        _READS[key] = reads
+        _READS.move_to_end(key)
+        if len(_READS) > DEVELOPED_CACHE_SIZE:
+            _READS.popitem(last=False)
+
+    def reads(self, text: str) -> str | None:
+        """What developing ``text`` read (``Developed.reads``; ``None``: not said): kept from a
+        development of it in this process or a helper's, else developed again now (one made
+        before a resume, say). A pure function of the text and the development key, like the rest."""
+        key = (self.development_key, text)
+        if key in _READS:
+            return _READS[key]
+        developed = self._develop(text)[1]
+        return None if developed is None else developed.reads
+
+    def said_reads(self, text: str | None) -> str | None:
+        """What this process's development of ``text`` read, where it is kept (``None``: not kept,
+        or not said); never develops it."""
+        return None if text is None else _READS.get((self.development_key, text))
 
     def _defer(self, grown: Evaluation, developed: Developed | None) -> Preview:
         """``grown`` (not measured) as a preview, its ``developed`` phenotype (``None``: not held)

@@ -148,8 +148,10 @@ def test_a_host_of_several_slots_evaluates_genomes_at_once_and_builds_the_same_r
     assert _untimed(wide.latest(0)) == expected
     assert most[0] == 3                                   # three at once, never more
     genomes = [ind.genome for ind in expected][::-1]   # a helper's batch, answered in its order
-    assert ([h.fitness for h in wide.evaluate(1, config, genomes)]
-            == [h.fitness for h in IslandHost(str(run_dir)).evaluate(1, config, genomes)])
+    (found, reads), (alone, alone_reads) = (wide.evaluate(1, config, genomes),
+                                            IslandHost(str(run_dir)).evaluate(1, config, genomes))
+    assert [h.fitness for h in found] == [h.fitness for h in alone]
+    assert reads == alone_reads and all(r is not None and set(r) <= {"0", "1"} for r in reads)
 
 
 def test_an_evaluation_that_raises_ends_the_generations_dealing_thread(tmp_path, monkeypatch):
