@@ -53,6 +53,13 @@ trivial).
 Whether a founder is drawn again or an offspring varied again is decided by what its growth found
 (text, phenotype digest, sizes, capped), so one discarded is never measured (``Evaluator.preview``):
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
+An offspring whose text the phenotype shows to develop into the phenotype of a valid parent or
+an earlier member of its generation (``Phenotype.copies``: a surface's text that differs from the
+other's only where that one's growth read nothing, ``hemls.splitting.same_growth``; a table's that
+rewrites to the same word) is not developed at all: what its development would find is that one's
+(digest, sizes, steps, capped), so it is varied again as a repeated phenotype is, and the rows are
+the ones the island builds when it develops such copies (``IslandStats.copied``; no evaluation
+spent).
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -133,6 +140,7 @@ class IslandStats:
     unresolved: int = 0         # offspring or founders still repeating after every retry
     revaried_trivial: int = 0   # offspring varied again because their surface was trivial (one region)
     screened: int = 0           # drawn or varied again from the text alone, never developed
+    copied: int = 0             # offspring known to repeat a parent's or member's phenotype, never developed
     kept_trivial: int = 0       # offspring kept trivial after _TRIVIAL_RETRIES trivial re-variations
 
 
@@ -147,6 +155,21 @@ class Birth:
     evaluation: Evaluation | None = None
     avoid: frozenset[str] = frozenset()   # the parents' texts and phenotype digests (copies to avoid)
     source: tuple[tuple[int, ...], int] | None = None   # the first parent's genome and codons read
+    kin: tuple[Kin, ...] = ()   # the valid parents, to know a copy of one before growth (``Island._copy``)
+
+
+@dataclass(frozen=True, slots=True)
+class Kin:
+    """A valid parent or member of a generation as an offspring's copy of it is known: its text, what
+    its development read (``Evaluator.reads``) and what that development found (digest, sizes,
+    steps, capped)."""
+
+    text: str
+    reads: str | None
+    digest: str
+    sizes: tuple[tuple[str, int], ...]
+    steps_done: int
+    capped: str | None
 
 
 _OFFSPRING = ("crossover", "mutation", "crossover+mutation")
@@ -308,6 +331,7 @@ class Island:
             unresolved=counted.unresolved,
             revaried_trivial=counted.revaried_trivial,
             screened=counted.screened,
+            copied=counted.copied,
             kept_trivial=counted.kept_trivial,
         )
         for hook in self.hooks:
@@ -432,7 +456,55 @@ class Island:
             first = pool[child.parents[0]] if variation is None else None
             source = (tuple(first.genome), first.codons_used) if first is not None and first.valid else None
             yield Birth(tuple(int(c) for c in child.genome), child.origin,
-                        tuple(parent_ids[i] for i in child.parents), None, child.avoid, source)
+                        tuple(parent_ids[i] for i in child.parents), None, child.avoid, source,
+                        self._kin(pool, child.parents))
+
+    def _kin(self, pool: Sequence[Individual | Evaluation], parents: Sequence[int]) -> tuple[Kin, ...]:
+        """The valid ``parents`` (indices into ``pool``) that a child may be known to copy, where the
+        phenotype can tell (``Phenotype.copies``; what their development read where the phenotype
+        says it, ``Phenotype.says_reads``)."""
+        from genr8_dist.phenotype import Phenotype
+
+        copies = getattr(type(self.phenotype), "copies", Phenotype.copies)
+        if copies is Phenotype.copies:
+            return ()
+        says = bool(getattr(self.phenotype, "says_reads", False))
+        kin = []
+        for i in dict.fromkeys(parents):
+            ind = pool[i]
+            if ind.valid and ind.text is not None and ind.phenotype_digest is not None:
+                reads = self.evaluator.reads(ind.text) if says else None
+                kin.append(Kin(ind.text, reads, ind.phenotype_digest, tuple(ind.sizes.items()),
+                               ind.steps_done, ind.capped))
+        return tuple(kin)
+
+    def _preview(self, birth: Birth, genome: Genome, members: Sequence[Kin] = ()) -> Evaluation:
+        """``Evaluator.preview`` of ``genome``, an offspring of ``birth``'s parents, or what it would
+        find where the offspring is known to copy a parent or one of ``members`` (the generation's
+        so far): ``_copy``, counted, never developed."""
+        copy = self._copy(birth.kin, genome) or self._copy(members, genome)
+        if copy is None:
+            return self.evaluator.preview(genome)
+        self.stats.copied += 1
+        return copy
+
+    def _copy(self, kin: Sequence[Kin], genome: Genome) -> Preview | None:
+        """What developing ``genome`` would find, where its text is known to develop into the
+        phenotype of one of ``kin`` (``Phenotype.copies``): that one's development with this text and
+        mapping, never developed (``None``: not known)."""
+        if not kin:
+            return None
+        mapped = self.evaluator.mapped(genome)
+        text = mapped.text
+        if not mapped.valid or text is None:
+            return None
+        for one in kin:
+            if text != one.text and self.phenotype.copies(text, one.text, one.reads, self.config):
+                failed = one.capped is not None and self.phenotype.capped_is_invalid
+                return Preview(text=text, valid=not failed, sizes=dict(one.sizes), steps_done=one.steps_done,
+                               capped=one.capped, phenotype_digest=one.digest,
+                               codons_used=int(mapped.codons_used), wraps=int(mapped.wraps))
+        return None
 
     def _count(self, counter: str, n: int) -> None:
         """Adds ``n`` to the ``IslandStats`` counter named ``counter`` (the pipeline's tally)."""
@@ -471,9 +543,12 @@ class Island:
         return max(ea.population, kept + math.ceil(search.offspring * ea.population))
 
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
-        """The distinct genomes of ``births`` that need an evaluation this island has not cached."""
+        """The distinct genomes of ``births`` that need an evaluation this island has not cached (an
+        offspring known to copy a parent needs none: ``_copy``)."""
         return list(dict.fromkeys(b.genome for b in births
-                                  if b.evaluation is None and not self.evaluator.holds(b.genome)))
+                                  if b.evaluation is None and not self.evaluator.holds(b.genome)
+                                  and not (b.origin in _OFFSPRING and self.config.ea.unique_retries > 0
+                                           and self._copy(b.kin, b.genome) is not None)))
 
     def complete(self, generation: int, births: Sequence[Birth],
                  evaluated: Mapping[tuple[int, ...], Evaluation] | None = None) -> list[Individual]:
@@ -488,6 +563,7 @@ class Island:
                 self.evaluator.adopt(genome, made)
         members: list[tuple[Genome, str, tuple[str, ...], Evaluation]] = []
         seen: set[str] = set()   # the phenotype digests of this generation so far
+        known: list[Kin] = []    # the members so far that a later offspring may be known to copy
         if generation == 0:
             self.founders.restart()
         for index, birth in enumerate(births):
@@ -500,14 +576,16 @@ class Island:
             # what its development found keeps it (Evaluator.preview).
             evaluation = kept if kept is not None else (
                 fresh.pop(birth.genome) if birth.genome in fresh else
-                self.evaluator.preview(birth.genome) if founder or offspring else self.evaluate(birth.genome))
+                self._preview(birth, birth.genome, known) if offspring else
+                self.evaluator.preview(birth.genome) if founder else self.evaluate(birth.genome))
             if founder:
                 genome, evaluation = self.founders.redraw(index, genome, evaluation, seen)
             elif offspring:
                 genome, evaluation, origin = self._revary_offspring(generation, index, birth, evaluation,
-                                                                    seen)
+                                                                    seen, known)
             if evaluation.valid and evaluation.phenotype_digest is not None:
                 seen.add(evaluation.phenotype_digest)
+                known.extend(self._kin([evaluation], [0]))
             parents = () if origin == "random" else birth.parents
             members.append((genome, origin, parents, evaluation))
         places = self._placed([evaluation for *_, evaluation in members])
@@ -546,7 +624,7 @@ class Island:
         return self.evaluator.phenotype
 
     def _revary_offspring(self, generation: int, index: int, birth: Birth, evaluation: Evaluation,
-                          seen: set[str]) -> tuple[Genome, Evaluation, str]:
+                          seen: set[str], known: Sequence[Kin] = ()) -> tuple[Genome, Evaluation, str]:
         """An offspring that is invalid (its growth capped, say) or whose phenotype repeats a parent's or
         an earlier member's, varied again; still so after ``ea.unique_retries``, replaced by a
         newcomer (origin ``random``, no parents) up to ``ea.unique_redraws`` times."""
@@ -587,7 +665,7 @@ class Island:
                 # its growth ran away): vary the parent anew rather than the broken child
                 base, codons = birth.source
             genome = self._screened(partial(self._revary, rng, base, codons), birth.avoid)
-            evaluation = self.evaluator.preview(genome)
+            evaluation = self._preview(birth, genome, known)
             if origin == "crossover":
                 origin = "crossover+mutation"
         # Still wasted (its neighbourhood all fails or repeats, as round the bare axiom): a newcomer,
@@ -597,7 +675,7 @@ class Island:
         for _ in range(self.config.ea.unique_redraws if wasted(evaluation) else 0):
             fresh = fresh or self.rng(generation, "redraw", index)
             genome = tuple(self._screened(partial(self.founders.one, fresh, index)))
-            evaluation = settled(self.evaluator, genome, self.evaluator.preview(genome), wasted)
+            evaluation = settled(self.evaluator, genome, self._preview(birth, genome, known), wasted)
             origin = "random"
             self.stats.redrawn += 1
             if not wasted(evaluation):

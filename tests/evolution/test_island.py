@@ -642,3 +642,28 @@ def test_screen_2_grows_no_text_the_replay_shows_trivial_and_wastes_less(monkeyp
             assert grown and not any(screen(text, False, 3)[0] for text in grown)
     assert spent["weighted", 2] < spent["weighted", 1]
     assert trivial["pareto", 2] < min(trivial["pareto", 1], 0.1)
+
+
+def test_an_offspring_known_to_copy_its_parent_is_not_grown_and_the_rows_stay_the_same(monkeypatch):
+    """An offspring whose text differs from a valid parent's only where the parent's growth read
+    nothing (``hemls.splitting.same_growth``) is varied again as a repeated phenotype is, without
+    being grown: every row is the one the island builds when it grows such copies, and fewer
+    genomes are evaluated and fewer texts grown (subdivide.toml's settings, 10 generations)."""
+    from collections import OrderedDict
+
+    from genr8_dist.config import load_config
+    from genr8_dist.evolution import evaluate
+
+    subdivide = Path(__file__).resolve().parents[2] / "examples" / "subdivide.toml"
+    config = load_config(subdivide).replace(ea={"generations": 10})
+    monkeypatch.setattr(evaluate, "_DEVELOPED", OrderedDict())   # no growth shared between the runs
+    copying = Island(config, 0)
+    rows = [(i.genome, i.text, repr(i.fitness), i.phenotype_digest, i.origin, i.parents)
+            for gen in copying.run() for i in gen]
+    copied = copying.evaluator.evaluations, copying.evaluator.growths
+    monkeypatch.setattr(Island, "_copy", lambda self, birth, genome: None)
+    monkeypatch.setattr(evaluate, "_DEVELOPED", OrderedDict())
+    growing = Island(config, 0)
+    assert rows == [(i.genome, i.text, repr(i.fitness), i.phenotype_digest, i.origin, i.parents)
+                    for gen in growing.run() for i in gen]
+    assert copied[0] < growing.evaluator.evaluations and copied[1] < growing.evaluator.growths
