@@ -8,6 +8,7 @@ is in ``voxels.py`` beside this file: the P0L-system, the turtle, the criteria, 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,14 @@ class TablesPhenotype(Phenotype):
         return Developed(table, table.digest(), table.steps, table.capped,
                          {"commands": table.commands, "modules": table.modules})
 
+    def copies(self, text: str, other: str, reads: str | None, config: Any) -> bool:
+        """Whether ``text`` rewrites to the word ``other`` rewrites to, in as many steps and as capped:
+        the turtle then builds the same table from the same commands. Rewriting costs about half of
+        a development; most of the paper's mutations change a production the derivation never
+        reaches with the parameters it passes, or a condition that never decides."""
+        mine = _derived(text)
+        return mine is not None and mine == _derived(other)
+
     def trivial(self, evaluation: Any) -> bool:
         """A structure the paper's fitness scores 0 (flat, or nothing below its top layer)."""
         return voxels.fitness(evaluation.criteria) == 0.0 if evaluation.criteria else True
@@ -104,6 +113,15 @@ class TablesPhenotype(Phenotype):
 
     def draw(self, ax: Any, developed: Developed) -> None:
         voxels.draw(ax, developed.value.voxels)
+
+
+@lru_cache(maxsize=4096)
+def _derived(text: str) -> tuple[Any, ...] | None:
+    """``voxels.derive`` of ``text`` as development rewrites it (``None``: it does not parse)."""
+    try:
+        return voxels.derive(voxels.parse(text))
+    except Exception:   # development reports it, as data
+        return None
 
 
 PHENOTYPE = TablesPhenotype()

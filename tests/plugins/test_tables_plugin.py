@@ -338,3 +338,35 @@ def test_a_tables_run_stores_its_phenotypes_criteria_and_sizes_under_generic_nam
     plt.close(fig)
     with pytest.raises(history.HistoryError, match=r"use one of \.obj, \.ply, \.stl, \.glb"):
         history.export(regrown, tmp_path / "t.3dm")
+
+
+def test_an_offspring_that_rewrites_to_its_parents_word_is_not_developed(monkeypatch):
+    """The tables phenotype knows a copy before building it: a text that rewrites to the word a
+    parent's rewrites to builds the parent's table. An island varies such offspring again without
+    developing them, so its rows are the ones it builds when it develops them, with fewer
+    evaluations (the paper's mutations often change a production the derivation never reaches)."""
+    from collections import OrderedDict
+
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution import Island, evaluate
+
+    phenotype = TABLES.hooks.PHENOTYPE
+    unread = PAPER_22 + "P2 ( n0 ) : n0 > 1.0 -> f ( 5 )\n"          # a production nothing calls
+    read = PAPER_22.replace("f ( n0 )", "f ( n0 + 1 )")                # the legs one longer
+    assert phenotype.copies(unread, PAPER_22, None, None)
+    assert V.develop(unread).digest() == V.develop(PAPER_22).digest()
+    assert not phenotype.copies(read, PAPER_22, None, None)
+    config = RunConfig.from_toml(TABLES_RUN).replace(ea={"population": 12, "generations": 6})
+
+    def rows(island: Island) -> list[tuple]:
+        return [(i.genome, i.text, repr(i.fitness), i.phenotype_digest, i.origin, i.parents)
+                for gen in island.run() for i in gen]
+
+    monkeypatch.setattr(evaluate, "_DEVELOPED", OrderedDict())
+    knowing = Island(config, 0)
+    known = rows(knowing)
+    monkeypatch.setattr(Island, "_copy", lambda self, kin, genome: None)
+    monkeypatch.setattr(evaluate, "_DEVELOPED", OrderedDict())
+    building = Island(config, 0)
+    assert rows(building) == known
+    assert knowing.evaluator.evaluations < building.evaluator.evaluations
