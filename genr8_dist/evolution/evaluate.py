@@ -14,7 +14,9 @@ so a text grown for one configuration is not grown again for another that differ
 (an edit, another island's version, a helper's share): ``rescore`` judges it again from its raw
 criteria. Evaluation is a pure function of (genome, configuration), so the caches change timings,
 never results. ``Evaluator.preview`` develops a genome without measuring it (a ``Preview``) and
-``Evaluator.measure`` finishes it: an island measures only what it keeps.
+``Evaluator.measure`` finishes it: an island measures only what it keeps. What each development
+read of its text (``Developed.reads``) is kept beside the shared growths (``Evaluator.reads``), so
+an island can tell a child that copies a parent before developing it (``Phenotype.copies``).
 """
 
 from __future__ import annotations
