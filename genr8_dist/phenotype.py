@@ -16,6 +16,8 @@ the report only ever talk to a phenotype through this interface:
                                            wasted for sure (trivial, or failed), and a key equal
                                            for texts that develop alike (default: never wasted,
                                            the text)
+``unread(text, reads)``                    (optional) the lines of ``text`` development did not
+                                           read (``genr8 show`` marks them; default none)
 ``copies(text, other, reads, config)``     (optional) whether ``text`` develops into ``other``'s
                                            phenotype, known without developing it (``reads``: what
                                            ``other``'s development read, ``Developed.reads``);
@@ -147,6 +149,11 @@ class Phenotype(ABC):
         without developing it); by default never wasted, and the text itself."""
         return False, text
 
+    def unread(self, text: str, reads: str | None) -> tuple[int, ...]:
+        """The lines of ``text`` its development did not read (``reads``: its ``Developed.reads``),
+        which ``genr8 show`` marks; by default none."""
+        return ()
+
     def copies(self, text: str, other: str, reads: str | None, config: RunSettings) -> bool:
         """Whether ``text`` develops into the phenotype ``other`` develops into, known without
         developing it (``reads``: what ``other``'s development read, its ``Developed.reads``): an
@@ -254,6 +261,19 @@ class SurfacePhenotype(Phenotype):
         steps = int(env.steps) if env is not None and version >= 2 else None
         max_work = int(getattr(env, "max_work", 0) or 0) if version >= 3 else 0
         return screen(text, bool(getattr(env, "label_noise", 0.0) > 0), steps, max_work)
+
+    def unread(self, text: str, reads: str | None) -> tuple[int, ...]:
+        """The lines of the rules that rewrote no edge in the growth (``reads``: one ``1`` or ``0``
+        per rule)."""
+        from genr8_dist.hemls import parse
+
+        try:
+            rules = parse(text).rules
+        except Exception:   # a text that does not parse developed nothing to read
+            return ()
+        if reads is None or len(reads) != len(rules):
+            return ()
+        return tuple(rule.line for rule, mark in zip(rules, reads, strict=True) if mark == "0")
 
     def copies(self, text: str, other: str, reads: str | None, config: RunSettings) -> bool:
         """``reads``: one ``1`` or ``0`` per rule of ``other``, whether it rewrote an edge in its

@@ -309,9 +309,12 @@ def _show(args: argparse.Namespace) -> int:
             f"{k} {_text.format_value(v)}" for k, v in crits.items()))
     else:
         say(f"invalid at {row['stage']}: {row['error']}")
-    say("rewrite system:")
-    for statement in (row["text"] or "(none: the genome did not map)").splitlines():
-        say(f"    {statement}")
+    reads = result.developed.reads if result.developed is not None else None
+    unread = set(result.phenotype.unread(row["text"], reads)) if row["text"] and reads else set()
+    say("rewrite system" + (" (# never fired: a rule that rewrote no edge in this growth):" if unread
+                            else ":"))
+    for number, statement in enumerate((row["text"] or "(none: the genome did not map)").splitlines(), 1):
+        say(f"    {statement}" + ("    # never fired" if number in unread else ""))
     if row["text"] and result.text_matches is False:
         say("note: the genome no longer maps to this rewrite system with this universe; the "
                "recorded system was grown")

@@ -240,3 +240,25 @@ def test_export_writes_every_chosen_design_in_every_chosen_format(capsys, real_r
     assert code == 2 and "1..4" in err and not (tmp_path / "none").exists()
     code, _, err = _run(capsys, "export", run_dir, "--front", "-o", tmp_path / "bad", "--format", "docx")
     assert code == 2 and "docx" in err and not (tmp_path / "bad").exists()
+
+
+def test_show_marks_the_rules_that_never_fired(capsys, tmp_path):
+    """``genr8 show`` marks each rule that rewrote no edge in the individual's growth: here the
+    rule for Edge0, a label the axiom and the other rule never draw; the rule that fired is not."""
+    from genr8_dist.config import RunConfig
+    from genr8_dist.evolution.evaluate import evaluate_text
+    from genr8_dist.evolution.individual import Individual
+    from genr8_dist.store import RunStore
+
+    text = ("Edge1 + Edge1 + Edge1 + Edge1\nEdge0 Edge1 -> Edge0\n"
+            "Edge1 -> Edge1 [ [ + Edge1 ] - Edge1 ] Edge1 Edge1\nAngle 90\n")
+    config = RunConfig.from_dict({"environment": {"steps": 2}})
+    store = RunStore.create(tmp_path / "run", config.to_toml())
+    store.commit([Individual(0, 0, 0, (1, 2, 3), "injected", **evaluate_text(text, config).as_fields())])
+    code, out, err = _run(capsys, "show", tmp_path / "run", "0-0-0")
+    assert code == 0, err
+    lines = out.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("rewrite system"))
+    assert "# never fired" in lines[start]
+    marked = [line.strip() for line in lines[start + 1:start + 5] if line.endswith("# never fired")]
+    assert marked == ["Edge0 Edge1 -> Edge0    # never fired"]
