@@ -232,11 +232,11 @@ class SurfacePhenotype(Phenotype):
         n_regions = getattr(surface, "n_regions", None)
         counts = {"vertices": len(surface.vertices), "edges": len(surface.edges),
                   "regions": int(n_regions) if n_regions is not None else len(surface.regions)}
-        fired = getattr(result, "fired", ())
         return Developed(surface, surface.digest(),
                          len(steps) if isinstance(steps, (list, tuple)) else int(steps),
                          (capped if isinstance(capped, str) else "cap") if capped else None, counts,
-                         None if capped or not fired else "".join("1" if f else "0" for f in fired))
+                         None if capped or not result.fired
+                         else "".join("1" if f else "0" for f in result.fired))
 
     def measure(self, developed: Developed, config: RunSettings) -> dict[str, float]:
         from genr8_dist.fitness import score_surface

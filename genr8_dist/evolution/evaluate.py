@@ -208,6 +208,16 @@ DEVELOPED_CACHE_SIZE = 8192
 # reads; ``Evaluator.reads`` develops a text again when it is not here.
 _READS: OrderedDict[tuple[str, str], str | None] = OrderedDict()
 
+
+def _keep(cache: OrderedDict[K, V], key: K, value: V) -> None:
+    """``value`` at ``key`` in one of the process's shared caches, the least recently used entry
+    dropped past ``DEVELOPED_CACHE_SIZE``."""
+    cache[key] = value
+    cache.move_to_end(key)
+    if len(cache) > DEVELOPED_CACHE_SIZE:
+        cache.popitem(last=False)
+
+
 # The fields of an evaluation that growing and measuring its text produced (rescore keeps them).
 _GROWN_FIELDS = ("text", "sizes", "steps_done", "capped", "phenotype_digest", "grow_seconds",
                  "score_seconds")
@@ -278,11 +288,7 @@ class Evaluator:
         return self._development_key
 
     def _share(self, text: str, evaluation: Evaluation) -> None:
-        key = (self.development_key, text)
-        _DEVELOPED[key] = evaluation
-        _DEVELOPED.move_to_end(key)
-        if len(_DEVELOPED) > DEVELOPED_CACHE_SIZE:
-            _DEVELOPED.popitem(last=False)
+        _keep(_DEVELOPED, (self.development_key, text), evaluation)
 
     def _grown(self, text: str, defer: bool = False) -> Evaluation:
         """``text`` grown and scored under this configuration: from this Evaluator's cache, judged
@@ -327,11 +333,7 @@ class Evaluator:
     def learn_reads(self, text: str, reads: str | None) -> None:
         """Keep what developing ``text`` read (``Developed.reads``), here or in another process
         (a helper's answer carries it: ``reads`` then need not develop it again)."""
-        key = (self.development_key, text)
-        _READS[key] = reads
-        _READS.move_to_end(key)
-        if len(_READS) > DEVELOPED_CACHE_SIZE:
-            _READS.popitem(last=False)
+        _keep(_READS, (self.development_key, text), reads)
 
     def reads(self, text: str) -> str | None:
         """What developing ``text`` read (``Developed.reads``; ``None``: not said): kept from a

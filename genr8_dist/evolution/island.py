@@ -459,24 +459,23 @@ class Island:
                         tuple(parent_ids[i] for i in child.parents), None, child.avoid, source,
                         self._kin(pool, child.parents))
 
-    def _kin(self, pool: Sequence[Individual | Evaluation], parents: Sequence[int]) -> tuple[Kin, ...]:
-        """The valid ``parents`` (indices into ``pool``) that a child may be known to copy, where the
-        phenotype can tell (``Phenotype.copies``; what their development read where the phenotype
-        says it, ``Phenotype.says_reads``)."""
+    def _kin(self, pool: Sequence[Individual], parents: Sequence[int]) -> tuple[Kin, ...]:
+        """The ``parents`` (indices into ``pool``) that a child may be known to copy (``_kin_of``)."""
+        return tuple(kin for i in dict.fromkeys(parents) if (kin := self._kin_of(pool[i])) is not None)
+
+    def _kin_of(self, ind: Individual | Evaluation) -> Kin | None:
+        """``ind`` as an offspring's copy of it is known, where it is valid and the phenotype can tell
+        (it overrides ``Phenotype.copies``; what its development read where the phenotype says it,
+        ``Phenotype.says_reads``); else ``None``."""
         from genr8_dist.phenotype import Phenotype
 
-        copies = getattr(type(self.phenotype), "copies", Phenotype.copies)
-        if copies is Phenotype.copies:
-            return ()
-        says = bool(getattr(self.phenotype, "says_reads", False))
-        kin = []
-        for i in dict.fromkeys(parents):
-            ind = pool[i]
-            if ind.valid and ind.text is not None and ind.phenotype_digest is not None:
-                reads = self.evaluator.reads(ind.text) if says else None
-                kin.append(Kin(ind.text, reads, ind.phenotype_digest, tuple(ind.sizes.items()),
-                               ind.steps_done, ind.capped))
-        return tuple(kin)
+        if getattr(type(self.phenotype), "copies", Phenotype.copies) is Phenotype.copies:
+            return None
+        if not ind.valid or ind.text is None or ind.phenotype_digest is None:
+            return None
+        reads = self.evaluator.reads(ind.text) if getattr(self.phenotype, "says_reads", False) else None
+        return Kin(ind.text, reads, ind.phenotype_digest, tuple(ind.sizes.items()), ind.steps_done,
+                   ind.capped)
 
     def _preview(self, birth: Birth, genome: Genome, members: Sequence[Kin] = ()) -> Evaluation:
         """``Evaluator.preview`` of ``genome``, an offspring of ``birth``'s parents, or what it would
@@ -542,12 +541,17 @@ class Island:
             return ea.population
         return max(ea.population, kept + math.ceil(search.offspring * ea.population))
 
+    def _varied_again(self, origin: str) -> bool:
+        """Whether an offspring of ``origin`` that repeats a phenotype or fails is varied again
+        (``ea.unique_retries``): then one known to copy needs no development."""
+        return origin in _OFFSPRING and self.config.ea.unique_retries > 0
+
     def pending(self, births: Sequence[Birth]) -> list[tuple[int, ...]]:
         """The distinct genomes of ``births`` that need an evaluation this island has not cached (an
         offspring known to copy a parent needs none: ``_copy``)."""
         return list(dict.fromkeys(b.genome for b in births
                                   if b.evaluation is None and not self.evaluator.holds(b.genome)
-                                  and not (b.origin in _OFFSPRING and self.config.ea.unique_retries > 0
+                                  and not (self._varied_again(b.origin)
                                            and self._copy(b.kin, b.genome) is not None)))
 
     def complete(self, generation: int, births: Sequence[Birth],
@@ -571,7 +575,7 @@ class Island:
             # The first use of an evaluation made elsewhere keeps its timings, as a local one would.
             genome, origin = birth.genome, birth.origin
             founder = generation == 0 and origin == "random" and self.config.ea.founder_retries > 0
-            offspring = origin in _OFFSPRING and self.config.ea.unique_retries > 0
+            offspring = self._varied_again(origin)
             # A founder or an offspring that may be drawn or varied again is measured only once
             # what its development found keeps it (Evaluator.preview).
             evaluation = kept if kept is not None else (
@@ -585,7 +589,9 @@ class Island:
                                                                     seen, known)
             if evaluation.valid and evaluation.phenotype_digest is not None:
                 seen.add(evaluation.phenotype_digest)
-                known.extend(self._kin([evaluation], [0]))
+                kin = self._kin_of(evaluation)
+                if kin is not None:
+                    known.append(kin)
             parents = () if origin == "random" else birth.parents
             members.append((genome, origin, parents, evaluation))
         places = self._placed([evaluation for *_, evaluation in members])
