@@ -433,7 +433,12 @@ class RunConfig:
         MESHING,
         (
             "how surfaces are cut into triangles for export, pictures and the studio "
-            "(`genr8_dist.hemls.meshing`): `5` as 4, but each region's triangles are tidied in space "
+            "(`genr8_dist.hemls.meshing`): `6` as 5, then the whole mesh mended across regions "
+            "(`hemls.mending`: edges inside a region flipped, added points collapsed, moved or slid along "
+            "their side, edges split, in both regions beside a side at once, wherever that leaves fewer "
+            "triangles under 15 degrees; every region keeps its outline): under 5 a corner whose two sides "
+            "a neighbour had split unevenly kept a thin triangle no mesh of the region alone could mend; "
+            "`5` as 4, but each region's triangles are tidied in space "
             "once lifted (edges inside it flipped and its added points moved where that raises the "
             "smallest angle; its sides' points held, so neighbours still meet on them: lifting bent "
             "Triangle's angles across creases and slopes) and two points a pass put on a side within a "
@@ -455,9 +460,9 @@ class RunConfig:
             "region); `2` the same in the best-fit plane only, sides fixed after one pass, regions "
             "crossing themselves cut as in 1; `1` each region of m vertices cut into m - 2 triangles on "
             "its own vertices. A new run records the meshing it uses in its manifest and regrows with it: "
-            "runs created before meshing was recorded keep 1, runs that recorded 2, 3 or 4 keep it bit "
-            "for bit. Under 2 to 5 `slivers` measures thin regions, not triangles, so its values are the "
-            "same under 2 to 5; under 1 (old runs) it measures the triangles, so their stored values "
+            "runs created before meshing was recorded keep 1, runs that recorded 2, 3, 4 or 5 keep it bit "
+            "for bit. Under 2 to 6 `slivers` measures thin regions, not triangles, so its values are the "
+            "same under 2 to 6; under 1 (old runs) it measures the triangles, so their stored values "
             "stay as they were"
         ),
         read=lambda value, path, config: check_meshing(value, path),

@@ -1,0 +1,468 @@
+"""Mending: meshing 6's last step, the thin triangles of a whole surface's mesh mended across regions.
+
+Meshing 5 leaves a few triangles under 15 degrees in regions whose corners are all wider. Where a
+neighbour split a shared side finely next to a corner, the region, keeping its sides whole in its
+last pass, cannot grade its own points to match (a corner of 64 degrees with side points 0.5e-3
+and 2e-3 from it); where two regions' concentric shells land at different radii on the two sides of
+a corner, the triangle across the corner is thin. Inside one region nothing mends them, since its
+ring's points are fixed. The assembled mesh is one watertight triangle mesh, so here its thin
+triangles are mended by operations that keep it watertight and keep every region's outline:
+
+- *flip* an edge inside a region (both triangles beside it in that region);
+- *collapse* a point the meshing added into a neighbour: a point inside a region into any, a point
+  on a side only along that side (into the next point on it, the one beyond on the same straight
+  line), so both regions beside the side lose it together;
+- *move* a point inside a region to its neighbours' mean, or *slide* a point on a side to the middle
+  of the two beside it on that side;
+- *split* one of the thin triangle's two longer edges (a side in both regions beside it): at its
+  middle; graded, at the shortest edge's length from the end they share; or the longest at its
+  middle with the new point moved to the thin triangle's circumcentre where it is inside a region
+  (Delaunay refinement's point); then flip the edges facing the new point where that raises their
+  triangles' smaller angle, and mend the thin triangles the split touched with the other operations.
+
+An operation is kept only if the triangles it touched, in every region, end with fewer under
+``_BELOW`` degrees, or as many and a larger smallest angle, and none turned over; else it is undone.
+The surface's own vertices never move. Deterministic: a fixed order, Python floats.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, cast
+
+import numpy as np
+
+_BELOW = 15.0       # degrees: a thin triangle, as the benches and the ``slivers`` criterion count it
+_ROUNDS = 4         # passes over the thin triangles, at most
+_SPLIT_FLIPS = 24   # flips round a split's new point, at most
+_NEAR = 4           # rings of triangles round the thin ones that take part
+_LINE = 1e-9        # a side point's neighbours on its side are on one line to this (sine of the angle)
+
+Point = tuple[float, float, float]
+Tri = tuple[int, int, int]
+
+
+def normal(a: Point, b: Point, c: Point) -> Point:
+    """Twice the area vector of the triangle ``a b c`` (its orientation)."""
+    ux, uy, uz, wx, wy, wz = b[0] - a[0], b[1] - a[1], b[2] - a[2], c[0] - a[0], c[1] - a[1], c[2] - a[2]
+    return uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+
+
+def smallest(a: Point, b: Point, c: Point) -> float:
+    """The triangle's smallest angle (degrees): the one facing its shortest side; 0 when degenerate."""
+    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = a, b, c
+    ux, uy, uz, wx, wy, wz = bx - ax, by - ay, bz - az, cx - ax, cy - ay, cz - az
+    vx, vy, vz = cx - bx, cy - by, cz - bz
+    nx, ny, nz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    twice = math.sqrt(nx * nx + ny * ny + nz * nz)
+    ab, ac, bc = ux * ux + uy * uy + uz * uz, wx * wx + wy * wy + wz * wz, vx * vx + vy * vy + vz * vz
+    if bc <= ab and bc <= ac:
+        facing = ux * wx + uy * wy + uz * wz                    # at a
+    elif ac <= ab:
+        facing = -(ux * vx + uy * vy + uz * vz)                 # at b
+    else:
+        facing = wx * vx + wy * vy + wz * vz                    # at c
+    return math.degrees(math.atan2(twice, facing))
+
+
+def dot(u: Point, w: Point) -> float:
+    """The dot product of two vectors."""
+    return u[0] * w[0] + u[1] * w[1] + u[2] * w[2]
+
+
+def circumcentre(a: Point, b: Point, c: Point) -> Point:
+    """The centre of the circle through ``a b c`` (the point Delaunay refinement inserts)."""
+    u = (a[0] - c[0], a[1] - c[1], a[2] - c[2])
+    w = (b[0] - c[0], b[1] - c[1], b[2] - c[2])
+    n = normal(c, a, b)
+    nn = max(dot(n, n), 1e-300)
+    uu, ww = dot(u, u), dot(w, w)
+    d = (uu * w[0] - ww * u[0], uu * w[1] - ww * u[1], uu * w[2] - ww * u[2])
+    x = (d[1] * n[2] - d[2] * n[1], d[2] * n[0] - d[0] * n[2], d[0] * n[1] - d[1] * n[0])
+    return c[0] + x[0] / (2 * nn), c[1] + x[1] / (2 * nn), c[2] + x[2] / (2 * nn)
+
+
+def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
+    """The smallest angle (degrees) of each triangle ``(T, 3)`` of ``vertices`` ``(V, 3)``; 0 for a
+    degenerate one. The one measure of a triangle's shape: mending's and the tidy pass's (one
+    triangle at a time: ``smallest``), the ``slivers`` criterion's and the benches'."""
+    p = np.asarray(vertices, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"vertices must be a (V, 3) array, got shape {p.shape}")
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if not len(t):
+        return np.zeros(0)
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+
+    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+        cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
+        return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 0.0)
+
+    first, second = angle(b - a, c - a), angle(a - b, c - b)
+    third = np.clip(180.0 - first - second, 0.0, 180.0)
+    return np.asarray(np.minimum(np.minimum(first, second), third))
+
+
+class _Mesh:
+    """A triangle mesh being mended: its triangles by index (None once removed), each edge's
+    triangles, each point's triangles, and a log of the changes of the operation under way. Regions
+    beside one another may be oriented either way, so edges are kept undirected."""
+
+    def __init__(self, points: dict[int, Point], triangles: np.ndarray, regions: np.ndarray,
+                 frozen: set[int], fixed: int, n_points: int) -> None:
+        self.pts = points
+        self.n_points = n_points     # the next new point's id
+        self.tris: list[Tri | None] = [(t[0], t[1], t[2]) for t in triangles.tolist()]
+        self.reg: list[int] = regions.tolist()
+        self.frozen = frozen        # the rim's points: they may not move, nor lose or gain a triangle
+        self.fixed = fixed          # the surface's vertices (ids below it) may not move
+        self.edge: dict[tuple[int, int], set[int]] = {}
+        self.star: dict[int, set[int]] = {}
+        self.ang: list[float] = []
+        # (triangle, its old corners, its old smallest angle) or (-1 - point, its old position, 0)
+        self.log: list[tuple[int, object, float]] = []
+        for i, t in enumerate(self.tris):
+            assert t is not None
+            self.ang.append(self.angle(t))
+            self._link(i, t)
+
+    def angle(self, t: Tri) -> float:
+        return smallest(self.pts[t[0]], self.pts[t[1]], self.pts[t[2]])
+
+    def normal(self, t: Tri) -> Point:
+        return normal(self.pts[t[0]], self.pts[t[1]], self.pts[t[2]])
+
+    def _link(self, i: int, t: Tri) -> None:
+        for k in range(3):
+            self.edge.setdefault(_key(t[k], t[(k + 1) % 3]), set()).add(i)
+            self.star.setdefault(t[k], set()).add(i)
+
+    def _unlink(self, i: int, t: Tri) -> None:
+        for k in range(3):
+            key = _key(t[k], t[(k + 1) % 3])
+            self.edge[key].discard(i)
+            if not self.edge[key]:
+                del self.edge[key]
+            self.star[t[k]].discard(i)
+
+    def beside(self, a: int, b: int) -> list[int]:
+        return sorted(self.edge.get(_key(a, b), ()))
+
+    def put(self, i: int, t: Tri | None) -> None:
+        """Triangle ``i`` becomes ``t`` (None: removed), logged."""
+        old = self.tris[i]
+        self.log.append((i, old, self.ang[i]))
+        if old is not None:
+            self._unlink(i, old)
+        self.tris[i] = t
+        if t is not None:
+            self._link(i, t)
+            self.ang[i] = self.angle(t)
+
+    def add(self, t: Tri, region: int) -> None:
+        self.tris.append(None)
+        self.reg.append(region)
+        self.ang.append(0.0)
+        self.put(len(self.tris) - 1, t)
+
+    def move(self, v: int, to: Point) -> None:
+        """Point ``v`` moves to ``to``, logged with its triangles' angles."""
+        self.log.append((-1 - v, self.pts[v], 0.0))
+        for i in sorted(self.star[v]):
+            self.log.append((i, self.tris[i], self.ang[i]))
+        self.pts[v] = to
+        for i in self.star[v]:
+            t = self.tri(i)
+            self.ang[i] = self.angle(t)
+
+    def mark(self) -> tuple[int, int, int]:
+        return len(self.log), self.n_points, len(self.tris)
+
+    def better(self, mark: tuple[int, int, int]) -> bool:
+        """Whether the triangles changed since ``mark`` are better (``_better``) than they were."""
+        before: dict[int, float | None] = {}
+        for i, old, angle in self.log[mark[0]:]:
+            if i >= 0 and i not in before:
+                before[i] = angle if old is not None else None
+        return _better([a for a in before.values() if a is not None],
+                       [self.ang[i] for i in before if self.tris[i] is not None])
+
+    def undo(self, mark: tuple[int, int, int]) -> None:
+        while len(self.log) > mark[0]:
+            i, old, angle = self.log.pop()
+            if i < 0:
+                self.pts[-1 - i] = cast(Point, old)
+                continue
+            t = self.tris[i]
+            if t is not None:
+                self._unlink(i, t)
+            self.tris[i] = cast("Tri | None", old)
+            if old is not None:
+                self._link(i, cast(Tri, old))
+            self.ang[i] = angle
+        for v in range(mark[1], self.n_points):
+            del self.pts[v]
+        self.n_points = mark[1]
+        del self.tris[mark[2]:], self.reg[mark[2]:], self.ang[mark[2]:]
+
+    def outline(self, a: int, b: int) -> bool:
+        """Whether the edge a b lies on a region's outline (one triangle beside it, or two regions)."""
+        got = self.beside(a, b)
+        return len(got) != 2 or self.reg[got[0]] != self.reg[got[1]]
+
+    def neighbours(self, v: int) -> set[int]:
+        return {x for i in self.star.get(v, ()) for x in self.tris[i] or ()} - {v}
+
+    def tri(self, i: int) -> Tri:
+        """Triangle ``i``, which is in the mesh."""
+        t = self.tris[i]
+        assert t is not None
+        return t
+
+    def side(self, p: int) -> tuple[int, ...] | None:
+        """For an added point ``p``: () inside a region; its two neighbours along the outline when
+        it lies on a straight side between them; None otherwise (it may not move)."""
+        on = sorted(x for x in self.neighbours(p) if self.outline(p, x))
+        if not on:
+            return ()
+        if len(on) != 2:
+            return None
+        (px, py, pz), (qx, qy, qz), (rx, ry, rz) = self.pts[p], self.pts[on[0]], self.pts[on[1]]
+        u, w = (qx - px, qy - py, qz - pz), (rx - px, ry - py, rz - pz)
+        n = normal(self.pts[p], self.pts[on[0]], self.pts[on[1]])
+        if math.sqrt(dot(n, n)) > _LINE * math.sqrt(dot(u, u) * dot(w, w)) or dot(u, w) >= 0.0:
+            return None
+        return on[0], on[1]
+
+    # operations: each changes the mesh and returns whether it may be kept (orientation)
+
+    def flip(self, i: int, k: int) -> bool:
+        t = self.tri(i)
+        a, b, c = t[k], t[(k + 1) % 3], t[(k + 2) % 3]
+        got = self.beside(a, b)
+        if len(got) != 2 or self.reg[got[0]] != self.reg[got[1]]:
+            return False
+        j = got[0] if got[1] == i else got[1]
+        u = self.tri(j)
+        d = next(x for x in u if x != a and x != b)
+        if c == d or _key(c, d) in self.edge or u[(u.index(b) + 1) % 3] != a:
+            return False
+        n_old = self.normal(t)
+        m_old = self.normal(u)
+        old = (n_old[0] + m_old[0], n_old[1] + m_old[1], n_old[2] + m_old[2])
+        new1, new2 = (c, a, d), (d, b, c)
+        n1, n2 = self.normal(new1), self.normal(new2)
+        if dot(n1, n2) <= 0.0 or dot(n1, old) <= 0.0 or dot(n2, old) <= 0.0:
+            return False
+        if not _better([self.ang[i], self.ang[j]], [self.angle(new1), self.angle(new2)]):
+            return False
+        self.put(i, new1)
+        self.put(j, new2)
+        return True
+
+    def collapse(self, p: int, q: int) -> bool:
+        if p < self.fixed or p in self.frozen or q in self.frozen:
+            return False
+        on = self.side(p)
+        if on is None or (on and q not in on):
+            return False
+        both = sorted(self.star[p] & self.star[q])
+        if not both:
+            return False
+        third = {x for i in both for x in self.tris[i] or ()} - {p, q}
+        if self.neighbours(p) & self.neighbours(q) != third:
+            return False
+        rest = sorted(self.star[p] - set(both))
+        new: list[Tri] = []
+        for i in rest:
+            t = self.tri(i)
+            n = (t[0] if t[0] != p else q, t[1] if t[1] != p else q, t[2] if t[2] != p else q)
+            if dot(self.normal(n), self.normal(t)) <= 0.0:
+                return False
+            new.append(n)
+        if not _better([self.ang[i] for i in sorted(self.star[p])], [self.angle(n) for n in new]):
+            return False
+        for i in both:
+            self.put(i, None)
+        for i, n in zip(rest, new, strict=True):
+            self.put(i, n)
+        return True
+
+    def relax(self, v: int, step: float) -> bool:
+        """Point ``v`` moved ``step`` of the way to its neighbours' mean (inside a region) or to the
+        middle of its two neighbours on its side."""
+        if v < self.fixed or v in self.frozen:
+            return False
+        on = self.side(v)
+        if on is None:
+            return False
+        near = list(on) or sorted(self.neighbours(v))
+        mean = tuple(sum(self.pts[x][d] for x in near) / len(near) for d in range(3))
+        home = self.pts[v]
+        around = sorted(self.star[v])
+        tris = [self.tri(i) for i in around]
+        old = [self.normal(t) for t in tris]
+        to = (home[0] + step * (mean[0] - home[0]), home[1] + step * (mean[1] - home[1]),
+              home[2] + step * (mean[2] - home[2]))
+        self.pts[v] = to
+        kept = all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) and \
+            _better([self.ang[i] for i in around], [self.angle(t) for t in tris])
+        self.pts[v] = home
+        if kept:
+            self.move(v, to)
+        return kept
+
+    def split(self, a: int, b: int, f: float, to: Point | None = None) -> bool:
+        """Edge a b split ``f`` of the way from a (the new point then moved ``to`` there, for an edge
+        inside a region, if no triangle turns over), then the edges facing the new point flipped
+        where that raises the smaller angle of their two triangles."""
+        if (a in self.frozen and b in self.frozen) or len(self.beside(a, b)) > 2:
+            return False       # the edge may have a triangle outside the mesh being mended
+        pa, pb = self.pts[a], self.pts[b]
+        m = self.n_points
+        self.n_points += 1
+        self.pts[m] = (pa[0] + f * (pb[0] - pa[0]), pa[1] + f * (pb[1] - pa[1]), pa[2] + f * (pb[2] - pa[2]))
+        for i in self.beside(a, b):
+            t = self.tri(i)
+            k = t.index(a)
+            x, y = (a, b) if t[(k + 1) % 3] == b else (b, a)
+            c = next(v for v in t if v != x and v != y)
+            self.put(i, (x, m, c))
+            self.add((m, y, c), self.reg[i])
+        if to is not None:
+            if self.outline(a, m):
+                return False
+            around = sorted(self.star[m])
+            old = [self.normal(self.tri(i)) for i in around]
+            self.move(m, to)
+            if not all(dot(self.normal(self.tri(i)), n) > 0.0 for i, n in zip(around, old, strict=True)):
+                return False
+        for _ in range(_SPLIT_FLIPS):
+            for i in sorted(self.star[m]):
+                t = self.tri(i)
+                k = (t.index(m) + 1) % 3            # the edge facing m
+                got = self.beside(t[k], t[(k + 1) % 3])
+                if len(got) != 2 or self.reg[got[0]] != self.reg[got[1]]:
+                    continue
+                j = got[0] if got[1] == i else got[1]
+                before = min(self.ang[i], self.ang[j])
+                mark = self.mark()
+                if self.flip(i, k) and min(self.ang[i], self.ang[j]) > before + 1e-9:
+                    break
+                self.undo(mark)
+            else:
+                break
+        return True
+
+
+def _better(old: list[float], new: list[float]) -> bool:
+    """Whether triangles of smallest angles ``new`` replacing ``old`` leave fewer thin ones, or as
+    many and a larger smallest angle."""
+    thin_old = sum(a < _BELOW for a in old)
+    thin_new = sum(a < _BELOW for a in new)
+    if thin_new != thin_old:
+        return thin_new < thin_old
+    return min(new, default=180.0) > min(old, default=180.0) + 1e-9
+
+
+def _key(a: int, b: int) -> tuple[int, int]:
+    return (a, b) if a < b else (b, a)
+
+
+def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: int
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(points, triangles, regions)`` of a watertight mesh whose first ``fixed`` points are the
+    surface's vertices, with its thin triangles mended (the module docstring). Only the triangles
+    within ``_NEAR`` rings of a thin one take part; the points on that patch's rim stay. Triangles
+    stay grouped region after region, in their order, each region's new ones after them; points the
+    mending removed are dropped, the others keep their order."""
+    thin = triangle_min_angles(points, triangles) < _BELOW
+    if not thin.any():
+        return points, triangles, regions
+    near = thin.copy()
+    for _ in range(_NEAR):
+        near = np.asarray(np.isin(triangles, np.unique(triangles[near])).any(axis=1))
+    used = np.unique(triangles[near])
+    rim = np.intersect1d(used, triangles[~near])
+    frozen = set(rim.tolist())
+    local = np.flatnonzero(near)
+    pts = {v: (x, y, z) for v, (x, y, z) in zip(used.tolist(), points[used].tolist(), strict=True)}
+    mesh = _Mesh(pts, triangles[local], regions[local], frozen, fixed, len(points))
+    dirty: set[int] | None = None    # after the first round: the points round what an operation changed
+    for _ in range(_ROUNDS):
+        order = sorted((a, i) for i, a in enumerate(mesh.ang)
+                       if a < _BELOW and (t := mesh.tris[i]) is not None
+                       and (dirty is None or set(t) & dirty))
+        dirty = set()
+        for _, i in order:
+            if mesh.tris[i] is None or mesh.ang[i] >= _BELOW:
+                continue
+            if _mend_one(mesh, i):
+                for j, old, _a in mesh.log:
+                    if j >= 0:
+                        dirty.update(mesh.tris[j] or ())
+                        dirty.update(cast("Tri | None", old) or ())
+            del mesh.log[:]
+        if not dirty:
+            break
+    alive = [i for i, t in enumerate(mesh.tris) if t is not None]
+    slot = np.concatenate([np.flatnonzero(~near),
+                           np.where(np.asarray(alive) < len(local), local[np.minimum(alive, len(local) - 1)],
+                                    len(triangles) + np.asarray(alive))])
+    mended = np.asarray([mesh.tris[i] for i in alive], dtype=np.int64).reshape(-1, 3)
+    tris = np.concatenate([triangles[~near], mended])
+    regs = np.concatenate([regions[~near], np.asarray([mesh.reg[i] for i in alive], dtype=np.int64)])
+    order_ = np.lexsort((slot, regs))
+    tris, regs = tris[order_], regs[order_]
+    out = np.concatenate([points, np.zeros((mesh.n_points - len(points), 3))])
+    for v, p in mesh.pts.items():
+        out[v] = p
+    keep = np.ones(len(out), dtype=bool)
+    keep[fixed:] = False
+    keep[np.unique(tris)] = True
+    index = np.cumsum(keep) - 1
+    return out[keep], index[tris], regs
+
+
+def _mend_one(mesh: _Mesh, i: int, deep: bool = True) -> bool:
+    """Try the operations on thin triangle ``i`` in turn; keep the first that is better. ``deep``:
+    splits too (last), and after a split the thin triangles it touched are mended (not deep) before
+    the whole is judged. A triangle whose smallest angle is a region's corner (two
+    sides of its outline meet there) is left."""
+    t = mesh.tri(i)
+    p = [mesh.pts[v] for v in t]
+    length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
+                                   (p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]),
+                                   (p[0][0] - p[2][0], p[0][1] - p[2][1], p[0][2] - p[2][2]))]
+    edges = sorted(range(3), key=lambda k: (length[k], k))   # shortest first: edge k is t[k] t[k+1]
+    k = edges[0]                                              # the smallest angle faces it
+    apex = t[(k + 2) % 3]
+    if mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3]):
+        return False
+    tries: list[tuple[str, tuple[Any, ...]]] = [("flip", (i, k)) for k in range(3)]
+    for k in edges:
+        a, b = t[k], t[(k + 1) % 3]
+        tries += [("collapse", (a, b)), ("collapse", (b, a))]
+    tries += [("relax", (v, s)) for v in t for s in (1.0, 0.5)]
+    short = t[edges[0]], t[(edges[0] + 1) % 3]
+    if deep:
+        k = edges[2]
+        tries.append(("split", (t[k], t[(k + 1) % 3], 0.5, circumcentre(*p))))
+    for k in (edges[2], edges[1]) if deep else ():
+        a, b = t[k], t[(k + 1) % 3]
+        tries.append(("split", (a, b, 0.5)))
+        if length[k] > 4.0 * length[edges[0]]:     # grade it from the end it shares with the shortest
+            f = math.sqrt(length[edges[0]] / length[k])
+            tries.append(("split", (a, b, f) if a in short else (b, a, f)))
+    for name, args in tries:
+        mark = mesh.mark()
+        if getattr(mesh, name)(*args):
+            if deep and name == "split":
+                for j in sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0}):
+                    if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
+                        _mend_one(mesh, j, deep=False)
+            if mesh.better(mark):
+                return True
+        mesh.undo(mark)
+    return False
