@@ -35,7 +35,8 @@ import numpy as np
 _BELOW = 15.0       # degrees: a thin triangle, as the benches and the ``slivers`` criterion count it
 _ROUNDS = 4         # passes over the thin triangles, at most
 _SPLIT_FLIPS = 24   # flips round a split's new point, at most
-_NEAR = 4           # rings of triangles round the thin ones that take part
+_NEAR = 2           # rings of triangles round the thin ones that take part
+_GIVE_UP = 8        # a region's thin triangles tried in a row in vain before the rest of them are left
 _LINE = 1e-9        # a side point's neighbours on its side are on one line to this (sine of the angle)
 
 Point = tuple[float, float, float]
@@ -110,7 +111,7 @@ class _Mesh:
     beside one another may be oriented either way, so edges are kept undirected."""
 
     def __init__(self, points: dict[int, Point], triangles: np.ndarray, regions: np.ndarray,
-                 frozen: set[int], fixed: int, n_points: int) -> None:
+                 angles: np.ndarray, frozen: set[int], fixed: int, n_points: int) -> None:
         self.pts = points
         self.n_points = n_points     # the next new point's id
         self.tris: list[Tri | None] = [(t[0], t[1], t[2]) for t in triangles.tolist()]
@@ -119,12 +120,12 @@ class _Mesh:
         self.fixed = fixed          # the surface's vertices (ids below it) may not move
         self.edge: dict[tuple[int, int], set[int]] = {}
         self.star: dict[int, set[int]] = {}
-        self.ang: list[float] = []
+        self.ang: list[float] = angles.tolist()
+        self.sides: dict[int, tuple[int, ...] | None] = {}    # ``side``, until a point's star changes
         # (triangle, its old corners, its old smallest angle) or (-1 - point, its old position, 0)
         self.log: list[tuple[int, object, float]] = []
         for i, t in enumerate(self.tris):
             assert t is not None
-            self.ang.append(self.angle(t))
             self._link(i, t)
 
     def angle(self, t: Tri) -> float:
@@ -135,11 +136,13 @@ class _Mesh:
 
     def _link(self, i: int, t: Tri) -> None:
         for k in range(3):
+            self.sides.pop(t[k], None)
             self.edge.setdefault(_key(t[k], t[(k + 1) % 3]), set()).add(i)
             self.star.setdefault(t[k], set()).add(i)
 
     def _unlink(self, i: int, t: Tri) -> None:
         for k in range(3):
+            self.sides.pop(t[k], None)
             key = _key(t[k], t[(k + 1) % 3])
             self.edge[key].discard(i)
             if not self.edge[key]:
@@ -171,6 +174,7 @@ class _Mesh:
         self.log.append((-1 - v, self.pts[v], 0.0))
         for i in sorted(self.star[v]):
             self.log.append((i, self.tris[i], self.ang[i]))
+        self._moved(v)
         self.pts[v] = to
         for i in self.star[v]:
             t = self.tri(i)
@@ -192,6 +196,7 @@ class _Mesh:
         while len(self.log) > mark[0]:
             i, old, angle = self.log.pop()
             if i < 0:
+                self._moved(-1 - i)
                 self.pts[-1 - i] = cast(Point, old)
                 continue
             t = self.tris[i]
@@ -208,8 +213,11 @@ class _Mesh:
 
     def outline(self, a: int, b: int) -> bool:
         """Whether the edge a b lies on a region's outline (one triangle beside it, or two regions)."""
-        got = self.beside(a, b)
-        return len(got) != 2 or self.reg[got[0]] != self.reg[got[1]]
+        got = self.edge.get(_key(a, b))
+        if got is None or len(got) != 2:
+            return True
+        i, j = got
+        return self.reg[i] != self.reg[j]
 
     def neighbours(self, v: int) -> set[int]:
         return {x for i in self.star.get(v, ()) for x in self.tris[i] or ()} - {v}
@@ -220,9 +228,18 @@ class _Mesh:
         assert t is not None
         return t
 
+    def _moved(self, v: int) -> None:
+        for x in self.neighbours(v) | {v}:
+            self.sides.pop(x, None)
+
     def side(self, p: int) -> tuple[int, ...] | None:
         """For an added point ``p``: () inside a region; its two neighbours along the outline when
         it lies on a straight side between them; None otherwise (it may not move)."""
+        if p not in self.sides:
+            self.sides[p] = self._side(p)
+        return self.sides[p]
+
+    def _side(self, p: int) -> tuple[int, ...] | None:
         on = sorted(x for x in self.neighbours(p) if self.outline(p, x))
         if not on:
             return ()
@@ -289,22 +306,21 @@ class _Mesh:
             self.put(i, n)
         return True
 
-    def relax(self, v: int, step: float) -> bool:
-        """Point ``v`` moved ``step`` of the way to its neighbours' mean (inside a region) or to the
-        middle of its two neighbours on its side."""
+    def relax(self, v: int) -> bool:
+        """Point ``v`` moved to its neighbours' mean (inside a region) or to the middle of its two
+        neighbours on its side."""
         if v < self.fixed or v in self.frozen:
             return False
         on = self.side(v)
         if on is None:
             return False
         near = list(on) or sorted(self.neighbours(v))
-        mean = tuple(sum(self.pts[x][d] for x in near) / len(near) for d in range(3))
+        to = (sum(self.pts[x][0] for x in near) / len(near), sum(self.pts[x][1] for x in near) / len(near),
+              sum(self.pts[x][2] for x in near) / len(near))
         home = self.pts[v]
         around = sorted(self.star[v])
         tris = [self.tri(i) for i in around]
         old = [self.normal(t) for t in tris]
-        to = (home[0] + step * (mean[0] - home[0]), home[1] + step * (mean[1] - home[1]),
-              home[2] + step * (mean[2] - home[2]))
         self.pts[v] = to
         kept = all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) and \
             _better([self.ang[i] for i in around], [self.angle(t) for t in tris])
@@ -377,7 +393,8 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     within ``_NEAR`` rings of a thin one take part; the points on that patch's rim stay. Triangles
     stay grouped region after region, in their order, each region's new ones after them; points the
     mending removed are dropped, the others keep their order."""
-    thin = triangle_min_angles(points, triangles) < _BELOW
+    angles = triangle_min_angles(points, triangles)
+    thin = angles < _BELOW
     if not thin.any():
         return points, triangles, regions
     near = thin.copy()
@@ -388,21 +405,26 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     frozen = set(rim.tolist())
     local = np.flatnonzero(near)
     pts = {v: (x, y, z) for v, (x, y, z) in zip(used.tolist(), points[used].tolist(), strict=True)}
-    mesh = _Mesh(pts, triangles[local], regions[local], frozen, fixed, len(points))
+    mesh = _Mesh(pts, triangles[local], regions[local], angles[local], frozen, fixed, len(points))
     dirty: set[int] | None = None    # after the first round: the points round what an operation changed
+    failed: dict[int, int] = {}      # each region's thin triangles tried in a row and left as they were
     for _ in range(_ROUNDS):
         order = sorted((a, i) for i, a in enumerate(mesh.ang)
                        if a < _BELOW and (t := mesh.tris[i]) is not None
                        and (dirty is None or set(t) & dirty))
         dirty = set()
         for _, i in order:
-            if mesh.tris[i] is None or mesh.ang[i] >= _BELOW:
+            if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i) \
+                    or failed.get(mesh.reg[i], 0) >= _GIVE_UP:
                 continue
             if _mend_one(mesh, i):
+                failed[mesh.reg[i]] = 0
                 for j, old, _a in mesh.log:
                     if j >= 0:
                         dirty.update(mesh.tris[j] or ())
                         dirty.update(cast("Tri | None", old) or ())
+            else:
+                failed[mesh.reg[i]] = failed.get(mesh.reg[i], 0) + 1
             del mesh.log[:]
         if not dirty:
             break
@@ -425,26 +447,34 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     return out[keep], index[tris], regs
 
 
+def _at_corner(mesh: _Mesh, i: int) -> bool:
+    """Whether thin triangle ``i``'s smallest angle is a corner of its region's outline (both its
+    sides there are on the outline): nothing mends that."""
+    t = mesh.tri(i)
+    p = [mesh.pts[v] for v in t]
+    length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
+                                   (p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]),
+                                   (p[0][0] - p[2][0], p[0][1] - p[2][1], p[0][2] - p[2][2]))]
+    k = min(range(3), key=lambda k: (length[k], k))     # the shortest edge, which the smallest angle faces
+    apex = t[(k + 2) % 3]
+    return mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3])
+
+
 def _mend_one(mesh: _Mesh, i: int, deep: bool = True) -> bool:
     """Try the operations on thin triangle ``i`` in turn; keep the first that is better. ``deep``:
     splits too (last), and after a split the thin triangles it touched are mended (not deep) before
-    the whole is judged. A triangle whose smallest angle is a region's corner (two
-    sides of its outline meet there) is left."""
+    the whole is judged."""
     t = mesh.tri(i)
     p = [mesh.pts[v] for v in t]
     length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
                                    (p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]),
                                    (p[0][0] - p[2][0], p[0][1] - p[2][1], p[0][2] - p[2][2]))]
     edges = sorted(range(3), key=lambda k: (length[k], k))   # shortest first: edge k is t[k] t[k+1]
-    k = edges[0]                                              # the smallest angle faces it
-    apex = t[(k + 2) % 3]
-    if mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3]):
-        return False
     tries: list[tuple[str, tuple[Any, ...]]] = [("flip", (i, k)) for k in range(3)]
     for k in edges:
         a, b = t[k], t[(k + 1) % 3]
         tries += [("collapse", (a, b)), ("collapse", (b, a))]
-    tries += [("relax", (v, s)) for v in t for s in (1.0, 0.5)]
+    tries += [("relax", (v,)) for v in t]
     short = t[edges[0]], t[(edges[0] + 1) % 3]
     if deep:
         k = edges[2]
