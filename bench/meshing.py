@@ -10,7 +10,8 @@ degrees (all; inside regions whose own corners are all at least 20 degrees in th
 those of them that do not fold over themselves, i.e. no meshing-1 triangle faces against the
 region's normal; inside those of them whose outline does not cross itself in their plane, as
 meshing's ``_simple`` tells: a figure-eight outline has a crossing, a corner its vertices do not
-show), the regions cut as meshing 1 cuts them, and the CPU seconds per surface
+show; inside those of them whose corners are all at least 20 degrees in space too, with the count),
+the regions cut as meshing 1 cuts them, and the CPU seconds per surface
 (``time.process_time``). With ``--run``: the same for the run's best 12 distinct surfaces, and each
 one's ``slivers`` under each meshing. ``--json FILE`` also writes the figures as JSON.
 """
@@ -42,12 +43,16 @@ def fresh(s: Any, meshing: int) -> Surface:
                    s.masses, s.stopped, meshing=meshing)
 
 
-def region_shapes(s: Any) -> tuple[np.ndarray, np.ndarray]:
+def region_shapes(s: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(F,) masks from one projection of each region into its plane: whether every corner is at
-    least 20 degrees there, and whether, among those, the outline does not cross itself."""
+    least 20 degrees there; whether, among those, the outline does not cross itself; and whether,
+    among those, every corner is at least 20 degrees in space too (the angle between its two sides,
+    taken beyond 180 where the corner is reflex in the plane: a bent region's corner can be wider in
+    its plane than in space, and a triangle's angles are measured in space)."""
     centroid, newell, _, _, _ = _region_geometry(s.vertices, s.region_offsets, s.region_vertices)
     ok = np.zeros(s.n_regions, dtype=bool)
     simple = np.zeros(s.n_regions, dtype=bool)
+    sound = np.zeros(s.n_regions, dtype=bool)
     for r, cyc in enumerate(s.regions):
         frame = _frame(newell[r])
         if frame is None:
@@ -57,7 +62,14 @@ def region_shapes(s: Any) -> tuple[np.ndarray, np.ndarray]:
         turn = np.degrees(np.arctan2(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0], np.einsum("ij,ij->i", a, b)))
         ok[r] = np.all(180.0 - turn >= 20.0)
         simple[r] = ok[r] and _simple(xy / max(float(np.abs(xy).max()), 1e-300))
-    return ok, simple
+        p = s.vertices[cyc]
+        u, w = np.roll(p, 1, 0) - p, np.roll(p, -1, 0) - p
+        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1)
+        space = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u, w) / np.where(norms > 0, norms, 1.0),
+                                             -1.0, 1.0)))
+        space = np.where(turn < 0, 360.0 - space, space)
+        sound[r] = simple[r] and bool(np.all(space >= 20.0))
+    return ok, simple, sound
 
 
 def folded(s: Any) -> np.ndarray:
@@ -75,10 +87,11 @@ def folded(s: Any) -> np.ndarray:
 
 def one_surface(s: Any) -> dict[str, float]:
     """One surface's counts under every meshing (summed by ``measure``)."""
-    ok, simple_ok = region_shapes(s)
+    ok, simple_ok, sound_ok = region_shapes(s)
     flat_ok = ok & ~folded(s)
     out: dict[str, float] = {"good_regions": int(ok.sum()), "flat_good_regions": int(flat_ok.sum()),
-                             "simple_good_regions": int(simple_ok.sum())}
+                             "simple_good_regions": int(simple_ok.sum()),
+                             "sound_good_regions": int(sound_ok.sum())}
     for meshing in CHOSEN:
         f = fresh(s, meshing)
         t0 = time.process_time()
@@ -93,6 +106,8 @@ def one_surface(s: Any) -> dict[str, float]:
         out[f"flatthin{meshing}"] = int(np.sum(flat_ok[mesh.regions] & thin_))
         out[f"simple{meshing}"] = int(np.sum(simple_ok[mesh.regions]))
         out[f"simplethin{meshing}"] = int(np.sum(simple_ok[mesh.regions] & thin_))
+        out[f"sound{meshing}"] = int(np.sum(sound_ok[mesh.regions]))
+        out[f"soundthin{meshing}"] = int(np.sum(sound_ok[mesh.regions] & thin_))
         out[f"fallback{meshing}"] = len(mesh.fallback) if meshing > 1 else 0
     return out
 
@@ -136,7 +151,8 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
                              "regions": sum(s.n_regions for s, _ in kept),
                              "good_regions": total.get("good_regions", 0),
                              "flat_good_regions": total.get("flat_good_regions", 0),
-                             "simple_good_regions": total.get("simple_good_regions", 0)}
+                             "simple_good_regions": total.get("simple_good_regions", 0),
+                             "sound_good_regions": total.get("sound_good_regions", 0)}
     for m in CHOSEN:
         tri = total.get(f"tri{m}", 0)
         out[f"tri{m}"] = tri
@@ -144,6 +160,8 @@ def measure(surfaces: list[Any], memory: float = 0.0) -> dict[str, float]:
         out[f"goodthin{m}"] = total.get(f"goodthin{m}", 0) / max(total.get(f"good{m}", 0), 1)
         out[f"flatthin{m}"] = total.get(f"flatthin{m}", 0) / max(total.get(f"flat{m}", 0), 1)
         out[f"simplethin{m}"] = total.get(f"simplethin{m}", 0) / max(total.get(f"simple{m}", 0), 1)
+        out[f"soundthin{m}"] = total.get(f"soundthin{m}", 0) / max(total.get(f"sound{m}", 0), 1)
+        out[f"soundthin_count{m}"] = total.get(f"soundthin{m}", 0)
         out[f"cpu{m}"] = total.get(f"cpu{m}", 0.0) / max(len(kept), 1)
         out[f"fallback{m}"] = total.get(f"fallback{m}", 0) / max(out["regions"], 1)
     return out
@@ -155,14 +173,16 @@ def show(name: str, m: dict[str, float]) -> None:
             f" ({m['thin1'] / m[f'thin{v}']:.1f}x)"
         print(f"| {name} | {v} | {m['surfaces']:.0f} | {m[f'tri{v}']:.0f} | {m[f'thin{v}']:.2%}{ratio} | "
               f"{m[f'goodthin{v}']:.2%} | {m[f'flatthin{v}']:.2%} | {m[f'simplethin{v}']:.3%} | "
+              f"{m[f'soundthin{v}']:.4%} ({m[f'soundthin_count{v}']:.0f}) | "
               f"{m[f'fallback{v}']:.1%} | "
               f"{m[f'cpu{v}'] * 1e3:.1f} ms | {m.get('failed', 0):.0f} |")
 
 
 HEADER = ("| set | meshing | surfaces | triangles | under 15 deg | same, regions with corners >= 20 deg | "
-          "same, of those not folded | same, of those simple in their plane | regions cut as m1 | "
+          "same, of those not folded | same, of those simple in their plane | "
+          "same, of those with corners >= 20 deg in space too (count) | regions cut as m1 | "
           "CPU per surface | failed (memory) |\n"
-          "|---|---|---|---|---|---|---|---|---|---|---|")
+          "|---|---|---|---|---|---|---|---|---|---|---|---|")
 
 
 def random_surfaces(name: str, n: int) -> list[Any]:

@@ -22,7 +22,13 @@ triangles are mended by operations that keep it watertight and keep every region
 
 An operation is kept only if the triangles it touched, in every region, end with fewer under
 ``_BELOW`` degrees, or as many and a larger smallest angle, and none turned over; else it is undone.
-The surface's own vertices never move. Deterministic: a fixed order, Python floats.
+The thin triangles are tried thinnest first, over ``_ROUNDS`` rounds, each after the first trying
+again only those beside what changed. A region whose thin triangles fail ``_GIVE_UP`` times in a row
+is left (one that folds over itself or crosses its own outline has thousands nothing mends), and a
+triangle whose smallest angle is its region's own corner is not tried. Last, in regions with at most
+``_FEW`` thin triangles left, each gets a slower try: after a collapse or a move too, the thin
+triangles it touched are mended before the whole is judged. The surface's own vertices never move.
+Deterministic: a fixed order, Python floats.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ _BELOW = 15.0       # degrees: a thin triangle, as the benches and the ``slivers
 _ROUNDS = 4         # passes over the thin triangles, at most
 _SPLIT_FLIPS = 24   # flips round a split's new point, at most
 _NEAR = 2           # rings of triangles round the thin ones that take part
+_FEW = 3            # regions with at most this many thin triangles left get a last, slower try
 _GIVE_UP = 8        # a region's thin triangles tried in a row in vain before the rest of them are left
 _LINE = 1e-9        # a side point's neighbours on its side are on one line to this (sine of the angle)
 
@@ -428,6 +435,14 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
             del mesh.log[:]
         if not dirty:
             break
+    left: dict[int, list[int]] = {}     # a last try, settling after every operation, where few are left
+    for i, a in enumerate(mesh.ang):
+        if a < _BELOW and mesh.tris[i] is not None:
+            left.setdefault(mesh.reg[i], []).append(i)
+    for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
+        if mesh.tris[i] is not None and mesh.ang[i] < _BELOW and not _at_corner(mesh, i):
+            _mend_one(mesh, i, settle=("collapse", "relax", "split"))
+            del mesh.log[:]
     alive = [i for i, t in enumerate(mesh.tris) if t is not None]
     slot = np.concatenate([np.flatnonzero(~near),
                            np.where(np.asarray(alive) < len(local), local[np.minimum(alive, len(local) - 1)],
@@ -460,10 +475,10 @@ def _at_corner(mesh: _Mesh, i: int) -> bool:
     return mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3])
 
 
-def _mend_one(mesh: _Mesh, i: int, deep: bool = True) -> bool:
+def _mend_one(mesh: _Mesh, i: int, deep: bool = True, settle: tuple[str, ...] = ("split",)) -> bool:
     """Try the operations on thin triangle ``i`` in turn; keep the first that is better. ``deep``:
-    splits too (last), and after a split the thin triangles it touched are mended (not deep) before
-    the whole is judged."""
+    splits too (last), and after the operations named in ``settle`` the thin triangles they touched
+    are mended (not deep) before the whole is judged."""
     t = mesh.tri(i)
     p = [mesh.pts[v] for v in t]
     length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
@@ -488,7 +503,7 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True) -> bool:
     for name, args in tries:
         mark = mesh.mark()
         if getattr(mesh, name)(*args):
-            if deep and name == "split":
+            if deep and name in settle:
                 for j in sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0}):
                     if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
                         _mend_one(mesh, j, deep=False)

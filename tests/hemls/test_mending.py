@@ -64,7 +64,7 @@ def test_a_mesh_without_thin_triangles_is_returned_as_it_is():
 def test_meshing_6_mends_random_surfaces_keeping_outlines_border_and_watertightness(bench_module):
     """The first, fifth and sixth random default surfaces of ``test_meshing``: meshing 5 leaves 112
     triangles under 15 degrees, 12 of them in regions whose corners are all at least 20 degrees and
-    whose outline does not cross itself; meshing 6 leaves 20 and none. Every region's outline is as
+    whose outline does not cross itself; meshing 6 leaves 19 and none. Every region's outline is as
     long as it was and lies on the same sides, the mesh conforms, the same bytes come twice."""
     bench = bench_module("meshing")   # its region_shapes defines the issue's regions
     surfaces = [s for i, s in enumerate(_random_surfaces(6)) if i in (0, 4, 5)]
@@ -94,7 +94,7 @@ def test_meshing_6_mends_random_surfaces_keeping_outlines_border_and_watertightn
             f = np.clip(np.einsum("psk,sk->ps", p - a, d) / np.einsum("sk,sk->s", d, d), 0.0, 1.0)
             assert np.linalg.norm(p - (a + f[..., None] * d), axis=2).min(axis=1).max() <= 1e-9 * scale
         digest.update(six.points.tobytes() + six.triangles.tobytes())
-    assert thin == {5: [112, 12], 6: [20, 0]}
+    assert thin == {5: [112, 12], 6: [19, 0]}
     again = hashlib.sha256()
     for surface in surfaces:
         six = surface.with_meshing(6).mesh()
