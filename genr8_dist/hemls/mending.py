@@ -26,14 +26,18 @@ The thin triangles are tried thinnest first, over ``_ROUNDS`` rounds, each after
 again only those beside what changed. A region whose thin triangles fail ``_GIVE_UP`` times in a row
 is left (one that folds over itself or crosses its own outline has thousands nothing mends), and a
 triangle whose smallest angle is its region's own corner is not tried. Last, in regions with at most
-``_FEW`` thin triangles left, each gets a slower try: after a collapse or a move too, the thin
-triangles it touched are mended before the whole is judged. The surface's own vertices never move.
+``_FEW`` thin triangles left, each gets a slower try: compass searches for a point's place too,
+after every operation the thin triangles it touched are mended before the whole is judged, and the
+best of all the operations is taken; failing that, once more with each operation taken whatever it
+does to its own triangles and what it touched mended for its worst angle (a degenerate triangle
+flipped into two thin ones, whose apex a search then lifts). The surface's own vertices never move.
 Deterministic: a fixed order, Python floats.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any, cast
 
 import numpy as np
@@ -42,6 +46,7 @@ _BELOW = 15.0       # degrees: a thin triangle, as the benches and the ``slivers
 _ROUNDS = 4         # passes over the thin triangles, at most
 _SPLIT_FLIPS = 24   # flips round a split's new point, at most
 _NEAR = 2           # rings of triangles round the thin ones that take part
+_SEARCH = 6         # halvings of a compass search's step (the last try only)
 _FEW = 3            # regions with at most this many thin triangles left get a last, slower try
 _GIVE_UP = 8        # a region's thin triangles tried in a row in vain before the rest of them are left
 _LINE = 1e-9        # a side point's neighbours on its side are on one line to this (sine of the angle)
@@ -128,6 +133,7 @@ class _Mesh:
         self.edge: dict[tuple[int, int], set[int]] = {}
         self.star: dict[int, set[int]] = {}
         self.ang: list[float] = angles.tolist()
+        self.judge: Callable[[list[float], list[float]], bool] = _better    # whether a change is kept
         self.sides: dict[int, tuple[int, ...] | None] = {}    # ``side``, until a point's star changes
         # (triangle, its old corners, its old smallest angle) or (-1 - point, its old position, 0)
         self.log: list[tuple[int, object, float]] = []
@@ -190,14 +196,18 @@ class _Mesh:
     def mark(self) -> tuple[int, int, int]:
         return len(self.log), self.n_points, len(self.tris)
 
-    def better(self, mark: tuple[int, int, int]) -> bool:
-        """Whether the triangles changed since ``mark`` are better (``_better``) than they were."""
+    def changed(self, mark: tuple[int, int, int]) -> tuple[list[float], list[float]]:
+        """The smallest angles of the triangles changed since ``mark``, before and now."""
         before: dict[int, float | None] = {}
         for i, old, angle in self.log[mark[0]:]:
             if i >= 0 and i not in before:
                 before[i] = angle if old is not None else None
-        return _better([a for a in before.values() if a is not None],
-                       [self.ang[i] for i in before if self.tris[i] is not None])
+        return ([a for a in before.values() if a is not None],
+                [self.ang[i] for i in before if self.tris[i] is not None])
+
+    def better(self, mark: tuple[int, int, int]) -> bool:
+        """Whether the triangles changed since ``mark`` are better (``judge``) than they were."""
+        return self.judge(*self.changed(mark))
 
     def undo(self, mark: tuple[int, int, int]) -> None:
         while len(self.log) > mark[0]:
@@ -261,7 +271,7 @@ class _Mesh:
 
     # operations: each changes the mesh and returns whether it may be kept (orientation)
 
-    def flip(self, i: int, k: int) -> bool:
+    def flip(self, i: int, k: int, check: bool = True) -> bool:
         t = self.tri(i)
         a, b, c = t[k], t[(k + 1) % 3], t[(k + 2) % 3]
         got = self.beside(a, b)
@@ -279,13 +289,13 @@ class _Mesh:
         n1, n2 = self.normal(new1), self.normal(new2)
         if dot(n1, n2) <= 0.0 or dot(n1, old) <= 0.0 or dot(n2, old) <= 0.0:
             return False
-        if not _better([self.ang[i], self.ang[j]], [self.angle(new1), self.angle(new2)]):
+        if check and not self.judge([self.ang[i], self.ang[j]], [self.angle(new1), self.angle(new2)]):
             return False
         self.put(i, new1)
         self.put(j, new2)
         return True
 
-    def collapse(self, p: int, q: int) -> bool:
+    def collapse(self, p: int, q: int, check: bool = True) -> bool:
         if p < self.fixed or p in self.frozen or q in self.frozen:
             return False
         on = self.side(p)
@@ -305,7 +315,8 @@ class _Mesh:
             if dot(self.normal(n), self.normal(t)) <= 0.0:
                 return False
             new.append(n)
-        if not _better([self.ang[i] for i in sorted(self.star[p])], [self.angle(n) for n in new]):
+        if check and not self.judge([self.ang[i] for i in sorted(self.star[p])],
+                                    [self.angle(n) for n in new]):
             return False
         for i in both:
             self.put(i, None)
@@ -313,7 +324,62 @@ class _Mesh:
             self.put(i, n)
         return True
 
-    def relax(self, v: int) -> bool:
+    def search(self, v: int) -> bool:
+        """Point ``v`` moved by a compass search (eight directions in its triangles' mean plane, or
+        two along its side, the step halved ``_SEARCH`` times from a quarter of its shortest edge)
+        wherever that is better for the triangles round it."""
+        if v < self.fixed or v in self.frozen:
+            return False
+        on = self.side(v)
+        if on is None:
+            return False
+        home = self.pts[v]
+        around = sorted(self.star[v])
+        tris = [self.tri(i) for i in around]
+        old = [self.normal(t) for t in tris]
+        if on:
+            q = self.pts[on[0]]
+            u = (q[0] - home[0], q[1] - home[1], q[2] - home[2])
+            norm = math.sqrt(dot(u, u))
+            dirs = [(u[0] / norm, u[1] / norm, u[2] / norm)]
+        else:
+            n = (sum(x[0] for x in old), sum(x[1] for x in old), sum(x[2] for x in old))
+            length = math.sqrt(dot(n, n))
+            if length == 0.0:
+                return False
+            n = (n[0] / length, n[1] / length, n[2] / length)
+            a = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
+            e1 = (n[1] * a[2] - n[2] * a[1], n[2] * a[0] - n[0] * a[2], n[0] * a[1] - n[1] * a[0])
+            norm = math.sqrt(dot(e1, e1))
+            e1 = (e1[0] / norm, e1[1] / norm, e1[2] / norm)
+            e2 = (n[1] * e1[2] - n[2] * e1[1], n[2] * e1[0] - n[0] * e1[2], n[0] * e1[1] - n[1] * e1[0])
+            dirs = [(math.cos(k * math.pi / 4) * e1[0] + math.sin(k * math.pi / 4) * e2[0],
+                     math.cos(k * math.pi / 4) * e1[1] + math.sin(k * math.pi / 4) * e2[1],
+                     math.cos(k * math.pi / 4) * e1[2] + math.sin(k * math.pi / 4) * e2[2]) for k in range(4)]
+        step = 0.25 * min(math.dist(self.pts[x], home) for x in self.neighbours(v))
+        best, best_angles = home, [self.ang[i] for i in around]
+        halvings = 0
+        while halvings < _SEARCH:
+            moved = False
+            for d in dirs:
+                for sign in (1.0, -1.0):
+                    to = (best[0] + sign * step * d[0], best[1] + sign * step * d[1],
+                          best[2] + sign * step * d[2])
+                    self.pts[v] = to
+                    got = [self.angle(t) for t in tris]
+                    if all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) \
+                            and self.judge(best_angles, got):
+                        best, best_angles, moved = to, got, True
+            self.pts[v] = home
+            if not moved:
+                step *= 0.5
+                halvings += 1
+        if best == home:
+            return False
+        self.move(v, best)
+        return True
+
+    def relax(self, v: int, check: bool = True) -> bool:
         """Point ``v`` moved to its neighbours' mean (inside a region) or to the middle of its two
         neighbours on its side."""
         if v < self.fixed or v in self.frozen:
@@ -330,7 +396,7 @@ class _Mesh:
         old = [self.normal(t) for t in tris]
         self.pts[v] = to
         kept = all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) and \
-            _better([self.ang[i] for i in around], [self.angle(t) for t in tris])
+            (not check or self.judge([self.ang[i] for i in around], [self.angle(t) for t in tris]))
         self.pts[v] = home
         if kept:
             self.move(v, to)
@@ -389,6 +455,11 @@ def _better(old: list[float], new: list[float]) -> bool:
     return min(new, default=180.0) > min(old, default=180.0) + 1e-9
 
 
+def _wider(old: list[float], new: list[float]) -> bool:
+    """Whether triangles of smallest angles ``new`` replacing ``old`` have a larger smallest angle."""
+    return min(new, default=180.0) > min(old, default=180.0) + 1e-9
+
+
 def _key(a: int, b: int) -> tuple[int, int]:
     return (a, b) if a < b else (b, a)
 
@@ -413,6 +484,33 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     local = np.flatnonzero(near)
     pts = {v: (x, y, z) for v, (x, y, z) in zip(used.tolist(), points[used].tolist(), strict=True)}
     mesh = _Mesh(pts, triangles[local], regions[local], angles[local], frozen, fixed, len(points))
+    _rounds(mesh)
+    _last_try(mesh)
+    alive = [i for i, t in enumerate(mesh.tris) if t is not None]
+    slot = np.concatenate([np.flatnonzero(~near),
+                           np.where(np.asarray(alive) < len(local), local[np.minimum(alive, len(local) - 1)],
+                                    len(triangles) + np.asarray(alive))])
+    mended = np.asarray([mesh.tris[i] for i in alive], dtype=np.int64).reshape(-1, 3)
+    tris = np.concatenate([triangles[~near], mended])
+    regs = np.concatenate([regions[~near], np.asarray([mesh.reg[i] for i in alive], dtype=np.int64)])
+    order_ = np.lexsort((slot, regs))
+    tris, regs = tris[order_], regs[order_]
+    out = np.concatenate([points, np.zeros((mesh.n_points - len(points), 3))])
+    for v, p in mesh.pts.items():
+        out[v] = p
+    keep = np.ones(len(out), dtype=bool)
+    keep[fixed:] = False
+    keep[np.unique(tris)] = True
+    index = np.cumsum(keep) - 1
+    return out[keep], index[tris], regs
+
+
+_CHECKED = ("flip", "collapse", "relax")   # operations that judge their own triangles first (``check``)
+
+
+def _rounds(mesh: _Mesh) -> None:
+    """The rounds: thin triangles tried thinnest first, each round after the first only those beside
+    what changed; a region's are left once ``_GIVE_UP`` in a row were tried in vain."""
     dirty: set[int] | None = None    # after the first round: the points round what an operation changed
     failed: dict[int, int] = {}      # each region's thin triangles tried in a row and left as they were
     for _ in range(_ROUNDS):
@@ -435,31 +533,20 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
             del mesh.log[:]
         if not dirty:
             break
-    left: dict[int, list[int]] = {}     # a last try, settling after every operation, where few are left
+
+
+def _last_try(mesh: _Mesh) -> None:
+    """A slower try for each thin triangle of a region with at most ``_FEW`` left (``_mend_one``'s
+    ``last``, then ``widen``)."""
+    left: dict[int, list[int]] = {}
     for i, a in enumerate(mesh.ang):
         if a < _BELOW and mesh.tris[i] is not None:
             left.setdefault(mesh.reg[i], []).append(i)
     for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
         if mesh.tris[i] is not None and mesh.ang[i] < _BELOW and not _at_corner(mesh, i):
-            _mend_one(mesh, i, settle=("collapse", "relax", "split"))
+            if not _mend_one(mesh, i, last=True):
+                _mend_one(mesh, i, last=True, widen=True)
             del mesh.log[:]
-    alive = [i for i, t in enumerate(mesh.tris) if t is not None]
-    slot = np.concatenate([np.flatnonzero(~near),
-                           np.where(np.asarray(alive) < len(local), local[np.minimum(alive, len(local) - 1)],
-                                    len(triangles) + np.asarray(alive))])
-    mended = np.asarray([mesh.tris[i] for i in alive], dtype=np.int64).reshape(-1, 3)
-    tris = np.concatenate([triangles[~near], mended])
-    regs = np.concatenate([regions[~near], np.asarray([mesh.reg[i] for i in alive], dtype=np.int64)])
-    order_ = np.lexsort((slot, regs))
-    tris, regs = tris[order_], regs[order_]
-    out = np.concatenate([points, np.zeros((mesh.n_points - len(points), 3))])
-    for v, p in mesh.pts.items():
-        out[v] = p
-    keep = np.ones(len(out), dtype=bool)
-    keep[fixed:] = False
-    keep[np.unique(tris)] = True
-    index = np.cumsum(keep) - 1
-    return out[keep], index[tris], regs
 
 
 def _at_corner(mesh: _Mesh, i: int) -> bool:
@@ -475,10 +562,14 @@ def _at_corner(mesh: _Mesh, i: int) -> bool:
     return mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3])
 
 
-def _mend_one(mesh: _Mesh, i: int, deep: bool = True, settle: tuple[str, ...] = ("split",)) -> bool:
+def _mend_one(mesh: _Mesh, i: int, deep: bool = True, last: bool = False, widen: bool = False) -> bool:
     """Try the operations on thin triangle ``i`` in turn; keep the first that is better. ``deep``:
-    splits too (last), and after the operations named in ``settle`` the thin triangles they touched
-    are mended (not deep) before the whole is judged."""
+    splits too (last), and after a split the thin triangles it touched are mended (not deep) before
+    the whole is judged. ``last``: compass searches too, and after every operation the thin
+    triangles it touched are mended before the whole is judged, so that a repair of two steps is
+    found; ``widen``: the operation is taken whatever it does to its own triangles, and what it
+    touched is mended for its worst angle (a degenerate triangle flipped into two thin ones, which
+    a move of their apex then widens)."""
     t = mesh.tri(i)
     p = [mesh.pts[v] for v in t]
     length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
@@ -490,6 +581,8 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, settle: tuple[str, ...] = 
         a, b = t[k], t[(k + 1) % 3]
         tries += [("collapse", (a, b)), ("collapse", (b, a))]
     tries += [("relax", (v,)) for v in t]
+    if last:
+        tries += [("search", (v,)) for v in t]
     short = t[edges[0]], t[(edges[0] + 1) % 3]
     if deep:
         k = edges[2]
@@ -500,14 +593,29 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, settle: tuple[str, ...] = 
         if length[k] > 4.0 * length[edges[0]]:     # grade it from the end it shares with the shortest
             f = math.sqrt(length[edges[0]] / length[k])
             tries.append(("split", (a, b, f) if a in short else (b, a, f)))
-    for name, args in tries:
+    def attempt(name: str, args: tuple[Any, ...], mark: tuple[int, int, int]) -> bool:
+        if not getattr(mesh, name)(*args, **({"check": False} if widen and name in _CHECKED else {})):
+            return False
+        if deep and (last or name == "split"):     # judged once what it touched is mended too
+            mesh.judge = _wider if widen else _better
+            for j in sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0}):
+                if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
+                    _mend_one(mesh, j, deep=False, last=widen)
+            mesh.judge = _better
+        return mesh.better(mark)
+
+    best: tuple[tuple[int, float], int] | None = None     # last: the best of them all is taken
+    for k, (name, args) in enumerate(tries):
         mark = mesh.mark()
-        if getattr(mesh, name)(*args):
-            if deep and name in settle:
-                for j in sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0}):
-                    if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
-                        _mend_one(mesh, j, deep=False)
-            if mesh.better(mark):
+        if attempt(name, args, mark):
+            if not (last and deep):
                 return True
+            old, new = mesh.changed(mark)
+            gain = (sum(a < _BELOW for a in old) - sum(a < _BELOW for a in new),
+                    min(new, default=180.0) - min(old, default=180.0))
+            if best is None or gain > best[0]:
+                best = gain, k
         mesh.undo(mark)
-    return False
+    if best is None:
+        return False
+    return attempt(*tries[best[1]], mesh.mark())

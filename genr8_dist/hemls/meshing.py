@@ -102,9 +102,10 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
   Every region keeps its outline, the surface its vertices. 60 random genomes of each built-in
   universe (``bench/meshing.py``): in regions whose outline does not cross itself and whose corners
   are all at least 20 degrees in their plane and in space, meshing 5 left 661 triangles under 15
-  degrees (0.00-0.03%), meshing 6 leaves 8 (0.0000-0.0003%), beside needle-thin neighbours; of all
-  triangles, 0.14-5.25% were under 15 degrees, 0.02-0.59% are. Mending costs 0-76% of meshing 5's
-  CPU (the most where regions fold over themselves: thousands of thin triangles nothing mends).
+  degrees (0.00-0.03%), meshing 6 leaves 5 (0.0000-0.0003%: 4 reversible, beside needle-thin
+  neighbours, and 1 tiles); of all triangles, 0.14-5.25% were under 15 degrees, 0.01-0.58% are.
+  Mending adds up to 80% to meshing 5's CPU (the most where regions fold over themselves: thousands
+  of thin triangles, few of which anything mends).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
