@@ -269,6 +269,14 @@ class _Mesh:
             return None
         return on[0], on[1]
 
+    def movable(self, v: int) -> tuple[int, ...] | None:
+        """``side(v)`` for a point that may move (an added point off the patch's rim), else None."""
+        return None if v < self.fixed or v in self.frozen else self.side(v)
+
+    def upright(self, tris: list[Tri], normals: list[Point]) -> bool:
+        """Whether no triangle of ``tris`` turned over against its old orientation ``normals``."""
+        return all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, normals, strict=True))
+
     # operations: each changes the mesh and returns whether it may be kept (orientation)
 
     def flip(self, i: int, k: int, check: bool = True) -> bool:
@@ -296,10 +304,8 @@ class _Mesh:
         return True
 
     def collapse(self, p: int, q: int, check: bool = True) -> bool:
-        if p < self.fixed or p in self.frozen or q in self.frozen:
-            return False
-        on = self.side(p)
-        if on is None or (on and q not in on):
+        on = self.movable(p)
+        if on is None or q in self.frozen or (on and q not in on):
             return False
         both = sorted(self.star[p] & self.star[q])
         if not both:
@@ -328,9 +334,7 @@ class _Mesh:
         """Point ``v`` moved by a compass search (eight directions in its triangles' mean plane, or
         two along its side, the step halved ``_SEARCH`` times from a quarter of its shortest edge)
         wherever that is better for the triangles round it."""
-        if v < self.fixed or v in self.frozen:
-            return False
-        on = self.side(v)
+        on = self.movable(v)
         if on is None:
             return False
         home = self.pts[v]
@@ -367,8 +371,7 @@ class _Mesh:
                           best[2] + sign * step * d[2])
                     self.pts[v] = to
                     got = [self.angle(t) for t in tris]
-                    if all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) \
-                            and self.judge(best_angles, got):
+                    if self.upright(tris, old) and self.judge(best_angles, got):
                         best, best_angles, moved = to, got, True
             self.pts[v] = home
             if not moved:
@@ -382,9 +385,7 @@ class _Mesh:
     def relax(self, v: int, check: bool = True) -> bool:
         """Point ``v`` moved to its neighbours' mean (inside a region) or to the middle of its two
         neighbours on its side."""
-        if v < self.fixed or v in self.frozen:
-            return False
-        on = self.side(v)
+        on = self.movable(v)
         if on is None:
             return False
         near = list(on) or sorted(self.neighbours(v))
@@ -395,7 +396,7 @@ class _Mesh:
         tris = [self.tri(i) for i in around]
         old = [self.normal(t) for t in tris]
         self.pts[v] = to
-        kept = all(dot(self.normal(t), n) > 0.0 for t, n in zip(tris, old, strict=True)) and \
+        kept = self.upright(tris, old) and \
             (not check or self.judge([self.ang[i] for i in around], [self.angle(t) for t in tris]))
         self.pts[v] = home
         if kept:
@@ -422,10 +423,10 @@ class _Mesh:
         if to is not None:
             if self.outline(a, m):
                 return False
-            around = sorted(self.star[m])
-            old = [self.normal(self.tri(i)) for i in around]
+            tris = [self.tri(i) for i in sorted(self.star[m])]
+            old = [self.normal(t) for t in tris]
             self.move(m, to)
-            if not all(dot(self.normal(self.tri(i)), n) > 0.0 for i, n in zip(around, old, strict=True)):
+            if not self.upright(tris, old):
                 return False
         for _ in range(_SPLIT_FLIPS):
             for i in sorted(self.star[m]):
@@ -549,15 +550,21 @@ def _last_try(mesh: _Mesh) -> None:
             del mesh.log[:]
 
 
-def _at_corner(mesh: _Mesh, i: int) -> bool:
-    """Whether thin triangle ``i``'s smallest angle is a corner of its region's outline (both its
-    sides there are on the outline): nothing mends that."""
-    t = mesh.tri(i)
+def _sides(mesh: _Mesh, t: Tri) -> tuple[list[float], list[int]]:
+    """Triangle ``t``'s squared side lengths (side k from t[k] to t[k + 1]) and its sides from the
+    shortest, which its smallest angle faces."""
     p = [mesh.pts[v] for v in t]
     length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
                                    (p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]),
                                    (p[0][0] - p[2][0], p[0][1] - p[2][1], p[0][2] - p[2][2]))]
-    k = min(range(3), key=lambda k: (length[k], k))     # the shortest edge, which the smallest angle faces
+    return length, sorted(range(3), key=lambda k: (length[k], k))
+
+
+def _at_corner(mesh: _Mesh, i: int) -> bool:
+    """Whether thin triangle ``i``'s smallest angle is a corner of its region's outline (both its
+    sides there are on the outline): nothing mends that."""
+    t = mesh.tri(i)
+    k = _sides(mesh, t)[1][0]
     apex = t[(k + 2) % 3]
     return mesh.outline(apex, t[k]) and mesh.outline(apex, t[(k + 1) % 3])
 
@@ -571,11 +578,7 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, last: bool = False, widen:
     touched is mended for its worst angle (a degenerate triangle flipped into two thin ones, which
     a move of their apex then widens)."""
     t = mesh.tri(i)
-    p = [mesh.pts[v] for v in t]
-    length = [dot(d, d) for d in ((p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]),
-                                   (p[2][0] - p[1][0], p[2][1] - p[1][1], p[2][2] - p[1][2]),
-                                   (p[0][0] - p[2][0], p[0][1] - p[2][1], p[0][2] - p[2][2]))]
-    edges = sorted(range(3), key=lambda k: (length[k], k))   # shortest first: edge k is t[k] t[k+1]
+    length, edges = _sides(mesh, t)
     tries: list[tuple[str, tuple[Any, ...]]] = [("flip", (i, k)) for k in range(3)]
     for k in edges:
         a, b = t[k], t[(k + 1) % 3]
@@ -586,7 +589,7 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, last: bool = False, widen:
     short = t[edges[0]], t[(edges[0] + 1) % 3]
     if deep:
         k = edges[2]
-        tries.append(("split", (t[k], t[(k + 1) % 3], 0.5, circumcentre(*p))))
+        tries.append(("split", (t[k], t[(k + 1) % 3], 0.5, circumcentre(*(mesh.pts[v] for v in t)))))
     for k in (edges[2], edges[1]) if deep else ():
         a, b = t[k], t[(k + 1) % 3]
         tries.append(("split", (a, b, 0.5)))
