@@ -433,7 +433,11 @@ class RunConfig:
         MESHING,
         (
             "how surfaces are cut into triangles for export, pictures and the studio "
-            "(`genr8_dist.hemls.meshing`): `6` as 5, then the whole mesh mended across regions "
+            "(`genr8_dist.hemls.meshing`): `7` as 6, but in mending a thin triangle of a region with a "
+            "corner under 15 degrees (any mesh of it has one: a needle) counts after those of the other "
+            "regions, so a side shared with a needle is split to mend its neighbour (under 6 the thin "
+            "triangle the split added to the needle undid the repair); "
+            "`6` as 5, then the whole mesh mended across regions "
             "(`hemls.mending`: edges inside a region flipped, added points collapsed, moved or slid along "
             "their side, edges split, in both regions beside a side at once, wherever that leaves fewer "
             "triangles under 15 degrees; every region keeps its outline): under 5 a corner whose two sides "

@@ -100,3 +100,68 @@ def test_meshing_6_mends_random_surfaces_keeping_outlines_border_and_watertightn
         six = surface.with_meshing(6).mesh()
         again.update(six.points.tobytes() + six.triangles.tobytes())
     assert again.hexdigest() == digest.hexdigest()
+
+
+# A tiles surface (the 42nd random genome of bench/meshing.py's tiles set) with a region whose
+# corners are all at least 20 degrees beside a needle-thin neighbour (a corner of 0.1 degree).
+_BESIDE_A_NEEDLE = """Edge0 + ~ Edge2 + ~ Edge2
+Edge2 -> & Edge1 [ [ + Edge2 ] - Edge2 ] Edge2 ^
+Edge2 < Edge1 -> ^ Edge0 [ [ + + Edge0 ] - - Edge0 ] Edge1 &
+Edge0 -> Edge2 [ [ [ [ + Edge1 ] + + Edge1 ] - Edge1 ] - - Edge1 ] Edge2
+Angle 45
+"""
+
+
+def _thin_in_sound_regions(surface, meshing: int, sound: np.ndarray) -> tuple[int, int]:
+    """Triangles under 15 degrees under ``meshing``: in regions ``sound`` marks, and in all."""
+    mesh = surface.with_meshing(meshing).mesh()
+    under = triangle_min_angles(mesh.points, mesh.triangles) < 15.0
+    return int(np.sum(under & sound[mesh.regions])), int(np.sum(under))
+
+
+def test_meshing_7_splits_a_side_shared_with_a_needle_for_the_wide_cornered_region(bench_module):
+    """Meshing 6 leaves one triangle of 8.2 degrees in a region whose corners are all at least 20
+    degrees: the repair splits the side it shares with a needle-thin region, which then holds one
+    more thin triangle, so the count of thin triangles among those touched stays the same and the
+    split is undone. Meshing 7 counts a thin triangle of a region with a corner under 15 degrees
+    (``pinched``: any mesh of it has one) after those of free regions, and mends it."""
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, parse
+    from genr8_dist.hemls.mending import pinched
+
+    surface = grow(parse(_BESIDE_A_NEEDLE), Environment()).surface
+    sound = bench_module("meshing").region_shapes(surface)[2]   # corners >= 20 degrees, outline simple
+    assert _thin_in_sound_regions(surface, 6, sound)[0] == 1
+    assert _thin_in_sound_regions(surface, 7, sound)[0] == 0
+    mesh = surface.with_meshing(7).mesh()
+    assert _edges(mesh.triangles)[1].max() == 2
+    assert np.array_equal(mesh.points[:surface.n_vertices], surface.vertices)
+    needles = pinched(mesh.points, mesh.triangles, mesh.regions)
+    assert needles and not needles & set(np.flatnonzero(sound).tolist())
+
+
+# A reversible surface (the 104th random genome of bench/meshing.py's reversible set) whose repairs
+# were still spreading when meshing 6's four rounds ended.
+_STILL_SPREADING = """Edge0 + ~ Edge2 + Edge0
+Edge1 Edge0 Edge2 -> & Edge2 [ [ + Edge3 ] - Edge3 ] Edge1 ^ Edge3
+Edge3 < Edge1 > Edge2 -> Edge2 [ [ + Edge3 ] - Edge3 ] Edge1 Edge4
+Edge0 -> Edge2 [ [ + Edge4 ] - Edge4 ] Edge1 Edge2
+Edge2 -> & Edge2 [ [ + Edge2 ] - Edge2 ] Edge3 ^ Edge2
+Edge3 -> & ^ Edge0
+Edge4 -> ^ Edge4 & Edge3
+Angle 30
+Sync
+BranchAngle 75
+"""
+
+
+def test_meshing_7_mends_until_nothing_changes(bench_module):
+    """Meshing 6 stops after 4 rounds and leaves 209 triangles under 15 degrees, 6 of them in a region
+    whose corners are all at least 20 degrees; meshing 7's rounds go on until nothing changes."""
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, parse
+
+    surface = grow(parse(_STILL_SPREADING), Environment()).surface
+    sound = bench_module("meshing").region_shapes(surface)[2]
+    assert _thin_in_sound_regions(surface, 6, sound) == (6, 209)
+    assert _thin_in_sound_regions(surface, 7, sound) == (0, 21)
