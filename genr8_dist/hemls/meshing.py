@@ -113,7 +113,10 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
   left in regions with wide corners nearly all lay beside a needle: splitting the side they share
   gave the needle a thin triangle for the one it mended, and was undone; and 4 rounds stopped repairs
   still spreading (one reversible surface: 209 thin triangles, 6 in wide-cornered regions; 21 and 0
-  under 7).
+  under 7). 300 random genomes of each built-in universe: in regions whose outline does not cross
+  itself and whose corners are all at least 20 degrees in their plane and in space, meshing 6 left 87
+  triangles under 15 degrees, meshing 7 leaves 11; of all triangles 0.02-0.57% were under 15
+  degrees, 0.02-0.50% are; CPU per surface -1% to +15% (reversible 1.04 -> 1.20 s).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
