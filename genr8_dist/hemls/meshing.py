@@ -108,15 +108,18 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
   of thin triangles, few of which anything mends).
 - **meshing 7** (new runs, ``MESHING``): meshing 6, but mending counts the thin triangles of regions
   whose corners are all at least 15 degrees before those of regions with a sharper corner (a needle,
-  any mesh of which has a thin triangle there), goes on with its rounds until nothing changes, and
-  repeats a last try while it changes something (``hemls.mending``). Under 6, of the thin triangles
-  left in regions with wide corners nearly all lay beside a needle: splitting the side they share
-  gave the needle a thin triangle for the one it mended, and was undone; and 4 rounds stopped repairs
-  still spreading (one reversible surface: 209 thin triangles, 6 in wide-cornered regions; 21 and 0
-  under 7). 300 random genomes of each built-in universe: in regions whose outline does not cross
-  itself and whose corners are all at least 20 degrees in their plane and in space, meshing 6 left 87
-  triangles under 15 degrees, meshing 7 leaves 11; of all triangles 0.02-0.57% were under 15
-  degrees, 0.02-0.50% are; CPU per surface -1% to +15% (reversible 1.04 -> 1.20 s).
+  any mesh of which has a thin triangle there), goes on with its rounds until nothing changes,
+  repeats a last try while it changes something, and judges a side point straight by its distance
+  from its neighbours' line, so a point beside a very short gap may slide or go (``hemls.mending``).
+  Under 6, of the thin triangles left in regions with wide corners nearly all lay beside a needle:
+  splitting the side they share gave the needle a thin triangle for the one it mended, and was
+  undone; 4 rounds stopped repairs still spreading (one reversible surface: 209 thin triangles, 6
+  in wide-cornered regions; 21 and 0 under 7); and a side point 2.4e-7 from the next, 1e-15 off its
+  side's line by rounding, could neither slide nor go. 300 random genomes of each built-in universe
+  (``bench/meshing.py``): in regions whose outline does not cross itself and whose corners are all at
+  least 20 degrees in their plane and in space, meshing 6 left 87 triangles under 15 degrees,
+  meshing 7 leaves 4 (3 tiles, 1 reversible); of all triangles 0.02-0.57% were under 15 degrees,
+  0.02-0.50% are; CPU per surface up to 17% more than meshing 6 (reversible 1.04 -> 1.21 s).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).

@@ -165,3 +165,37 @@ def test_meshing_7_mends_until_nothing_changes(bench_module):
     sound = bench_module("meshing").region_shapes(surface)[2]
     assert _thin_in_sound_regions(surface, 6, sound) == (6, 209)
     assert _thin_in_sound_regions(surface, 7, sound) == (0, 21)
+
+
+# A tiles surface (the 264th random genome of bench/meshing.py's tiles set): two points on a straight
+# side 2.4e-7 apart, the side's other gaps 1.5e-5, a triangle of 3.3 degrees on the short gap.
+_SHORT_GAP = """Edge2 + Edge3 + ~ Edge2 + ~ Edge0 + ~ Edge1 + Edge0 + Edge4
+Edge1 -> & Edge2 [ [ + Edge0 ] - Edge0 ] Edge1 ^
+Edge4 < Edge0 -> & Edge3 [ [ + + Edge4 ] - - Edge4 ] Edge5 ^
+Edge2 -> Edge4
+Edge3 -> Edge4 [ [ + Edge5 ] - Edge5 ] Edge5
+Edge4 -> Edge5 [ [ [ [ + Edge2 ] + + Edge2 ] - Edge2 ] - - Edge2 ] Edge4
+Edge5 -> Edge1 [ [ [ [ + Edge5 ] + + Edge3 ] - Edge3 ] - - Edge5 ] Edge4
+Angle 30
+BranchAngle 15
+"""
+
+
+def test_meshing_7_lets_a_point_beside_a_very_short_gap_slide_along_its_side(bench_module):
+    """The points sit 1e-15 off their side's line by rounding: a sine of 4e-9 at a point 2.4e-7 from
+    the next, so meshing 6 held them as corners and kept the 3.3-degree triangle (and 3 more thin ones
+    in regions with wide corners); meshing 7 measures the distance from the line against the span
+    and mends them, every region's outline kept."""
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, parse
+
+    surface = grow(parse(_SHORT_GAP), Environment()).surface
+    sound = bench_module("meshing").region_shapes(surface)[2]
+    assert _thin_in_sound_regions(surface, 6, sound)[0] == 4
+    assert _thin_in_sound_regions(surface, 7, sound)[0] == 0
+    six, seven = surface.with_meshing(6).mesh(), surface.with_meshing(7).mesh()
+    for r in np.unique(six.regions).tolist():
+        length6, _ = _outline(six.points, six.triangles[six.regions == r])
+        length7, _ = _outline(seven.points, seven.triangles[seven.regions == r])
+        assert abs(length7 - length6) <= 1e-9 * length6
+    assert _edges(seven.triangles)[1].max() == 2
