@@ -43,7 +43,8 @@ Meshing 7 mends as meshing 6 does, with four changes:
   spreading: one reversible surface kept 209 thin triangles, 6 in regions with wide corners, where
   7 leaves 21 and none);
 - a last try is repeated while it changes something and the triangle stays thin (``_AGAIN``): a
-  wider triangle may open a repair the thinner one did not;
+  wider triangle may open a repair the thinner one did not; and the last tries are run again while
+  a pass changed something, for the thin triangles a repair left beside it;
 - a point is on a straight side when its distance from the line of its neighbours there is within
   ``_LINE`` of their span, not when the sine of its angle is: two side points 2.4e-7 apart on a side
   whose other gaps are 1.5e-5 sat 1e-15 off the line, a sine of 4e-9 from rounding alone, so neither
@@ -609,19 +610,26 @@ def _rounds(mesh: _Mesh, rounds: int) -> None:
 def _last_try(mesh: _Mesh, again: bool = False) -> None:
     """A slower try for each thin triangle of a region with at most ``_FEW`` left (``_mend_one``'s
     ``last``, else ``widen``; ``again``: up to ``_AGAIN`` times while the triangle stays thin and a
-    try changed something, since a wider triangle may open a repair that the thinner one did not)."""
-    left: dict[int, list[int]] = {}
-    for i, a in enumerate(mesh.ang):
-        if a < _BELOW and mesh.tris[i] is not None:
-            left.setdefault(mesh.reg[i], []).append(i)
-    for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
-        for _ in range(_AGAIN if again else 1):
-            if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
-                break
-            changed = _mend_one(mesh, i, last=True) or _mend_one(mesh, i, last=True, widen=True)
-            del mesh.log[:]
-            if not changed:
-                break
+    try changed something, since a wider triangle may open a repair that the thinner one did not, and
+    up to ``_AGAIN`` passes while a pass changed something, since a repair may leave a new thin
+    triangle beside it)."""
+    for _ in range(_AGAIN if again else 1):
+        left: dict[int, list[int]] = {}
+        for i, a in enumerate(mesh.ang):
+            if a < _BELOW and mesh.tris[i] is not None:
+                left.setdefault(mesh.reg[i], []).append(i)
+        changed_any = False
+        for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
+            for _ in range(_AGAIN if again else 1):
+                if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
+                    break
+                changed = _mend_one(mesh, i, last=True) or _mend_one(mesh, i, last=True, widen=True)
+                del mesh.log[:]
+                changed_any = changed_any or changed
+                if not changed:
+                    break
+        if not changed_any:
+            break
 
 
 def _sides(mesh: _Mesh, t: Tri) -> tuple[list[float], list[int]]:
