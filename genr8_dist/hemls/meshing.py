@@ -118,8 +118,8 @@ it is cut is versioned, so that a run regrows its surfaces as it stored them:
   side's line by rounding, could neither slide nor go. 300 random genomes of each built-in universe
   (``bench/meshing.py``): in regions whose outline does not cross itself and whose corners are all at
   least 20 degrees in their plane and in space, meshing 6 left 87 triangles under 15 degrees,
-  meshing 7 leaves 4 (3 tiles, 1 reversible); of all triangles 0.02-0.57% were under 15 degrees,
-  0.02-0.50% are; CPU per surface up to 17% more than meshing 6 (reversible 1.04 -> 1.21 s).
+  meshing 7 leaves 2 (tiles); of all triangles 0.02-0.57% were under 15 degrees, 0.01-0.49% are;
+  CPU per surface up to about 25% more than meshing 6 (reversible 1.04 -> 1.27 s).
 
 Deterministic: the same map gives the same points and triangles bit for bit (Triangle uses exact
 predicates and a fixed seed; everything else is numpy in a fixed order).
