@@ -128,15 +128,16 @@ def triangle_min_angles(vertices: Any, triangles: Any) -> np.ndarray:
     if not len(t):
         return np.zeros(0)
     a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
-
-    def angle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
-        cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
-        return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), 0.0)
-
-    first, second = angle(b - a, c - a), angle(a - b, c - b)
+    first, second = _between(b - a, c - a), _between(a - b, c - b)
     third = np.clip(180.0 - first - second, 0.0, 180.0)
     return np.asarray(np.minimum(np.minimum(first, second), third))
+
+
+def _between(u: np.ndarray, v: np.ndarray, degenerate: float = 0.0) -> np.ndarray:
+    """The angle (degrees) between the rows of ``u`` and ``v``; ``degenerate`` where one is zero."""
+    norms = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+    cos = np.einsum("ij,ij->i", u, v) / np.where(norms > 0, norms, np.inf)
+    return np.where(norms > 0, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))), degenerate)
 
 
 class _Mesh:
@@ -565,16 +566,14 @@ def pinched(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray) -> f
     if not len(triangles):
         return frozenset()
     p = points[triangles]
-    at = np.empty((len(triangles), 3))
-    for k in range(3):
-        u, w = p[:, (k + 1) % 3] - p[:, k], p[:, (k + 2) % 3] - p[:, k]
-        norms = np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1)
-        cosine = np.einsum("ij,ij->i", u, w) / np.where(norms > 0.0, norms, 1.0)
-        at[:, k] = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
-    corner = np.repeat(regions.astype(np.int64), 3) * (int(triangles.max()) + 1) + triangles.reshape(-1)
+    # a corner of a degenerate triangle counts 90 degrees: it never makes a region pinched
+    at = np.stack([_between(p[:, (k + 1) % 3] - p[:, k], p[:, (k + 2) % 3] - p[:, k], 90.0)
+                   for k in range(3)], axis=1)
+    span = int(triangles.max()) + 1
+    corner = np.repeat(regions.astype(np.int64), 3) * span + triangles.reshape(-1)
     keys, index = np.unique(corner, return_inverse=True)
     sums = np.bincount(index.reshape(-1), weights=at.reshape(-1), minlength=len(keys))
-    return frozenset(np.unique(keys[sums < _BELOW] // (int(triangles.max()) + 1)).tolist())
+    return frozenset(np.unique(keys[sums < _BELOW] // span).tolist())
 
 
 _CHECKED = ("flip", "collapse", "relax")   # operations that judge their own triangles first (``check``)
