@@ -433,7 +433,12 @@ class RunConfig:
         MESHING,
         (
             "how surfaces are cut into triangles for export, pictures and the studio "
-            "(`genr8_dist.hemls.meshing`): `7` as 6, but in mending a thin triangle of a region with a "
+            "(`genr8_dist.hemls.meshing`): `8` as 7, but mending's last tries also split the longer "
+            "side of a thin triangle's corner at the shorter one's length (a corner of 29.6 degrees cut "
+            "in two by an edge inside it becomes one triangle) and try two steps, an edge flipped whatever "
+            "that does or a point moved, then what it left mended (a triangle among others just over "
+            "15 degrees, which every single step takes under 15); "
+            "`7` as 6, but in mending a thin triangle of a region with a "
             "corner under 15 degrees (any mesh of it has one: a needle) counts after those of the other "
             "regions, so a side shared with a needle is split to mend its neighbour (under 6 the thin "
             "triangle the split added to the needle undid the repair), mending goes on until nothing "
@@ -466,9 +471,9 @@ class RunConfig:
             "region); `2` the same in the best-fit plane only, sides fixed after one pass, regions "
             "crossing themselves cut as in 1; `1` each region of m vertices cut into m - 2 triangles on "
             "its own vertices. A new run records the meshing it uses in its manifest and regrows with it: "
-            "runs created before meshing was recorded keep 1, runs that recorded 2, 3, 4 or 5 keep it bit "
-            "for bit. Under 2 to 6 `slivers` measures thin regions, not triangles, so its values are the "
-            "same under 2 to 6; under 1 (old runs) it measures the triangles, so their stored values "
+            "runs created before meshing was recorded keep 1, runs that recorded 2 to 7 keep it bit "
+            "for bit. Under 2 to 8 `slivers` measures thin regions, not triangles, so its values are the "
+            "same under 2 to 8; under 1 (old runs) it measures the triangles, so their stored values "
             "stay as they were"
         ),
         read=lambda value, path, config: check_meshing(value, path),

@@ -15,8 +15,8 @@ from genr8_dist.errors import ConfigError
 
 __all__ = ["MESHING", "MESHINGS", "check_meshing"]
 
-MESHINGS = (1, 2, 3, 4, 5, 6, 7)   # every meshing version a surface can be cut with
-MESHING = 7         # what new runs (and surfaces grown outside a run) use
+MESHINGS = (1, 2, 3, 4, 5, 6, 7, 8)   # every meshing version a surface can be cut with
+MESHING = 8         # what new runs (and surfaces grown outside a run) use
 
 
 def check_meshing(value: object, where: str = "meshing") -> int:

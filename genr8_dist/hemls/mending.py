@@ -1,4 +1,4 @@
-"""Mending: the last step of meshings 6 and 7, thin triangles of a whole mesh mended across regions.
+"""Mending: the last step of meshings 6 to 8, thin triangles of a whole mesh mended across regions.
 
 Meshing 5 leaves a few triangles under 15 degrees in regions whose corners are all wider. Where a
 neighbour split a shared side finely next to a corner, the region, keeping its sides whole in its
@@ -50,6 +50,19 @@ Meshing 7 mends as meshing 6 does, with four changes:
   whose other gaps are 1.5e-5 sat 1e-15 off the line, a sine of 4e-9 from rounding alone, so neither
   could slide or be collapsed and the thin triangle on that short gap stayed.
 
+Meshing 8 mends as meshing 7 does, with two more last tries:
+
+- where a thin triangle's smallest angle is at a point of its region's outline whose two sides there
+  differ in length, the longer side is split at the shorter one's length from that point (a side
+  in both regions beside it): a corner of 29.6 degrees cut in two by an edge inside it, 14.6 + 15.0,
+  becomes one triangle, since its inner point lay on the corner's side of the line through its other
+  neighbours and could not be flipped or collapsed away;
+- for each thin triangle left in a free region with at most ``_FEW`` thin ones, *two steps*: an
+  edge round its points flipped whatever that does, or a neighbouring point moved by a compass
+  search, then the triangle and what the first step touched mended as a last try does; the first pair
+  that is better is kept. A triangle of 8.7 degrees among others of 15.0 to 15.6 is mended by no
+  single operation, since each takes one of them under 15 degrees.
+
 Deterministic: a fixed order, Python floats.
 """
 
@@ -62,7 +75,7 @@ from typing import Any, cast
 import numpy as np
 
 _BELOW = 15.0       # degrees: a thin triangle, as the benches and the ``slivers`` criterion count it
-_ROUNDS = {6: 4, 7: 64}   # passes over the thin triangles, at most, by meshing (7: until nothing changes)
+_ROUNDS = {6: 4, 7: 64, 8: 64}   # passes over the thin triangles, at most (from 7: until nothing changes)
 _SPLIT_FLIPS = 24   # flips round a split's new point, at most
 _NEAR = 2           # rings of triangles round the thin ones that take part
 _SEARCH = 6         # halvings of a compass search's step (the last try only)
@@ -147,7 +160,8 @@ class _Mesh:
 
     def __init__(self, points: dict[int, Point], triangles: np.ndarray, regions: np.ndarray,
                  angles: np.ndarray, frozen: set[int], fixed: int, n_points: int,
-                 pinched: frozenset[int] = frozenset(), by_distance: bool = False) -> None:
+                 pinched: frozenset[int] = frozenset(), by_distance: bool = False,
+                 corners: bool = False) -> None:
         self.pts = points
         self.n_points = n_points     # the next new point's id
         self.tris: list[Tri | None] = [(t[0], t[1], t[2]) for t in triangles.tolist()]
@@ -159,6 +173,7 @@ class _Mesh:
         self.ang: list[float] = angles.tolist()
         self.pinched = pinched      # regions with a corner under _BELOW: a thin triangle there weighs less
         self.by_distance = by_distance   # a side point's straightness by its distance from the line (7)
+        self.corners = corners      # a last try also splits the longer side of a thin triangle's corner (8)
         self.judge: Callable[[Seen, Seen], bool] = _better    # whether a change is kept
         self.sides: dict[int, tuple[int, ...] | None] = {}    # ``side``, until a point's star changes
         # (triangle, its old corners, its old smallest angle) or (-1 - point, its old position, 0)
@@ -523,7 +538,8 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     mending removed are dropped, the others keep their order. ``meshing`` 7 mends as 6 does, but a
     thin triangle of a region with a corner under ``_BELOW`` degrees (``pinched``) counts after those
     of free regions, the rounds go on until nothing changes, a last try is repeated while it changes
-    something, and a side point's straightness is judged by its distance from the line (the module
+    something, and a side point's straightness is judged by its distance from the line; meshing 8
+    also splits the longer side of a thin triangle's corner and tries two steps (the module
     docstring)."""
     angles = triangle_min_angles(points, triangles)
     thin = angles < _BELOW
@@ -538,9 +554,12 @@ def mend(points: np.ndarray, triangles: np.ndarray, regions: np.ndarray, fixed: 
     local = np.flatnonzero(near)
     pts = {v: (x, y, z) for v, (x, y, z) in zip(used.tolist(), points[used].tolist(), strict=True)}
     mesh = _Mesh(pts, triangles[local], regions[local], angles[local], frozen, fixed, len(points),
-                 pinched(points, triangles, regions) if meshing >= 7 else frozenset(), meshing >= 7)
+                 pinched(points, triangles, regions) if meshing >= 7 else frozenset(), meshing >= 7,
+                 meshing >= 8)
     _rounds(mesh, _ROUNDS[meshing])
     _last_try(mesh, again=meshing >= 7)
+    if meshing >= 8:
+        _two_steps(mesh)
     alive = [i for i, t in enumerate(mesh.tris) if t is not None]
     slot = np.concatenate([np.flatnonzero(~near),
                            np.where(np.asarray(alive) < len(local), local[np.minimum(alive, len(local) - 1)],
@@ -631,6 +650,52 @@ def _last_try(mesh: _Mesh, again: bool = False) -> None:
             break
 
 
+def _two_steps(mesh: _Mesh) -> None:
+    """For each thin triangle left in a free region with at most ``_FEW`` thin ones (meshing 8): an
+    edge round its points flipped whatever that does, or a point beside it moved by a compass
+    search, then the triangle and what the first step touched mended as a last try does; the first
+    such pair that is better is kept. A triangle among others only just over ``_BELOW`` degrees is
+    mended by no one step: each takes one of them under it."""
+    left: dict[int, list[int]] = {}
+    for i, a in enumerate(mesh.ang):
+        if a < _BELOW and mesh.tris[i] is not None and mesh.reg[i] not in mesh.pinched:
+            left.setdefault(mesh.reg[i], []).append(i)
+    for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
+        if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
+            continue
+        t = mesh.tri(i)
+        firsts: list[tuple[str, tuple[Any, ...]]] = \
+            [("flip", (j, k)) for j in sorted({j for v in t for j in mesh.star[v]}) for k in range(3)]
+        firsts += [("search", (v,)) for v in sorted(set().union(*(mesh.neighbours(v) for v in t)) - set(t))]
+        for name, args in firsts:
+            mark = mesh.mark()
+            if getattr(mesh, name)(*args, **({"check": False} if name == "flip" else {})):
+                for j in [i, *sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0} - {i})]:
+                    if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
+                        _mend_one(mesh, j, deep=j == i, last=True)
+                if mesh.better(mark):
+                    del mesh.log[:]
+                    break
+            mesh.undo(mark)
+
+
+def _corner_split(mesh: _Mesh, i: int, apex: int) -> list[tuple[str, tuple[Any, ...]]]:
+    """Where thin triangle ``i``'s smallest angle is at ``apex``, a point of its region's outline
+    with two sides there of unequal length: the longer side split at the shorter one's length from
+    the apex (meshing 8). A corner just under twice ``_BELOW`` degrees split by an edge inside it
+    needs a point there so that one triangle spans the corner: 14.6 + 15.0 degrees became one of
+    29.6."""
+    region = mesh.reg[i]
+    on = sorted(x for x in mesh.neighbours(apex) if mesh.outline(apex, x)
+                and any(mesh.reg[j] == region for j in mesh.beside(apex, x)))
+    if len(on) != 2:
+        return []
+    (near, _), (far, x) = sorted((math.dist(mesh.pts[apex], mesh.pts[v]), v) for v in on)
+    if far <= near * (1.0 + 1e-6):
+        return []
+    return [("split", (apex, x, near / far))]
+
+
 def _sides(mesh: _Mesh, t: Tri) -> tuple[list[float], list[int]]:
     """Triangle ``t``'s squared side lengths (side k from t[k] to t[k + 1]) and its sides from the
     shortest, which its smallest angle faces."""
@@ -668,6 +733,8 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, last: bool = False, widen:
     if last:
         tries += [("search", (v,)) for v in t]
     short = t[edges[0]], t[(edges[0] + 1) % 3]
+    if last and deep and mesh.corners:
+        tries += _corner_split(mesh, i, t[(edges[0] + 2) % 3])
     if deep:
         k = edges[2]
         tries.append(("split", (t[k], t[(k + 1) % 3], 0.5, circumcentre(*(mesh.pts[v] for v in t)))))

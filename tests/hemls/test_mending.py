@@ -199,3 +199,64 @@ def test_meshing_7_lets_a_point_beside_a_very_short_gap_slide_along_its_side(ben
         length7, _ = _outline(seven.points, seven.triangles[seven.regions == r])
         assert abs(length7 - length6) <= 1e-9 * length6
     assert _edges(seven.triangles)[1].max() == 2
+
+
+# A tiles surface (the 264th random genome of bench/meshing.py's tiles set, as meshing 7 cuts it): a
+# corner of 29.6 degrees at a surface vertex cut in two by an edge to a point inside the region, 14.6
+# and 15.0 degrees; the point lies on the corner's side of the line through its other neighbours, so
+# neither flipping that edge nor collapsing the point is kept.
+_CORNER_CUT_IN_TWO = """Edge1 + ~ Edge0 + ~ Edge0 + ~ Edge0
+Edge0 > Edge0 -> Edge0 Edge1 Edge2
+Edge0 -> Edge1
+Edge1 -> & Edge0 [ [ [ [ + Edge2 ] + + Edge2 ] - Edge2 ] - - Edge2 ] Edge0 ^
+Edge2 -> & Edge0 [ [ + + Edge2 ] - - Edge2 ] Edge2 ^
+Angle 30
+Sync
+BranchAngle 30
+"""
+
+
+def test_meshing_8_splits_the_longer_side_of_a_corner_cut_in_two(bench_module):
+    """Meshing 8's last try splits the corner's longer side (0.0117) at the shorter one's length
+    (0.0061) from the corner: one triangle then spans the corner's 29.6 degrees. The mesh stays
+    watertight, keeps the surface's vertices and every region's outline."""
+    from genr8_dist.environment import Environment
+    from genr8_dist.hemls import grow, parse
+
+    surface = grow(parse(_CORNER_CUT_IN_TWO), Environment()).surface
+    sound = bench_module("meshing").region_shapes(surface)[2]
+    assert _thin_in_sound_regions(surface, 7, sound)[0] == 1
+    assert _thin_in_sound_regions(surface, 8, sound)[0] == 0
+    seven, eight = surface.with_meshing(7).mesh(), surface.with_meshing(8).mesh()
+    for r in np.unique(seven.regions).tolist():
+        length7, _ = _outline(seven.points, seven.triangles[seven.regions == r])
+        length8, _ = _outline(eight.points, eight.triangles[eight.regions == r])
+        assert abs(length8 - length7) <= 1e-9 * length7
+    assert _edges(eight.triangles)[1].max() == 2
+    assert np.array_equal(eight.points[:surface.n_vertices], surface.vertices)
+
+
+def test_meshing_8_mends_a_thin_triangle_boxed_in_by_two_steps():
+    """A triangle of 8.7 degrees among triangles of 15.0 to 15.6 (tests/data/mending-boxed-in.npz):
+    every single operation takes one of them under 15, so meshing 7 keeps it; meshing 8 flips an
+    edge round it first, whatever that does, then mends what that left. No thin triangle is left in
+    a region whose corners are all at least 15 degrees; the patch's outline and surface vertices
+    stay; the same bytes twice."""
+    from genr8_dist.hemls.mending import pinched
+
+    data = np.load(Path(__file__).resolve().parents[1] / "data" / "mending-boxed-in.npz")
+    points, triangles, regions, fixed = data["points"], data["triangles"], data["regions"], int(data["fixed"])
+    free = np.ones(int(regions.max()) + 1, dtype=bool)
+    free[sorted(pinched(points, triangles, regions))] = False
+    for meshing, left in ((7, 1), (8, 0)):
+        out_p, out_t, out_r = mend(points, triangles, regions, fixed, meshing=meshing)
+        under = triangle_min_angles(out_p, out_t) < 15.0
+        assert int(np.sum(under & free[out_r])) == left
+    assert np.array_equal(out_p[:fixed], points[:fixed])
+    assert _edges(out_t)[1].max() == 2
+    for r in np.unique(regions).tolist():
+        before, _ = _outline(points, triangles[regions == r])
+        after, _ = _outline(out_p, out_t[out_r == r])
+        assert abs(after - before) <= 1e-9 * before
+    again = mend(points, triangles, regions, fixed, meshing=8)
+    assert all(np.array_equal(a, b) for a, b in zip(again, (out_p, out_t, out_r), strict=True))
