@@ -394,13 +394,18 @@ class Evaluator:
 
     def measure(self, genome: Sequence[int], evaluation: Evaluation) -> Evaluation:
         """``evaluation`` of ``genome`` measured, when it is a ``Preview``: exactly what ``evaluate``
-        gives, its timings those of the preview plus the measuring; else ``evaluation`` as it is."""
+        gives, its timings those of the preview plus the measuring; else ``evaluation`` as it is. A
+        preview that no development made (an offspring known to copy: ``Island._copy``) and that is
+        developed here counts as an evaluation, as its development would have."""
         if not isinstance(evaluation, Preview):
             return evaluation
         key = _check_genome(genome)
         start = time.perf_counter()
-        self._previews.pop(key, None)
+        counted = self._previews.pop(key, None) is not None   # its preview counted an evaluation
+        growths = self.growths
         judged = self._grown(str(evaluation.text))
+        if not counted and self.growths > growths:   # a copy known without developing it, kept after all
+            self.evaluations += 1
         result = replace(judged, codons_used=evaluation.codons_used, wraps=evaluation.wraps,
                          map_seconds=evaluation.map_seconds,
                          grow_seconds=evaluation.grow_seconds + judged.grow_seconds,

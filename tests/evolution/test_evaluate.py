@@ -203,6 +203,28 @@ def test_evaluating_a_previewed_genome_measures_it(tight):
     assert full.map_seconds == full.grow_seconds == 0.0 and full.score_seconds > 0   # paid now: measuring
 
 
+
+def test_a_copy_known_without_development_counts_as_an_evaluation_when_it_is_developed(tight):
+    """An island knows some offspring copy a parent without developing them (``Island._copy``: a
+    ``Preview`` no evaluator made); one kept after all is developed by ``measure``, and that counts as
+    the evaluation it is, so a bench's evaluations per stored individual miss none."""
+    from dataclasses import replace
+
+    from genr8_dist.evolution import evaluate as ev
+    from genr8_dist.evolution.evaluate import Preview
+
+    ev._DEVELOPED.clear()
+    source = Evaluator(tight)
+    g, known = next((g, p) for g in genomes(40, seed=6)
+                    if isinstance(p := source.preview(g), Preview) and p.capped is None)
+    lazy = Evaluator(tight)
+    ev._DEVELOPED.clear()
+    measured = lazy.measure(g, replace(known))
+    assert (lazy.evaluations, lazy.growths) == (1, 1)
+    assert measured.untimed() == Evaluator(tight).evaluate(g).untimed()
+    assert lazy.measure(g, replace(known)).untimed() == measured.untimed()   # developed now: a cache hit
+    assert (lazy.evaluations, lazy.growths) == (1, 1)
+
 # --- an individual nested too deep is an invalid row, not a crash -------------------------------------
 
 NESTING_UNIVERSE = '''\
