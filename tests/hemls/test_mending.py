@@ -119,6 +119,28 @@ def _thin_in_sound_regions(surface, meshing: int, sound: np.ndarray) -> tuple[in
     return int(np.sum(under & sound[mesh.regions])), int(np.sum(under))
 
 
+def _outlines_kept(before: tuple[np.ndarray, ...], after: tuple[np.ndarray, ...]) -> None:
+    """Every region of ``before`` (points, triangles, regions) has the same outline length in ``after``."""
+    for r in np.unique(before[2]).tolist():
+        old, _ = _outline(before[0], before[1][before[2] == r])
+        new, _ = _outline(after[0], after[1][after[2] == r])
+        assert abs(new - old) <= 1e-9 * old
+
+
+def _mended_in_sound_regions(surface, bench_module, old: int, left: int) -> None:
+    """Meshing ``old`` leaves ``left`` thin triangles in ``surface``'s sound regions (corners at
+    least 20 degrees, outline simple), meshing ``old + 1`` none; the newer mesh is watertight, keeps
+    the surface's vertices and every region's outline length."""
+    sound = bench_module("meshing").region_shapes(surface)[2]
+    assert _thin_in_sound_regions(surface, old, sound)[0] == left
+    assert _thin_in_sound_regions(surface, old + 1, sound)[0] == 0
+    before, after = surface.with_meshing(old).mesh(), surface.with_meshing(old + 1).mesh()
+    _outlines_kept((before.points, before.triangles, before.regions),
+                   (after.points, after.triangles, after.regions))
+    assert _edges(after.triangles)[1].max() == 2
+    assert np.array_equal(after.points[:surface.n_vertices], surface.vertices)
+
+
 def test_meshing_7_splits_a_side_shared_with_a_needle_for_the_wide_cornered_region(bench_module):
     """Meshing 6 leaves one triangle of 8.2 degrees in a region whose corners are all at least 20
     degrees: the repair splits the side it shares with a needle-thin region, which then holds one
@@ -189,16 +211,7 @@ def test_meshing_7_lets_a_point_beside_a_very_short_gap_slide_along_its_side(ben
     from genr8_dist.environment import Environment
     from genr8_dist.hemls import grow, parse
 
-    surface = grow(parse(_SHORT_GAP), Environment()).surface
-    sound = bench_module("meshing").region_shapes(surface)[2]
-    assert _thin_in_sound_regions(surface, 6, sound)[0] == 4
-    assert _thin_in_sound_regions(surface, 7, sound)[0] == 0
-    six, seven = surface.with_meshing(6).mesh(), surface.with_meshing(7).mesh()
-    for r in np.unique(six.regions).tolist():
-        length6, _ = _outline(six.points, six.triangles[six.regions == r])
-        length7, _ = _outline(seven.points, seven.triangles[seven.regions == r])
-        assert abs(length7 - length6) <= 1e-9 * length6
-    assert _edges(seven.triangles)[1].max() == 2
+    _mended_in_sound_regions(grow(parse(_SHORT_GAP), Environment()).surface, bench_module, 6, 4)
 
 
 # A tiles surface (the 264th random genome of bench/meshing.py's tiles set, as meshing 7 cuts it): a
@@ -223,17 +236,7 @@ def test_meshing_8_splits_the_longer_side_of_a_corner_cut_in_two(bench_module):
     from genr8_dist.environment import Environment
     from genr8_dist.hemls import grow, parse
 
-    surface = grow(parse(_CORNER_CUT_IN_TWO), Environment()).surface
-    sound = bench_module("meshing").region_shapes(surface)[2]
-    assert _thin_in_sound_regions(surface, 7, sound)[0] == 1
-    assert _thin_in_sound_regions(surface, 8, sound)[0] == 0
-    seven, eight = surface.with_meshing(7).mesh(), surface.with_meshing(8).mesh()
-    for r in np.unique(seven.regions).tolist():
-        length7, _ = _outline(seven.points, seven.triangles[seven.regions == r])
-        length8, _ = _outline(eight.points, eight.triangles[eight.regions == r])
-        assert abs(length8 - length7) <= 1e-9 * length7
-    assert _edges(eight.triangles)[1].max() == 2
-    assert np.array_equal(eight.points[:surface.n_vertices], surface.vertices)
+    _mended_in_sound_regions(grow(parse(_CORNER_CUT_IN_TWO), Environment()).surface, bench_module, 7, 1)
 
 
 def test_meshing_8_mends_a_thin_triangle_boxed_in_by_two_steps():
@@ -254,9 +257,6 @@ def test_meshing_8_mends_a_thin_triangle_boxed_in_by_two_steps():
         assert int(np.sum(under & free[out_r])) == left
     assert np.array_equal(out_p[:fixed], points[:fixed])
     assert _edges(out_t)[1].max() == 2
-    for r in np.unique(regions).tolist():
-        before, _ = _outline(points, triangles[regions == r])
-        after, _ = _outline(out_p, out_t[out_r == r])
-        assert abs(after - before) <= 1e-9 * before
+    _outlines_kept((points, triangles, regions), (out_p, out_t, out_r))
     again = mend(points, triangles, regions, fixed, meshing=8)
     assert all(np.array_equal(a, b) for a, b in zip(again, (out_p, out_t, out_r), strict=True))
