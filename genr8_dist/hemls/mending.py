@@ -188,9 +188,13 @@ class _Mesh:
     def normal(self, t: Tri) -> Point:
         return normal(self.pts[t[0]], self.pts[t[1]], self.pts[t[2]])
 
+    def free(self, i: int) -> bool:
+        """Whether triangle ``i``'s region is free: no corner under ``_BELOW`` degrees (not ``pinched``)."""
+        return self.reg[i] not in self.pinched
+
     def seen(self, i: int, t: Tri | None = None) -> tuple[float, bool]:
         """Triangle ``i``'s smallest angle (or that of ``t`` in its place) and whether its region is free."""
-        return self.ang[i] if t is None else self.angle(t), self.reg[i] not in self.pinched
+        return self.ang[i] if t is None else self.angle(t), self.free(i)
 
     def _link(self, i: int, t: Tri) -> None:
         for k in range(3):
@@ -247,7 +251,7 @@ class _Mesh:
         for i, old, angle in self.log[mark[0]:]:
             if i >= 0 and i not in before:
                 before[i] = angle if old is not None else None
-        return ([(a, self.reg[i] not in self.pinched) for i, a in before.items() if a is not None],
+        return ([(a, self.free(i)) for i, a in before.items() if a is not None],
                 [self.seen(i) for i in before if self.tris[i] is not None])
 
     def better(self, mark: tuple[int, int, int]) -> bool:
@@ -658,7 +662,7 @@ def _two_steps(mesh: _Mesh) -> None:
     mended by no one step: each takes one of them under it."""
     left: dict[int, list[int]] = {}
     for i, a in enumerate(mesh.ang):
-        if a < _BELOW and mesh.tris[i] is not None and mesh.reg[i] not in mesh.pinched:
+        if a < _BELOW and mesh.tris[i] is not None and mesh.free(i):
             left.setdefault(mesh.reg[i], []).append(i)
     for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
         if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
