@@ -36,9 +36,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``genr8`` with ``argv`` (default: the process arguments); returns the exit status."""
+    """Run ``genr8`` with ``argv`` (default: the process arguments); returns the exit status. Without
+    ``argv`` this is the process's own command, which exits when it returns (``args.exits``: a run's
+    command then leaves SIGINT and SIGTERM ignored once its run returns); called with ``argv`` (in
+    a test, say) it leaves the process's signal handlers as they were."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.exits = argv is None
     handler = getattr(args, "handler", None)
     if handler is None:
         parser.print_help()

@@ -57,7 +57,8 @@ def _options(args: argparse.Namespace) -> RunOptions:
         raise ConfigError(f"--host-cpus {host_cpus}: must be >= 1")
     return RunOptions(address=args.address, num_cpus=args.cpus, quiet=args.quiet, host_cpus=host_cpus,
                       trust_hooks=bool(getattr(args, "trust_hooks", False)),
-                      dashboard=getattr(args, "dashboard", None))
+                      dashboard=getattr(args, "dashboard", None),
+                      exits_after=bool(getattr(args, "exits", False)))
 
 
 def _run(args: argparse.Namespace) -> int:

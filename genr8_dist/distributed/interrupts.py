@@ -22,12 +22,17 @@ SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
 
 
 @contextlib.contextmanager
-def stop_on_signals(stop: StopRequest, announce: Callable[[str], object] | None = None
+def stop_on_signals(stop: StopRequest, announce: Callable[[str], object] | None = None, *,
+                    then: Callable[[int, FrameType | None], object] | int | None = None
                     ) -> Iterator[StopRequest]:
     """While inside, SIGINT and SIGTERM set ``stop`` (the second one raises ``KeyboardInterrupt``).
 
-    ``announce(text)`` is told when a stop is requested. Outside the main thread signals cannot be
-    caught; the context then does nothing and ``stop`` can still be set by the caller.
+    ``announce(text)`` is told when a stop is requested. On the way out the previous handlers come
+    back, or ``then`` where given: a command that exits once its run returns leaves the signals
+    ignored (``signal.SIG_IGN``), so one during the rest of Ray's shutdown or the interpreter's exit
+    changes nothing (the run is complete, or stopped) instead of killing the process. Outside the
+    main thread signals cannot be caught; the context then does nothing and ``stop`` can still be
+    set by the caller.
     """
     if threading.current_thread() is not threading.main_thread():
         yield stop
@@ -49,4 +54,4 @@ def stop_on_signals(stop: StopRequest, announce: Callable[[str], object] | None 
         yield stop
     finally:
         for sig, old in previous.items():
-            signal.signal(sig, old if old is not None else signal.SIG_DFL)
+            signal.signal(sig, then if then is not None else old if old is not None else signal.SIG_DFL)

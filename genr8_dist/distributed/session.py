@@ -56,6 +56,8 @@ class RunOptions:
     trust_hooks: bool = False             # run the Python code a run directory carries (resume)
     dashboard: bool | None = None         # Ray's dashboard: on (a local Ray starts it), off, or None:
                                           # a cluster's URL printed when its head runs one
+    exits_after: bool = False             # the caller exits once the run returns (a command): SIGINT
+                                          # and SIGTERM stay ignored from then on (interrupts)
 
 
 def _host_port(address: str) -> tuple[str, int] | None:
@@ -501,11 +503,15 @@ def _stop_request(given: StopRequest | None) -> StopRequest:
     return given if given is not None else StopRequest()
 
 
-def _signals_stop(stop: StopRequest, out: TextIO) -> AbstractContextManager[StopRequest]:
-    """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``)."""
+def _signals_stop(stop: StopRequest, out: TextIO, options: RunOptions) -> AbstractContextManager[StopRequest]:
+    """SIGINT and SIGTERM set ``stop`` while inside (``interrupts.stop_on_signals``); ignored after it
+    where the caller exits once the run returns (``options.exits_after``)."""
+    import signal
+
     from genr8_dist.distributed.interrupts import stop_on_signals
 
-    return stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True))
+    return stop_on_signals(stop, announce=lambda text: print(text, file=out, flush=True),
+                           then=signal.SIG_IGN if options.exits_after else None)
 
 
 def _report(summary: RunSummary, run_dir: str, out: TextIO) -> None:
@@ -559,7 +565,7 @@ def start_run(config_path: str | os.PathLike[str], run_dir: str, options: RunOpt
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     # signals are caught from the start to the end of the shutdown: one during Ray's start-up stops the
     # run before its first epoch, one after the last commit changes nothing (the run is complete)
-    with _signals_stop(stop, out), \
+    with _signals_stop(stop, out, options), \
             connect_ray(options.address, options.num_cpus, meanwhile=_preload,
                         **_dashboard_options(options, out)), ExitStack() as stack:
         hosts = HostPool(os.path.abspath(run_dir) if _local_path(run_dir) else run_dir,
@@ -615,7 +621,7 @@ def resume_run(run_dir: str, options: RunOptions, *, out: TextIO | None = None, 
         return summary
     hooks["stop"] = stop = _stop_request(hooks.get("stop"))
     _refuse_if_running(store)   # at once, before Ray starts; the lock itself is taken once Ray is up
-    with _signals_stop(stop, out), \
+    with _signals_stop(stop, out, options), \
             connect_ray(options.address, options.num_cpus, meanwhile=_preload,
                         **_dashboard_options(options, out)), hold_run_lock(store):
         own = hosts is None

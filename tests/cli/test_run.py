@@ -49,9 +49,14 @@ def finished_run(tmp_path_factory, ray_local):
     run_dir = root / "run"
     capture = root / "out.txt"
     import contextlib
+    import signal
 
+    handlers = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
     with open(capture, "w") as out, contextlib.redirect_stdout(out):
         status = main(["run", str(config), "--run-dir", str(run_dir)])
+    # called with its arguments, not as the process's command: the signal handlers are left as they
+    # were (the process's own `genr8 run` leaves them ignored once its run returns, since it exits)
+    assert {sig: signal.getsignal(sig) for sig in handlers} == handlers
     return status, run_dir, capture.read_text(), config
 
 

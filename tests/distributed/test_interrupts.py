@@ -28,3 +28,20 @@ def test_second_signal_raises_keyboard_interrupt():
         os.kill(os.getpid(), signal.SIGTERM)
         os.kill(os.getpid(), signal.SIGINT)
     assert stop.reason == "SIGTERM"
+
+
+def test_a_command_leaves_the_signals_ignored_once_its_run_returns():
+    """``genr8 run`` exits once its run returns: a signal during the rest of Ray's shutdown or the
+    interpreter's exit must not kill it (exit -15 after "run complete"), so the handlers left behind
+    ignore SIGINT and SIGTERM (``then``)."""
+    stop = StopRequest()
+    before = {sig: signal.getsignal(sig) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with stop_on_signals(stop, then=signal.SIG_IGN):
+            pass
+        assert all(signal.getsignal(sig) == signal.SIG_IGN for sig in before)
+        os.kill(os.getpid(), signal.SIGTERM)    # ignored: this process lives on
+        assert not stop
+    finally:
+        for sig, handler in before.items():
+            signal.signal(sig, handler)
