@@ -83,7 +83,7 @@ _FEW = 3            # regions with at most this many thin triangles left get a l
 _AGAIN = 4          # last tries of one thin triangle, at most (meshing 7)
 _GIVE_UP = 8        # a region's thin triangles tried in a row in vain before the rest of them are left
 _LINE = 1e-9        # a side point is on the line of its neighbours on its side to this (the sine of the
-                    # angle there; under meshing 7 its distance from the line over their span)
+                    # angle there; from meshing 7 its distance from the line over their span)
 
 Point = tuple[float, float, float]
 Tri = tuple[int, int, int]
@@ -244,6 +244,10 @@ class _Mesh:
 
     def mark(self) -> tuple[int, int, int]:
         return len(self.log), self.n_points, len(self.tris)
+
+    def touched(self, mark: tuple[int, int, int]) -> list[int]:
+        """The triangles changed since ``mark``, in index order."""
+        return sorted({i for i, _, _ in self.log[mark[0]:] if i >= 0})
 
     def changed(self, mark: tuple[int, int, int]) -> tuple[Seen, Seen]:
         """The triangles changed since ``mark`` as the judge sees them (``seen``), before and now."""
@@ -629,6 +633,15 @@ def _rounds(mesh: _Mesh, rounds: int) -> None:
             break
 
 
+def _few_left(mesh: _Mesh, free: bool = False) -> list[int]:
+    """The thin triangles, in index order, of the regions with at most ``_FEW`` left (``free``: of
+    the free regions only): those a last, slower try is spent on."""
+    left: dict[int, list[int]] = {}
+    for i, a in enumerate(mesh.ang):
+        if a < _BELOW and mesh.tris[i] is not None and (not free or mesh.free(i)):
+            left.setdefault(mesh.reg[i], []).append(i)
+    return sorted(i for few in left.values() if len(few) <= _FEW for i in few)
+
 def _last_try(mesh: _Mesh, again: bool = False) -> None:
     """A slower try for each thin triangle of a region with at most ``_FEW`` left (``_mend_one``'s
     ``last``, else ``widen``; ``again``: up to ``_AGAIN`` times while the triangle stays thin and a
@@ -636,12 +649,8 @@ def _last_try(mesh: _Mesh, again: bool = False) -> None:
     up to ``_AGAIN`` passes while a pass changed something, since a repair may leave a new thin
     triangle beside it)."""
     for _ in range(_AGAIN if again else 1):
-        left: dict[int, list[int]] = {}
-        for i, a in enumerate(mesh.ang):
-            if a < _BELOW and mesh.tris[i] is not None:
-                left.setdefault(mesh.reg[i], []).append(i)
         changed_any = False
-        for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
+        for i in _few_left(mesh):
             for _ in range(_AGAIN if again else 1):
                 if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
                     break
@@ -660,11 +669,7 @@ def _two_steps(mesh: _Mesh) -> None:
     search, then the triangle and what the first step touched mended as a last try does; the first
     such pair that is better is kept. A triangle among others only just over ``_BELOW`` degrees is
     mended by no one step: each takes one of them under it."""
-    left: dict[int, list[int]] = {}
-    for i, a in enumerate(mesh.ang):
-        if a < _BELOW and mesh.tris[i] is not None and mesh.free(i):
-            left.setdefault(mesh.reg[i], []).append(i)
-    for i in sorted(i for few in left.values() if len(few) <= _FEW for i in few):
+    for i in _few_left(mesh, free=True):
         if mesh.tris[i] is None or mesh.ang[i] >= _BELOW or _at_corner(mesh, i):
             continue
         t = mesh.tri(i)
@@ -674,7 +679,7 @@ def _two_steps(mesh: _Mesh) -> None:
         for name, args in firsts:
             mark = mesh.mark()
             if getattr(mesh, name)(*args, **({"check": False} if name == "flip" else {})):
-                for j in [i, *sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0} - {i})]:
+                for j in [i, *(j for j in mesh.touched(mark) if j != i)]:
                     if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
                         _mend_one(mesh, j, deep=j == i, last=True)
                 if mesh.better(mark):
@@ -753,7 +758,7 @@ def _mend_one(mesh: _Mesh, i: int, deep: bool = True, last: bool = False, widen:
             return False
         if deep and (last or name == "split"):     # judged once what it touched is mended too
             mesh.judge = _wider if widen else _better
-            for j in sorted({j for j, _, _ in mesh.log[mark[0]:] if j >= 0}):
+            for j in mesh.touched(mark):
                 if mesh.tris[j] is not None and mesh.ang[j] < _BELOW:
                     _mend_one(mesh, j, deep=False, last=widen)
             mesh.judge = _better
