@@ -59,12 +59,13 @@ class TablesPhenotype(Phenotype):
                          {"commands": table.commands, "modules": table.modules})
 
     def copies(self, text: str, other: str, reads: str | None, config: Any) -> bool:
-        """Whether ``text`` rewrites to the word ``other`` rewrites to, in as many steps and as capped:
-        the turtle then builds the same table from the same commands. Rewriting costs about half of
-        a development; most of the paper's mutations change a production the derivation never
-        reaches with the parameters it passes, or a condition that never decides."""
-        mine = _derived(text)
-        return mine is not None and mine == _derived(other)
+        """Whether ``text`` builds the table ``other`` builds, told from their final words without
+        running the turtle (``voxels.same_cells_form``; a word the command cap cuts, only by the word
+        itself). It costs about a third of a development; most of the paper's mutations change a
+        production the derivation never reaches with the parameters it passes, a condition that
+        never decides, or a turn that no move follows."""
+        mine = _built(text)
+        return mine is not None and mine == _built(other)
 
     def trivial(self, evaluation: Any) -> bool:
         """A structure the paper's fitness scores 0 (flat, or nothing below its top layer)."""
@@ -116,12 +117,14 @@ class TablesPhenotype(Phenotype):
 
 
 @lru_cache(maxsize=4096)
-def _derived(text: str) -> tuple[Any, ...] | None:
-    """``voxels.derive`` of ``text`` as development rewrites it (``None``: it does not parse)."""
+def _built(text: str) -> tuple[Any, ...] | None:
+    """What ``text``'s turtle builds, as far as its final word says (``None``: it does not parse)."""
     try:
-        return voxels.derive(voxels.parse(text))
+        word = voxels.derive(voxels.parse(text))[0]
     except Exception:   # development reports it, as data
         return None
+    form = voxels.same_cells_form(word)
+    return ("word", word) if form is None else ("form", form)
 
 
 PHENOTYPE = TablesPhenotype()

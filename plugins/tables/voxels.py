@@ -561,6 +561,95 @@ class _Turtle:
 _ONES = [b"\x01" * k for k in range(GRID + 1)]
 
 
+_STILL = tuple(range(len(_FRAMES)))   # the turn that leaves every frame as it is
+
+
+def same_cells_form(word: tuple) -> tuple | None:
+    """A form of ``word`` equal for words whose turtle fills the same cells (``None`` when the
+    command cap cuts it: then only the word itself says). Moves become signed whole steps, runs of
+    moves one way merge (a move stops at the grid's edge, so ``f(3) f(2)`` fills what ``f(5)`` does),
+    runs of turns one turn (a map over the 24 frames), and what cannot fill a cell goes: moves of 0,
+    blocks repeated under once or holding no command, brackets that only turn, the turns before a
+    bracket closes or the word ends. A block run once is its body; one that only turns, one turn."""
+    if _commands(word) > MAX_COMMANDS:
+        return None
+    form = _form(word)
+    while form and form[-1][0] == "r":
+        form = form[:-1]
+    return form
+
+
+def _form(items: tuple) -> tuple:
+    out: list = []
+    for item in items:
+        kind = item[0]
+        if kind == "c":
+            symbol = item[1]
+            if symbol in ("f", "b"):
+                _put_move(out, int(item[2]) if symbol == "f" else -int(item[2]))
+            else:
+                _put_turn(out, tuple(_TURNS[symbol][int(item[2]) % 4]))
+        elif kind == "[":
+            inner = _form(item[1])
+            while inner and inner[-1][0] == "r":
+                inner = inner[:-1]
+            if inner:
+                out.append(("[", inner))
+        elif kind == "{":
+            times, body = max(0, int(item[1])), _form(item[2])
+            if times == 0 or not body:
+                continue
+            if times == 1:
+                for piece in body:
+                    _put(out, piece)
+            elif len(body) == 1 and body[0][0] == "r":
+                turn = body[0][1]
+                for _ in range((times - 1) % 24):   # every turn of the 24 frames repeats within 24
+                    turn = tuple(body[0][1][f] for f in turn)
+                _put_turn(out, turn)
+            else:
+                out.append(("{", times, body))
+    return tuple(out)
+
+
+def _put(out: list, piece: tuple) -> None:
+    if piece[0] == "m":
+        _put_move(out, piece[1])
+    elif piece[0] == "r":
+        _put_turn(out, piece[1])
+    else:
+        out.append(piece)
+
+
+def _put_move(out: list, steps: int) -> None:
+    if steps == 0:
+        return
+    if out and out[-1][0] == "m" and (out[-1][1] > 0) == (steps > 0):
+        steps += out.pop()[1]
+    out.append(("m", steps))
+
+
+def _put_turn(out: list, turn: tuple) -> None:
+    if out and out[-1][0] == "r":
+        first = out.pop()[1]
+        turn = tuple(turn[f] for f in first)
+    if turn != _STILL:
+        out.append(("r", turn))
+
+
+def _commands(items: tuple) -> int:
+    """The commands the turtle would run over ``items``, blocks replicated, with no cap."""
+    n = 0
+    for item in items:
+        if item[0] == "c":
+            n += 1
+        elif item[0] == "[":
+            n += _commands(item[1])
+        elif item[0] == "{":
+            n += max(0, int(item[1])) * _commands(item[2])
+    return n
+
+
 def _has_command(items: tuple) -> bool:
     """Whether running ``items`` runs at least one command (``{ }(0)`` and calls run none)."""
     for item in items:
@@ -575,24 +664,7 @@ def build(word: tuple, max_commands: int = MAX_COMMANDS) -> tuple[np.ndarray, in
     """Run the turtle over ``word`` (calls are skipped): ``(voxels, commands run, capped)``."""
     turtle = _Turtle(max_commands)
     turtle.run_items(word)
-    return turtle.grid, turtle.run, turtle.left <= 0 and _has_more(word, turtle.run)
-
-
-def _has_more(word: tuple, done: int) -> bool:
-    """Whether ``word`` holds more than ``done`` commands once blocks are replicated."""
-    def count(items: tuple) -> int:
-        n = 0
-        for item in items:
-            if item[0] == "c":
-                n += 1
-            elif item[0] == "[":
-                n += count(item[1])
-            elif item[0] == "{":
-                n += max(0, int(item[1])) * count(item[2])
-            if n > done:
-                return n
-        return n
-    return count(word) > done
+    return turtle.grid, turtle.run, turtle.left <= 0 and _commands(word) > turtle.run
 
 
 def develop(text: str, *, max_modules: int = MAX_MODULES, max_commands: int = MAX_COMMANDS) -> Table:

@@ -370,3 +370,100 @@ def test_an_offspring_that_rewrites_to_its_parents_word_is_not_developed(monkeyp
     building = Island(config, 0)
     assert rows(building) == known
     assert knowing.evaluator.evaluations < building.evaluator.evaluations
+
+
+# Changes that fill no other cell: a turn by whole turns, a move split in two one way, a block
+# run once, a bracket that only turns, a block that only turns by whole turns, one never run, and
+# a turn before the word ends.
+_NEUTRAL = (
+    lambda part: f"{part} ^ ( 4 )",
+    lambda part: f"< ( 0 ) {part}",
+    lambda part: f"{{ {part} }} ( 1 )",
+    lambda part: f"[ v ( 1 ) / ( 3 ) ] {part}",
+    lambda part: f"{part} {{ > ( 3 ) }} ( 4 )",
+    lambda part: f"{{ f ( 9 ) }} ( 0 ) {part}",
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.sampled_from([*V.COMMANDS, "[", "]", "{"]), st.integers(-7, 45)),
+                min_size=1, max_size=40),
+       st.lists(st.integers(0, len(_NEUTRAL) + 1), min_size=40, max_size=40))
+def test_a_text_changed_where_no_cell_changes_is_known_to_copy_and_builds_the_same_table(commands, changes):
+    """``copies`` sees through what fills no cell (``voxels.same_cells_form``): each text below,
+    changed by ``_NEUTRAL`` or by splitting its moves, is known to copy the text it was changed
+    from, and both build the same table (and a plain reading of table 1 agrees)."""
+    phenotype = TABLES.hooks.PHENOTYPE
+    changed = []
+    for (symbol, n), change in zip(commands, changes, strict=False):
+        if symbol in "[]{" or change == len(_NEUTRAL) + 1:
+            changed.append((symbol, n))
+        elif change == len(_NEUTRAL) and symbol == "f" and n >= 2:
+            changed += [("f", 1), ("f", n - 1)]
+        elif change < len(_NEUTRAL):
+            changed.append(("raw", _NEUTRAL[change](f"{symbol} ( {n} )")))
+        else:
+            changed.append((symbol, n))
+
+    def text(items) -> str:   # as _nested writes a successor, with the changed parts as they are
+        opened, out = [], []
+        for symbol, n in items:
+            if symbol == "raw":
+                out.append(n)
+            elif symbol in "[{":
+                opened.append(symbol)
+                out.append(symbol)
+            elif symbol == "]":
+                if opened:
+                    out.append("]" if opened.pop() == "[" else f"}} ( {n % 4} )")
+            else:
+                out.append(f"{symbol} ( {n} )")
+        out += ["]" if symbol == "[" else "} ( 3 )" for symbol in reversed(opened)]
+        return f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {' '.join(out)} / ( 1 )\n"
+
+    original, neutral = text(commands), text(changed)
+    assert phenotype.copies(neutral, original, None, None)
+    table = V.develop(neutral)
+    assert np.array_equal(table.voxels, V.develop(original).voxels)
+    assert np.array_equal(table.voxels, _reference_turtle(V.derive(V.parse(neutral))[0])[0])
+
+
+def test_texts_known_to_copy_build_the_same_table_along_the_papers_mutations():
+    """Never two tables called alike: along chains of the paper's mutations from random systems,
+    every pair of texts ``copies`` calls alike builds the same table, and it calls many alike."""
+    from collections import defaultdict
+
+    phenotype, variation = TABLES.hooks.PHENOTYPE, TABLES.hooks.VARIATION
+    rng = np.random.default_rng(11)
+    texts = []
+    for _ in range(40):
+        chain = [variation.founder(rng)]
+        for _ in range(15):
+            chain.append(variation.mutate(rng, chain[int(rng.integers(len(chain)))]))
+        texts += chain
+    by_form = defaultdict(list)
+    for t in texts:
+        by_form[V.same_cells_form(V.derive(V.parse(t))[0])].append(t)
+    alike = [group for form, group in by_form.items() if form is not None and len(group) > 1]
+    assert sum(len(group) for group in alike) > len(texts) // 2
+    for group in alike:
+        assert all(phenotype.copies(t, group[0], None, None) for t in group)
+        assert len({V.develop(t).digest() for t in group}) == 1
+
+
+def test_short_command_strings_share_a_form_only_when_they_fill_the_same_cells():
+    """Short strings over few commands collide often: 4,000 of them, grouped by form, each group
+    one table (a form that merged a move and its way back, or dropped a turn some move follows,
+    would put two tables in one group)."""
+    from collections import defaultdict
+
+    rng = np.random.default_rng(3)
+    tokens = ["f", "b", "^", "<", "/", "[", "]", "{"]
+    groups = defaultdict(set)
+    for _ in range(4000):
+        picked = [(tokens[i], int(n)) for i, n in zip(rng.integers(0, len(tokens), rng.integers(1, 7)),
+                                                       rng.integers(-2, 4, 7), strict=False)]
+        text = f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {_nested(picked, abs, 2)}\n"
+        form = V.same_cells_form(V.derive(V.parse(text))[0])
+        groups[form].add(V.develop(text).digest())
+    assert len(groups) < 2000 and all(len(tables) == 1 for tables in groups.values())
