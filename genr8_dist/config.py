@@ -192,6 +192,17 @@ class EASettings:
             "(0, or `unique_retries = 0`: never); `IslandStats.redrawn` counts them"
         ),
         minimum=0, maximum=1000)
+    repeat_growths: int = setting(
+        0, (
+            "the developments an offspring may spend on repeats: once this many of its tries, "
+            "developed, repeated a parent's or an earlier member's phenotype, the last one is kept "
+            "(a new text with a known phenotype: the neutral drift a generative encoding searches "
+            "by); tries known to repeat before development (`Phenotype.copies`, the screen's key) "
+            "spend none and are varied again as `unique_retries` says (0: no bound; "
+            "examples/tables.toml sets 1 and `unique_redraws = 0`: 1.11 evaluations per stored "
+            "table, against 2.6)"
+        ),
+        minimum=0, maximum=1000)
     screen: int = setting(
         SCREEN, (
             "what a text must show before growth for a founder or offspring to be drawn or varied "

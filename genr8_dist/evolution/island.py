@@ -55,11 +55,15 @@ Whether a founder is drawn again or an offspring varied again is decided by what
 only the individuals kept are scored (measuring may still fail one, which is then varied again).
 An offspring whose text the phenotype shows to develop into the phenotype of a valid parent or
 an earlier member of its generation (``Phenotype.copies``: a surface's text that differs from the
-other's only where that one's growth read nothing, ``hemls.splitting.same_growth``; a table's that
-rewrites to the same word) is not developed at all: what its development would find is that one's
-(digest, sizes, steps, capped), so it is varied again as a repeated phenotype is, and the rows are
-the ones the island builds when it develops such copies (``IslandStats.copied``; no evaluation
-spent).
+other's only where that one's growth read nothing, ``hemls.splitting.same_growth``; a table's whose
+final word fills the same cells) is not developed at all: its development would find that one's
+phenotype (its digest, and that one's sizes, steps and capped stand in: it is developed only if it
+is kept), so it is varied again as a repeated phenotype is, and the rows are the ones the island
+builds when it develops such copies (``IslandStats.copied``; no evaluation spent).
+Under ``ea.repeat_growths`` = n an offspring whose n-th development repeats a phenotype is kept as
+it is (``IslandStats.kept_repeat``): where most variations repeat a phenotype in ways the text
+cannot show (the paper's tables: moves that retrace), varying it again would cost development
+after development; tries known to copy still cost none.
 ``IslandStats`` counts what each of these saved and what it cost.
 
 A designer's hand-set fitness (``hand``) replaces the computed one of a marked individual for the
@@ -83,7 +87,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Container, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 from itertools import islice
 from typing import TYPE_CHECKING, Any
@@ -142,6 +146,7 @@ class IslandStats:
     screened: int = 0           # drawn or varied again from the text alone, never developed
     copied: int = 0             # offspring known to repeat a parent's or member's phenotype, never developed
     kept_trivial: int = 0       # offspring kept trivial after _TRIVIAL_RETRIES trivial re-variations
+    kept_repeat: int = 0        # offspring kept repeating after ea.repeat_growths developed repeats
 
 
 @dataclass(frozen=True, slots=True)
@@ -314,25 +319,14 @@ class Island:
     def _finish(self, generation: int, population: list[Individual], before: tuple[int, int, int]
                 ) -> list[Individual]:
         ev = self.evaluator
-        counted = self.stats
-        self.stats = IslandStats(
+        self.stats = replace(
+            self.stats,   # the tallies the pipeline counted as it went, with the generation's totals
             generation=generation,
             individuals=len(population),
             evaluated=ev.evaluations - before[0],
             grown=ev.growths - before[1],
             cache_hits=ev.cache_hits - before[2],
             invalid=sum(1 for ind in population if not ind.valid),
-            founders_redrawn=counted.founders_redrawn,
-            mates_redrawn=counted.mates_redrawn,
-            revaried_text=counted.revaried_text,
-            revaried_phenotype=counted.revaried_phenotype,
-            revaried_invalid=counted.revaried_invalid,
-            redrawn=counted.redrawn,
-            unresolved=counted.unresolved,
-            revaried_trivial=counted.revaried_trivial,
-            screened=counted.screened,
-            copied=counted.copied,
-            kept_trivial=counted.kept_trivial,
         )
         for hook in self.hooks:
             hook(population)
@@ -646,12 +640,22 @@ class Island:
             return not ev.valid or ev.phenotype_digest in seen or ev.phenotype_digest in birth.avoid \
                 or trivial(ev)
 
+        def developed_repeat(ev: Evaluation) -> bool:   # decided by the texts, wherever ev was made
+            return ev.valid and not trivial(ev) and self._copy(birth.kin, genome) is None \
+                and self._copy(known, genome) is None
+
         rng = None
         trivials = 0   # trivial growths of this offspring so far
+        repeats, limit = 0, self.config.ea.repeat_growths   # its developments that repeated a phenotype
         for _ in range(self.config.ea.unique_retries):
             evaluation = settled(self.evaluator, genome, evaluation, wasted)
             if not wasted(evaluation):
                 return genome, evaluation, origin
+            if limit and developed_repeat(evaluation):
+                repeats += 1
+                if repeats >= limit:   # its neighbourhood mostly repeats: more growths are wasted
+                    self.stats.kept_repeat += 1
+                    return genome, self.evaluator.measure(genome, evaluation), origin
             if trivial(evaluation) and evaluation.phenotype_digest not in seen \
                     and evaluation.phenotype_digest not in birth.avoid:
                 trivials += 1

@@ -13,7 +13,7 @@ import pytest
 
 from genr8_dist.config import RunConfig
 from genr8_dist.errors import ConfigError
-from genr8_dist.evolution import ORIGINS, Individual, Island
+from genr8_dist.evolution import ORIGINS, Individual, Island, IslandStats
 
 TIMINGS = {"eval_seconds", "map_seconds", "grow_seconds", "score_seconds"}
 
@@ -667,3 +667,34 @@ def test_an_offspring_known_to_copy_its_parent_is_not_grown_and_the_rows_stay_th
     assert rows == [(i.genome, i.text, repr(i.fitness), i.phenotype_digest, i.origin, i.parents)
                     for gen in growing.run() for i in gen]
     assert copied[0] < growing.evaluator.evaluations and copied[1] < growing.evaluator.growths
+
+
+def test_repeat_growths_bounds_the_developments_an_offspring_spends_on_repeats(monkeypatch):
+    """Under ``ea.repeat_growths = 1`` an offspring whose development repeats a parent's or an
+    earlier member's table is kept, not varied again: no offspring costs more than one development
+    unless it grew trivial (varied again from its parent), while tries known to copy before
+    development are still varied again for free. Without the bound the same run spends more."""
+    from collections import OrderedDict
+
+    from genr8_dist.config import load_config
+    from genr8_dist.evolution import evaluate
+
+    tables = Path(__file__).resolve().parents[2] / "examples" / "tables.toml"
+    config = load_config(tables).replace(
+        islands={"count": 1, "migrants": 0},
+        ea={"generations": 20, "repeat_growths": 1, "unique_redraws": 0})
+
+    def run(config: RunConfig) -> tuple[Island, list[list[Individual]], list[IslandStats]]:
+        monkeypatch.setattr(evaluate, "_DEVELOPED", OrderedDict())   # no growth shared between runs
+        island = Island(config, 0)
+        stats: list[IslandStats] = []
+        island.hooks.append(lambda population: stats.append(dataclasses.replace(island.stats)))
+        return island, island.run(), stats
+
+    _, hist, stats = run(config)
+    for gen, counted in zip(hist[1:], stats[1:], strict=True):
+        bred = sum(ind.origin in _OFFSPRING_ORIGINS for ind in gen)
+        assert counted.evaluated <= bred + counted.revaried_trivial
+    assert sum(s.kept_repeat for s in stats) > 0 and sum(s.copied for s in stats) > 0
+    _, _, unbounded = run(config.replace(ea={"repeat_growths": 0}))
+    assert sum(s.evaluated for s in stats[1:]) < 0.7 * sum(s.evaluated for s in unbounded[1:])
