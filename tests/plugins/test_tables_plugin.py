@@ -219,10 +219,12 @@ def _hull_of_each_layer(voxels: np.ndarray) -> float:
 def _nested(commands, repeats, last: int) -> str:
     """A successor of ``commands``: ``[`` and ``{`` open, ``]`` closes what is open (a bracket with
     ``]``, a block with ``} ( repeats(n) )``), what is left open closed at the end (blocks repeated
-    ``last`` times)."""
+    ``last`` times); a ``("raw", text)`` pair is put in as it is."""
     opened, parts = [], []
     for symbol, n in commands:
-        if symbol in "[{":
+        if symbol == "raw":
+            parts.append(n)
+        elif symbol in "[{":
             opened.append(symbol)
             parts.append(symbol)
         elif symbol == "]":
@@ -396,30 +398,16 @@ def test_a_text_changed_where_no_cell_changes_is_known_to_copy_and_builds_the_sa
     phenotype = TABLES.hooks.PHENOTYPE
     changed = []
     for (symbol, n), change in zip(commands, changes, strict=False):
-        if symbol in "[]{" or change == len(_NEUTRAL) + 1:
-            changed.append((symbol, n))
-        elif change == len(_NEUTRAL) and symbol == "f" and n >= 2:
-            changed += [("f", 1), ("f", n - 1)]
-        elif change < len(_NEUTRAL):
+        if symbol not in "[]{" and change < len(_NEUTRAL):
             changed.append(("raw", _NEUTRAL[change](f"{symbol} ( {n} )")))
+        elif symbol == "f" and n >= 2 and change == len(_NEUTRAL):
+            changed += [("f", 1), ("f", n - 1)]
         else:
             changed.append((symbol, n))
 
-    def text(items) -> str:   # as _nested writes a successor, with the changed parts as they are
-        opened, out = [], []
-        for symbol, n in items:
-            if symbol == "raw":
-                out.append(n)
-            elif symbol in "[{":
-                opened.append(symbol)
-                out.append(symbol)
-            elif symbol == "]":
-                if opened:
-                    out.append("]" if opened.pop() == "[" else f"}} ( {n % 4} )")
-            else:
-                out.append(f"{symbol} ( {n} )")
-        out += ["]" if symbol == "[" else "} ( 3 )" for symbol in reversed(opened)]
-        return f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {' '.join(out)} / ( 1 )\n"
+    def text(items) -> str:
+        body = _nested(items, lambda n: n % 4, 3)
+        return f"P0 ( 1 , 1 ) iterations 1\nP0 ( n0 , n1 ) : n0 > 0 -> f ( 1 ) {body} / ( 1 )\n"
 
     original, neutral = text(commands), text(changed)
     assert phenotype.copies(neutral, original, None, None)
