@@ -215,6 +215,21 @@ def _form_features(store: Any, table: pa.Table) -> np.ndarray:
     return np.hstack(blocks)
 
 
+def told_apart_by(run: RunLike) -> str:
+    """In words, what ``clusters`` tells the run's kinds of form apart by: a surface's outline, height
+    field and curvature; a plugin phenotype's own ``looks``; else its criteria and sizes."""
+    from genr8_dist.history._run import phenotype_for
+    from genr8_dist.phenotype import Phenotype, SurfacePhenotype
+
+    store = open_run(run)
+    phenotype = phenotype_for(store, _newest_config(store))
+    if isinstance(phenotype, SurfacePhenotype):
+        return "outline, height field and curvature"
+    if type(phenotype).looks is not Phenotype.looks:
+        return f"what a {phenotype.noun} looks like"
+    return "criteria and sizes"
+
+
 def clusters(run: RunLike, k: int = 12, *, generation: int | None = None,
              island: int | None = None) -> pa.Table:
     """``k`` kinds of form among the run's best ``10 k`` distinct phenotypes (of ``generation``,

@@ -471,7 +471,7 @@ def _regrown_tiles(store: RunStore, table: pa.Table, label: Any) -> list[tuple[s
 def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = None,
                        island: int | None = None) -> tuple[Any, str]:
     """A contact sheet of one representative per kind of form (``history._search.clusters``)."""
-    from genr8_dist.history._search import clusters
+    from genr8_dist.history._search import clusters, told_apart_by
 
     store = open_run(run)
     table = clusters(store, k, generation=generation, island=island)
@@ -479,7 +479,7 @@ def clusters_figure_of(run: RunLike, k: int = 12, *, generation: int | None = No
                                                    f"{r['id']}  {r['fitness'] + 0.0:.3g}")
     where = "the whole run" if generation is None else f"generation {generation}"
     title = (f"{getattr(store, 'run_id', run_label(store))}: {len(tiles)} kinds of form in {where} "
-             "(told apart by outline, height field and curvature; designs alike in brackets)")
+             f"(told apart by {told_apart_by(store)}; designs alike in brackets)")
     return gallery_figure(tiles, title=title), f"{len(tiles)} clusters of {where}"
 
 

@@ -146,6 +146,7 @@ def test_the_archive_holds_the_best_surface_of_each_cell(archive_run):
 def test_the_commands_list_the_front_and_draw_clusters_and_the_archive(pareto_run, archive_run, tmp_path,
                                                                         capsys):
     from genr8_dist.cli import main
+    from genr8_dist.history._search import told_apart_by
 
     assert main(["top", str(pareto_run[0].path), "--pareto"]) == 0
     out = capsys.readouterr().out
@@ -153,6 +154,7 @@ def test_the_commands_list_the_front_and_draw_clusters_and_the_archive(pareto_ru
     png = tmp_path / "kinds.png"
     assert main(["gallery", str(pareto_run[0].path), "--clusters", "3", "-o", str(png)]) == 0
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert told_apart_by(pareto_run[0]) == "outline, height field and curvature"   # the sheet's title
     grid = tmp_path / "map.png"
     assert main(["gallery", str(archive_run[0].path), "--archive", "-o", str(grid)]) == 0
     assert grid.stat().st_size > 1000

@@ -338,6 +338,10 @@ def test_a_tables_run_stores_its_phenotypes_criteria_and_sizes_under_generic_nam
     fig, info = history.pictures.gallery_figure_of(store, k=1)
     assert info == "1 tables of generation 0" and len(fig.axes[0].collections) > 0   # drawn voxels
     plt.close(fig)
+    fig, info = history.pictures.clusters_figure_of(store, k=1)   # no looks: told apart by the numbers
+    assert info == "1 clusters of the whole run"
+    assert "(told apart by criteria and sizes;" in fig.texts[0].get_text()
+    plt.close(fig)
     with pytest.raises(history.HistoryError, match=r"use one of \.obj, \.ply, \.stl, \.glb"):
         history.export(regrown, tmp_path / "t.3dm")
 
