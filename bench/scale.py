@@ -4,6 +4,8 @@
         --interval 5 --json out.json
     python bench/scale.py --islands 4 --population 50 --cpus 16 --generations 10
     python bench/scale.py --islands 64 --population 20 --cpus 32 --nodes 4 --generations 5 --scale 0.5
+    python bench/scale.py --real examples/quick.toml --islands 4 --population 50 --generations 8 \
+        --sweep 1,2,4,8,16            # real evaluation, on a machine with that many cores
 
 A run of the ``waits`` universe (bench/plugins/waits): developing an individual waits a time drawn from
 the measured per-individual evaluation time distribution of the default universe (heavy tail included,
@@ -41,6 +43,15 @@ adds where the CPUs' time went (``timeline_figures``): ``waited_s``, ``overshoot
 
 The bench's own instruments (pickling what the driver receives to count its bytes) are left out of the
 driver's time.
+
+``--real CONFIG`` evolves a run configuration whose universe really grows and scores (its islands,
+population, generations and migration interval replaced where the options give them): no waits, so
+it measures real scaling and needs as many cores as ``--cpus``. ``ideal_s`` is then the evaluation
+seconds of the stored individuals (as measured where they ran) over the CPUs, and ``critical_s`` is
+built from those seconds. ``--sweep 1,2,4,8,16`` runs the same configuration at each of those CPU
+counts in turn (a fresh Ray each time) and ends with a table: wall time, ``speedup`` over the first
+count and ``scaling_efficiency`` (speedup over the CPUs' ratio: what the added CPUs gave), with the
+figures above; ``--json`` then writes ``{"sweep": [...]}``.
 """
 
 from __future__ import annotations
@@ -78,8 +89,20 @@ def _percentile(values: list[float], q: float) -> float:
     return ordered[k]
 
 
+WAITS_DEFAULTS = {"islands": 16, "population": 50, "generations": 10, "interval": 5, "seed": 1}
+
+
 def config_toml(args: argparse.Namespace) -> str:
-    """The run configuration of the simulated run."""
+    """The run configuration of the run: ``--real``'s with the options' changes, else the waits'."""
+    if args.real:
+        from genr8_dist.config import load_config
+
+        config = load_config(args.real)
+        islands = {"count": args.islands, "migration_interval": args.interval}
+        ea = {"population": args.population, "generations": args.generations}
+        return config.replace(seed=config.seed if args.seed is None else args.seed,
+                              islands={k: v for k, v in islands.items() if v is not None},
+                              ea={k: v for k, v in ea.items() if v is not None}).to_toml()
     return f"""
 universe = "waits"
 seed = {args.seed}
@@ -278,15 +301,18 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         cluster.shutdown()
     load_after = os.getloadavg()
     store = RunStore.open(str(run_dir))
-    table = store.individuals(columns=["island", "generation", "crit_wait", "grow_seconds"])
-    waits = table.column("crit_wait").to_pylist()
+    # what each stored evaluation cost: its wait, or under --real the seconds it took where it ran
+    seconds = "eval_seconds" if args.real else "crit_wait"
+    table = store.individuals(columns=["island", "generation", seconds, "grow_seconds"])
+    scale = 1.0 if args.real else args.scale
+    waits = table.column(seconds).to_pylist()
     grown = table.column("grow_seconds").to_pylist()
-    waited = sum(w for w, g in zip(waits, grown, strict=True) if w is not None and g > 0) * args.scale
+    waited = sum(w for w, g in zip(waits, grown, strict=True) if w is not None and g > 0) * scale
     longest: dict[tuple[int, int], float] = {}   # (island, generation) -> its longest evaluation
     for i, g, w, grew in zip(table.column("island").to_pylist(), table.column("generation").to_pylist(),
                              waits, grown, strict=True):
         if w is not None and grew > 0:
-            longest[(i, g)] = max(longest.get((i, g), 0.0), w * args.scale)
+            longest[(i, g)] = max(longest.get((i, g), 0.0), w * scale)
     chains: dict[int, float] = {}
     for (i, _), w in longest.items():
         chains[i] = chains.get(i, 0.0) + w
@@ -301,8 +327,8 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
     engine_cpu = host_seconds + max(0.0, driver_cpu - instruments.overhead)
     return {
-        "islands": args.islands, "population": args.population, "cpus": args.cpus, "nodes": args.nodes,
-        "generations": args.generations, "interval": args.interval, "scale": args.scale,
+        "real": args.real or "", "islands": args.islands, "population": args.population, "cpus": args.cpus,
+        "nodes": args.nodes, "generations": args.generations, "interval": args.interval, "scale": args.scale,
         "host_cpus": args.host_cpus,
         "hosts": summary.hosts, "rows": rows, "epochs": len(commits),
         "rows_per_epoch": rows / len(commits) if commits else 0.0,
@@ -334,19 +360,23 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--islands", type=int, default=16)
-    parser.add_argument("--population", type=int, default=50)
+    parser.add_argument("--islands", type=int, default=None, help="islands (waits: 16)")
+    parser.add_argument("--population", type=int, default=None, help="per island (waits: 50)")
     parser.add_argument("--cpus", type=int, default=16, help="Ray's logical CPUs, all nodes together")
     parser.add_argument("--nodes", type=int, default=1, help="Ray nodes (raylets) on this machine")
-    parser.add_argument("--generations", type=int, default=10, help="the run's last generation")
-    parser.add_argument("--interval", type=int, default=5, help="islands.migration_interval")
+    parser.add_argument("--generations", type=int, default=None, help="the run's last generation (waits: 10)")
+    parser.add_argument("--interval", type=int, default=None, help="islands.migration_interval (waits: 5)")
+    parser.add_argument("--real", default=None, metavar="CONFIG",
+                        help="evolve this run configuration with real evaluation instead of waits")
+    parser.add_argument("--sweep", default=None, metavar="CPUS",
+                        help="comma-separated CPU counts: the same run at each (e.g. 1,2,4,8,16)")
     parser.add_argument("--scale", type=float, default=1.0,
                         help="multiplies every wait (1: the measured distribution)")
     parser.add_argument("--host-cpus", type=int, default=1,
                         help="CPUs of one simulated host: it evaluates that many waits at once (threads of "
                              "one process, so Ray's per-process cost is paid once per N CPUs)")
     parser.add_argument("--genome-length", type=int, default=20)
-    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--seed", type=int, default=None, help="the run's seed (waits: 1)")
     parser.add_argument("--tmp", default=None, help="where the run directory goes (a temporary folder)")
     parser.add_argument("--json", default=None, help="write the figures to this file as one JSON object")
     parser.add_argument("--timeline", action="store_true",
@@ -357,16 +387,51 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--profile", default=None,
                         help="profile the driver's thread (cProfile) into this file; print its top functions")
     args = parser.parse_args(argv)
-    if args.cpus < 1 or args.nodes < 1 or args.cpus < args.nodes:
-        parser.error("--cpus and --nodes must be at least 1, and --cpus at least --nodes")
-    figures = run(args)
-    width = max(len(k) for k in figures)
-    for key, value in figures.items():
-        shown = f"{value:.4g}" if isinstance(value, float) else value
-        print(f"{key:<{width}}  {shown}")
+    if args.real is None:
+        for key, value in WAITS_DEFAULTS.items():
+            if getattr(args, key) is None:
+                setattr(args, key, value)
+    elif not Path(args.real).is_file():
+        parser.error(f"--real: no run configuration at {args.real}")
+    counts = [args.cpus]
+    if args.sweep:
+        try:
+            counts = [int(c) for c in args.sweep.split(",")]
+        except ValueError:
+            parser.error(f"--sweep: {args.sweep!r} is not a comma-separated list of CPU counts")
+    if min(counts) < 1 or args.nodes < 1 or min(counts) < args.nodes:
+        parser.error("--cpus (each --sweep count) and --nodes must be at least 1, the CPUs at least --nodes")
+    sweep = []
+    for cpus in counts:
+        args.cpus = cpus
+        figures = run(args)
+        sweep.append(figures)
+        width = max(len(k) for k in figures)
+        for key, value in figures.items():
+            shown = f"{value:.4g}" if isinstance(value, float) else value
+            print(f"{key:<{width}}  {shown}")
+        print(flush=True)
+    if args.sweep:
+        print(sweep_table(sweep))
     if args.json:
-        Path(args.json).write_text(json.dumps(figures, indent=1) + "\n")
+        Path(args.json).write_text(json.dumps({"sweep": sweep} if args.sweep else sweep[0], indent=1) + "\n")
     return 0
+
+
+def sweep_table(sweep: list[dict[str, Any]]) -> str:
+    """The sweep's figures at each CPU count, with ``speedup`` and ``scaling_efficiency`` over the first
+    count added to each (``speedup`` / (cpus / first cpus))."""
+    first = sweep[0]
+    lines = ["| cpus | hosts | rows | wall s | speedup | scaling efficiency | efficiency | coordinator share "
+             "| commit p99 s | driver bytes/row |", "|" + " --- |" * 10]
+    for f in sweep:
+        f["speedup"] = first["wall_s"] / f["wall_s"] if f["wall_s"] > 0 else 0.0
+        f["scaling_efficiency"] = f["speedup"] / (f["cpus"] / first["cpus"])
+        lines.append(f"| {f['cpus']} | {f['hosts']} | {f['rows']} | {f['wall_s']:.2f} | {f['speedup']:.2f} "
+                     f"| {f['scaling_efficiency']:.3f} | {f['efficiency']:.3f} "
+                     f"| {f['coordinator_share']:.4f} | {f['commit_p99_s']:.3f} "
+                     f"| {f['driver_bytes_per_row']:.1f} |")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":

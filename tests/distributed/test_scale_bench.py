@@ -1,4 +1,5 @@
-"""bench/scale.py's ``--timeline`` figures: where the simulated CPUs' time went, from the waits' log."""
+"""bench/scale.py's ``--timeline`` figures (where the simulated CPUs' time went, from the waits' log),
+its ``--real`` configuration and its ``--sweep`` table."""
 
 from __future__ import annotations
 
@@ -37,3 +38,30 @@ def test_a_lone_long_wait_at_the_end_is_the_tail(tmp_path, bench_module):
 
 def test_no_log_no_figures(tmp_path, bench_module):
     assert bench_module("scale").timeline_figures(tmp_path, cpus=4) == {}
+
+
+def test_real_evolves_the_given_configuration_with_only_the_options_changed(bench_module):
+    import argparse
+
+    from genr8_dist.config import RunConfig, load_config
+
+    quick = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
+    args = argparse.Namespace(real=str(quick), islands=16, population=None, generations=6, interval=None,
+                              seed=None, genome_length=20)
+    config = RunConfig.from_toml(bench_module("scale").config_toml(args))
+    given = load_config(quick)
+    assert (config.islands.count, config.ea.generations) == (16, 6)
+    assert config.replace(islands={"count": given.islands.count},
+                          ea={"generations": given.ea.generations}) == given
+
+
+def test_the_sweep_table_gives_speedup_and_scaling_efficiency_over_the_first_count(bench_module):
+    def figures(cpus: int, wall: float) -> dict:
+        return {"cpus": cpus, "hosts": cpus, "rows": 100, "wall_s": wall, "efficiency": 0.5,
+                "coordinator_share": 0.01, "commit_p99_s": 0.1, "driver_bytes_per_row": 40.0}
+
+    sweep = [figures(1, 40.0), figures(4, 12.5), figures(16, 5.0)]
+    table = bench_module("scale").sweep_table(sweep)
+    assert [f["speedup"] for f in sweep] == pytest.approx([1.0, 3.2, 8.0])
+    assert [f["scaling_efficiency"] for f in sweep] == pytest.approx([1.0, 0.8, 0.5])
+    assert table.splitlines()[3].startswith("| 4 | 4 | 100 | 12.50 | 3.20 | 0.800 |")
