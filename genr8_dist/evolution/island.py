@@ -475,11 +475,15 @@ class Island:
         """``Evaluator.preview`` of ``genome``, an offspring of ``birth``'s parents, or what it would
         find where the offspring is known to copy a parent or one of ``members`` (the generation's
         so far): ``_copy``, counted, never developed."""
-        copy = self._copy(birth.kin, genome) or self._copy(members, genome)
+        copy = self._known_copy(birth, genome, members)
         if copy is None:
             return self.evaluator.preview(genome)
         self.stats.copied += 1
         return copy
+
+    def _known_copy(self, birth: Birth, genome: Genome, members: Sequence[Kin]) -> Preview | None:
+        """``_copy`` of ``genome`` among ``birth``'s parents, then among ``members``."""
+        return self._copy(birth.kin, genome) or self._copy(members, genome)
 
     def _copy(self, kin: Sequence[Kin], genome: Genome) -> Preview | None:
         """What developing ``genome`` would find, where its text is known to develop into the
@@ -641,8 +645,7 @@ class Island:
                 or trivial(ev)
 
         def developed_repeat(ev: Evaluation) -> bool:   # decided by the texts, wherever ev was made
-            return ev.valid and not trivial(ev) and self._copy(birth.kin, genome) is None \
-                and self._copy(known, genome) is None
+            return ev.valid and not trivial(ev) and self._known_copy(birth, genome, known) is None
 
         rng = None
         trivials = 0   # trivial growths of this offspring so far

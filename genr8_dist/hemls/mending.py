@@ -642,6 +642,7 @@ def _few_left(mesh: _Mesh, free: bool = False) -> list[int]:
             left.setdefault(mesh.reg[i], []).append(i)
     return sorted(i for few in left.values() if len(few) <= _FEW for i in few)
 
+
 def _last_try(mesh: _Mesh, again: bool = False) -> None:
     """A slower try for each thin triangle of a region with at most ``_FEW`` left (``_mend_one``'s
     ``last``, else ``widen``; ``again``: up to ``_AGAIN`` times while the triangle stays thin and a

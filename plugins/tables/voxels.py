@@ -573,10 +573,13 @@ def same_cells_form(word: tuple) -> tuple | None:
     bracket closes or the word ends. A block run once is its body; one that only turns, one turn."""
     if _commands(word) > MAX_COMMANDS:
         return None
-    form = _form(word)
-    while form and form[-1][0] == "r":
-        form = form[:-1]
-    return form
+    return _unturned(_form(word))
+
+
+def _unturned(form: tuple) -> tuple:
+    """``form`` without the turn it ends with: no move follows it (the word ends, or a bracket
+    closes and the turtle turns back)."""
+    return form[:-1] if form and form[-1][0] == "r" else form
 
 
 def _form(items: tuple) -> tuple:
@@ -590,9 +593,7 @@ def _form(items: tuple) -> tuple:
             else:
                 _put_turn(out, tuple(_TURNS[symbol][int(item[2]) % 4]))
         elif kind == "[":
-            inner = _form(item[1])
-            while inner and inner[-1][0] == "r":
-                inner = inner[:-1]
+            inner = _unturned(_form(item[1]))
             if inner:
                 out.append(("[", inner))
         elif kind == "{":
@@ -603,10 +604,8 @@ def _form(items: tuple) -> tuple:
                 for piece in body:
                     _put(out, piece)
             elif len(body) == 1 and body[0][0] == "r":
-                turn = body[0][1]
-                for _ in range((times - 1) % 24):   # every turn of the 24 frames repeats within 24
-                    turn = tuple(body[0][1][f] for f in turn)
-                _put_turn(out, turn)
+                for _ in range(1 + (times - 1) % len(_FRAMES)):   # a turn repeated 24 times is no turn
+                    _put_turn(out, body[0][1])
             else:
                 out.append(("{", times, body))
     return tuple(out)
